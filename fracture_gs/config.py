@@ -1,0 +1,263 @@
+"""Typed configuration for every layer, as plain dataclasses (no torch, no warp).
+
+These classes are the contract between the TOML files (`fracture_gs.io.config` loads them), the
+simulator (`fracture_gs.sim` re-exports `SimConfig`), the renderer and the CLI. They live in a leaf
+module so that `io` can build them without importing `sim` (DESIGN.md: io imports neither sim nor
+render). Units are SI throughout: metres, seconds, kilograms, pascals.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Optional
+
+Vec3 = tuple[float, float, float]
+
+VARIANTS = ("baseline", "probe_latch", "stress_zero", "global_fragment_pass", "local_multifield", "full")
+MATERIALS = ("fixed_corotated", "neo_hookean", "stvk_hencky_vm", "drucker_prager")
+PLANE_MODES = ("sticky", "slip", "friction")
+
+
+@dataclass
+class PlaneBoundary:
+    """Half-space collider {x : (x - point)·normal < 0} acting on grid nodes."""
+
+    point: Vec3 = (0.0, 0.0, 0.0)
+    """A point on the plane [m]."""
+    normal: Vec3 = (0.0, 0.0, 1.0)
+    """Outward normal, pointing into the free side [unitless, normalized on load]."""
+    mode: str = "slip"
+    """`sticky` (v = 0), `slip` (only the approaching normal part removed) or `friction` (Coulomb)."""
+    friction: float = 0.0
+    """Coulomb coefficient μ for `friction` mode [unitless]."""
+
+
+@dataclass
+class CuboidBoundary:
+    """Grid nodes inside an axis-aligned box get velocity `velocity`; the box moves with it.
+
+    Used as grips (the bread is pulled apart at both ends) and moving pushers."""
+
+    lower: Vec3 = (0.0, 0.0, 0.0)
+    """Box lower corner at `start` [m]."""
+    upper: Vec3 = (0.0, 0.0, 0.0)
+    """Box upper corner at `start` [m]."""
+    velocity: Vec3 = (0.0, 0.0, 0.0)
+    """Prescribed node velocity; the box translates with it [m/s]."""
+    start: float = 0.0
+    """Time the region switches on [s]."""
+    end: float = 1e30
+    """Time the region switches off [s]."""
+
+
+@dataclass
+class ParticleRegion:
+    """A timed action on the particles inside an axis-aligned box (tested each substep).
+
+    `kind = "impulse"`: the particles' velocity changes by `delta_v` in total, spread evenly over
+    [start, end] (an impulse per unit mass). `kind = "velocity"`: their velocity is overridden
+    with `velocity` during [start, end]."""
+
+    kind: str = "impulse"
+    """`impulse` or `velocity`."""
+    lower: Vec3 = (0.0, 0.0, 0.0)
+    """Box lower corner [m]."""
+    upper: Vec3 = (0.0, 0.0, 0.0)
+    """Box upper corner [m]."""
+    delta_v: Vec3 = (0.0, 0.0, 0.0)
+    """Total velocity change for `impulse` [m/s]."""
+    velocity: Vec3 = (0.0, 0.0, 0.0)
+    """Override velocity for `velocity` [m/s]."""
+    start: float = 0.0
+    """Start time [s]."""
+    end: float = 0.0
+    """End time [s]."""
+
+
+@dataclass
+class MaterialConfig:
+    """Default constitutive parameters; `fracture_gs.sim.Particles` holds them per particle."""
+
+    model: str = "fixed_corotated"
+    """One of `fixed_corotated`, `neo_hookean`, `stvk_hencky_vm` (metal), `drucker_prager` (sand)."""
+    E: float = 2.0e6
+    """Young's modulus [Pa]."""
+    nu: float = 0.3
+    """Poisson ratio, in [0, 0.5)."""
+    density: float = 200.0
+    """Mass density ρ [kg/m³]; particle mass = ρ · volume."""
+    yield_stress: float = 1.0e4
+    """von Mises yield stress for `stvk_hencky_vm` [Pa]."""
+    hardening: float = 0.0
+    """Linear hardening: yield stress grows by `hardening` · 2μ · Δγ per return [unitless]."""
+    friction_angle: float = 30.0
+    """Drucker–Prager friction angle [degrees]."""
+    sigma_R: float = 5.0e4
+    """Fracture strength used by the stress event provider [Pa]."""
+
+
+@dataclass
+class MaterialMapEntry:
+    """Parameters for the particles whose material label equals `label`; unset fields keep defaults."""
+
+    label: int = 0
+    """Material label (from the asset, or a PLY property named by `SceneConfig.material_property`)."""
+    model: Optional[str] = None
+    """Constitutive model for this label."""
+    E: Optional[float] = None
+    """Young's modulus [Pa]."""
+    nu: Optional[float] = None
+    """Poisson ratio."""
+    density: Optional[float] = None
+    """Density [kg/m³]."""
+    yield_stress: Optional[float] = None
+    """von Mises yield stress [Pa]."""
+    hardening: Optional[float] = None
+    """Hardening coefficient."""
+    friction_angle: Optional[float] = None
+    """Drucker–Prager friction angle [degrees]."""
+    sigma_R: Optional[float] = None
+    """Fracture strength [Pa]."""
+
+
+@dataclass
+class SimConfig:
+    """MLS-MPM solver settings (DESIGN.md "Transfer equations", "Transfer variants")."""
+
+    dt: float = 1e-4
+    """Substep [s]; with `adaptive_dt` it is the upper bound."""
+    adaptive_dt: bool = False
+    """Choose Δt each frame from the CFL bound Δt ≤ cfl·Δx / (max|v| + wave speed)."""
+    cfl: float = 0.4
+    """CFL number for `adaptive_dt`."""
+    gravity: Vec3 = (0.0, 0.0, -9.8)
+    """Gravity vector [m/s²]."""
+    variant: str = "baseline"
+    """Transfer variant: baseline, probe_latch, stress_zero, global_fragment_pass, local_multifield, full."""
+    grid: str = "explicit"
+    """`explicit` (grid_origin, dx, grid_shape) or `auto` (fitted to the particles, see grid_margin)."""
+    grid_origin: Vec3 = (0.0, 0.0, 0.0)
+    """World position of node (0,0,0) [m]; rounded to a multiple of dx."""
+    dx: float = 1.0 / 64
+    """Grid spacing Δx [m]."""
+    grid_shape: tuple[int, int, int] = (64, 64, 64)
+    """Nodes per axis for an explicit grid."""
+    grid_margin: float = 0.5
+    """Auto grid: room left around the particles' bounds, as a fraction of their extent."""
+    grid_bounds: Optional[tuple[Vec3, Vec3]] = None
+    """Auto grid: world box (lower, upper) that must also be covered, e.g. to reach a floor [m]."""
+    wall_cells: int = 3
+    """Domain walls: nodes this close to the grid edge stop outward motion."""
+    material: str = "fixed_corotated"
+    """Default constitutive model (per-particle ids may override)."""
+    boundaries: list = field(default_factory=list)
+    """PlaneBoundary / CuboidBoundary / ParticleRegion instances."""
+    restitution: float = 0.0
+    """Contact projection restitution e in Eq. impulse (0 = perfectly inelastic normal)."""
+    eps_mass: float = 1e-3
+    """Field activity threshold ε_m as a fraction of the typical occupied-node mass ρ̄Δx³."""
+    eps_band: float = 1e-3
+    """Band-support threshold ε_band, same unit as eps_mass."""
+    max_substeps_per_frame: int = 100000
+    """Safety bound on substeps in one frame (adaptive Δt)."""
+
+
+@dataclass
+class TopologyConfig:
+    """Fracture event provider (DESIGN.md "Fracture event providers")."""
+
+    provider: str = "none"
+    """`none`, `oracle` (analytic plane) or `stress` (stress-guided detection)."""
+    point: Vec3 = (0.0, 0.0, 0.0)
+    """Oracle plane point [m]."""
+    normal: Vec3 = (1.0, 0.0, 0.0)
+    """Oracle plane normal; fragment 1 lies on its positive side."""
+    latch_frame: int = 0
+    """Oracle: frame at whose end the plane latches (0 = before the first substep)."""
+    latch_time: Optional[float] = None
+    """Oracle: latch at the first frame end at or after this time [s] (overrides latch_frame)."""
+    min_particles: int = 20
+    """Stress: number of over-stressed particles needed."""
+    persist_frames: int = 2
+    """Stress: consecutive frames the condition must hold."""
+    band_width: float = 1.0
+    """Interface band half-width |distance| < band_width·Δx."""
+    pair_radius: float = 1.5
+    """Interface pairs: nearest opposite-band particle within pair_radius·Δx."""
+    direction_agreement: float = 0.7
+    """Stress: mean |cos| between principal directions below which the normal falls back to PCA."""
+
+
+@dataclass
+class CameraConfig:
+    """A look-at camera, or an orbit around `target` when `orbit_degrees` ≠ 0 (OpenCV convention)."""
+
+    eye: Vec3 = (0.5, -1.2, 0.6)
+    """Camera position [m]."""
+    target: Vec3 = (0.5, 0.5, 0.3)
+    """Look-at point [m]."""
+    up: Vec3 = (0.0, 0.0, 1.0)
+    """World up vector."""
+    fov_deg: float = 40.0
+    """Vertical field of view [degrees]."""
+    orbit_degrees: float = 0.0
+    """Total azimuth swept around `up` over the run (0 = static camera)."""
+
+
+@dataclass
+class RenderConfig:
+    """Rendering and video settings."""
+
+    width: int = 256
+    """Image width [px] (made even for H.264)."""
+    height: int = 256
+    """Image height [px]."""
+    background: Vec3 = (1.0, 1.0, 1.0)
+    """Background colour, RGB in [0, 1]."""
+    fps: int = 24
+    """Video frame rate."""
+    mode: str = "classic"
+    """gsplat rasterization mode: `classic` or `antialiased`."""
+    backend: str = "auto"
+    """`auto` (gsplat on CUDA, torch on CPU), `gsplat` or `torch`."""
+    show_exposed_interior: bool = True
+    """Draw interior fill particles once a fracture exposes them (coloured like the nearest surface)."""
+    inset_radius: int = 40
+    """Radius of the circular fracture inset [px]."""
+    inset_zoom: float = 2.5
+    """Magnification of the inset."""
+    camera: CameraConfig = field(default_factory=CameraConfig)
+    """Camera rig."""
+
+
+@dataclass
+class SceneConfig:
+    """Everything a run needs: what to load, how to simulate it, how to break it and draw it."""
+
+    name: str = "scene"
+    """Run name (used for output folders)."""
+    scene: str = "bread"
+    """Built-in asset name (bread, ficus, recontact, beam, plane_drop) or a path to a 3DGS .ply."""
+    preset: str = "small"
+    """Built-in asset size: `small` (≈20k particles, CPU) or `paper` (the paper's counts)."""
+    fill_interior: bool = True
+    """Fill the inside of a surface-only PLY with simulated particles."""
+    material_property: Optional[str] = None
+    """PLY property holding an integer material label for `material_map`."""
+    frames: int = 30
+    """Number of frames to simulate."""
+    frame_dt: float = 0.01
+    """Time between frames [s]."""
+    initial_velocity: Vec3 = (0.0, 0.0, 0.0)
+    """Velocity given to every particle at t = 0 [m/s]."""
+    sim: SimConfig = field(default_factory=SimConfig)
+    """Solver settings."""
+    material: MaterialConfig = field(default_factory=MaterialConfig)
+    """Default material."""
+    material_map: list = field(default_factory=list)
+    """MaterialMapEntry list: per-label overrides for heterogeneous objects."""
+    topology: TopologyConfig = field(default_factory=TopologyConfig)
+    """Fracture event provider."""
+    render: RenderConfig = field(default_factory=RenderConfig)
+    """Rendering."""
+    variants: list = field(default_factory=lambda: ["baseline", "stress_zero", "full"])
+    """Variants `render-sim` runs side by side by default."""

@@ -1,0 +1,74 @@
+"""`GaussianSet`: a 3D Gaussian scene as torch tensors (the type io, assets and users share)."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, fields, replace
+from typing import Optional
+
+import torch
+
+
+@dataclass
+class GaussianSet:
+    """N Gaussians with activated parameters (what a renderer consumes).
+
+    A 3DGS PLY stores log-scales and logit-opacities; `fracture_gs.io.load_ply` activates them
+    (exp, sigmoid) and `save_ply` inverts that. Interior fill particles are Gaussians too: they
+    are simulated but not drawn unless a fracture exposes them (`interior`).
+    """
+
+    means: torch.Tensor  # [N, 3] world positions
+    quats: torch.Tensor  # [N, 4] unit quaternions, wxyz
+    scales: torch.Tensor  # [N, 3] standard deviations along the local axes (> 0)
+    opacities: torch.Tensor  # [N] in (0, 1)
+    sh: torch.Tensor  # [N, K, 3] SH coefficients, K = (degree+1)², DC first
+    interior: Optional[torch.Tensor] = None  # [N] bool: interior fill particle (not drawn by default)
+    labels: Optional[torch.Tensor] = None  # [N] int32 material label (material maps)
+    extra: dict = field(default_factory=dict)  # name -> [N] tensor: other per-Gaussian properties
+
+    def __post_init__(self):
+        n = self.means.shape[0]
+        if self.interior is None:
+            self.interior = torch.zeros(n, dtype=torch.bool, device=self.means.device)
+        if self.labels is None:
+            self.labels = torch.zeros(n, dtype=torch.int32, device=self.means.device)
+
+    def __len__(self) -> int:
+        return self.means.shape[0]
+
+    @property
+    def sh_degree(self) -> int:
+        return int(round(self.sh.shape[1] ** 0.5)) - 1
+
+    @property
+    def device(self) -> torch.device:
+        return self.means.device
+
+    def to(self, device) -> "GaussianSet":
+        moved = {f.name: getattr(self, f.name) for f in fields(self) if f.name != "extra"}
+        moved = {k: v.to(device) if torch.is_tensor(v) else v for k, v in moved.items()}
+        return GaussianSet(**moved, extra={k: v.to(device) for k, v in self.extra.items()})
+
+    def subset(self, mask: torch.Tensor) -> "GaussianSet":
+        """The Gaussians selected by a boolean mask or index tensor."""
+        pick = {f.name: getattr(self, f.name)[mask] for f in fields(self) if f.name != "extra"}
+        return GaussianSet(**pick, extra={k: v[mask] for k, v in self.extra.items()})
+
+    def rotations(self) -> torch.Tensor:  # [N, 3, 3]
+        """Rotation matrices of the (normalized) wxyz quaternions."""
+        w, x, y, z = torch.nn.functional.normalize(self.quats, dim=-1).unbind(-1)
+        return torch.stack(
+            [
+                1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
+                2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
+                2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y),
+            ],
+            dim=-1,
+        ).reshape(-1, 3, 3)
+
+    def covariances(self) -> torch.Tensor:  # [N, 3, 3]
+        """Rest covariances Σ⁰ = R S Sᵀ Rᵀ."""
+        M = self.rotations() * self.scales[:, None, :]
+        return M @ M.transpose(1, 2)
+
+    def replace(self, **changes) -> "GaussianSet":
+        return replace(self, **changes)
