@@ -1,0 +1,126 @@
+"""Constitutive models: Kirchhoff stress τ(F) and plastic return mappings, per particle.
+
+Models (ids in `MATERIAL_IDS`): fixed-corotated (jelly; the paper's scenes), neo-Hookean,
+StVK-Hencky with von Mises plasticity and linear hardening (metal), Drucker–Prager (sand,
+Klár et al. 2016). Every parameter is per particle. The float64 torch twin of `compute_stress`
+is `fracture_gs.sim.reference.stress`; tests compare the two on random inputs.
+"""
+from __future__ import annotations
+
+import math
+
+import warp as wp
+
+MATERIAL_IDS = {"fixed_corotated": 0, "neo_hookean": 1, "stvk_hencky_vm": 2, "drucker_prager": 3}
+SIGMA_MIN = 1e-4  # smallest principal stretch fed to log(): keeps Hencky strain finite under inversion
+
+
+def lame(E, nu):
+    """Lamé parameters (μ, λ) from Young's modulus and Poisson ratio (works on floats and tensors)."""
+    return E / (2.0 * (1.0 + nu)), E * nu / ((1.0 + nu) * (1.0 - 2.0 * nu))
+
+
+def dp_alpha(friction_angle_deg):
+    """Drucker–Prager cone slope α = √(2/3)·2 sin φ / (3 − sin φ)."""
+    s = math.sin(math.radians(friction_angle_deg))
+    return math.sqrt(2.0 / 3.0) * 2.0 * s / (3.0 - s)
+
+
+@wp.func
+def hencky_strain(sigma: wp.vec3):
+    """ε = log Σ, with principal stretches clamped to SIGMA_MIN (inverted elements stay finite)."""
+    return wp.vec3(
+        wp.log(wp.max(sigma[0], SIGMA_MIN)),
+        wp.log(wp.max(sigma[1], SIGMA_MIN)),
+        wp.log(wp.max(sigma[2], SIGMA_MIN)),
+    )
+
+
+@wp.func
+def von_mises_return(eps: wp.vec3, mu: float, yield_stress: float):
+    """Radial return of the deviatoric Hencky strain onto ‖2μ ε̂‖ ≤ τ_Y; returns (ε, Δγ ≥ 0)."""
+    tr = eps[0] + eps[1] + eps[2]
+    dev = eps - wp.vec3(tr / 3.0)
+    norm = wp.length(dev)
+    dgamma = norm - yield_stress / (2.0 * mu)
+    if dgamma <= 0.0 or norm <= 0.0:
+        return eps, 0.0
+    return eps - dev * (dgamma / norm), dgamma
+
+
+@wp.func
+def drucker_prager_return(eps: wp.vec3, mu: float, lam: float, alpha: float):
+    """Return onto the cone ‖dev τ‖ ≤ −α tr τ; tension (tr ε ≥ 0) projects to the tip ε = 0."""
+    tr = eps[0] + eps[1] + eps[2]
+    if tr >= 0.0:
+        return wp.vec3(0.0)
+    dev = eps - wp.vec3(tr / 3.0)
+    norm = wp.length(dev)
+    dgamma = norm + (3.0 * lam + 2.0 * mu) / (2.0 * mu) * tr * alpha
+    if dgamma <= 0.0 or norm <= 0.0:
+        return eps
+    return eps - dev * (dgamma / norm)
+
+
+@wp.func
+def hencky_kirchhoff(U: wp.mat33, eps: wp.vec3, mu: float, lam: float):
+    """StVK-Hencky: τ = U diag(2μ ε + λ tr ε) Uᵀ."""
+    tr = eps[0] + eps[1] + eps[2]
+    d = 2.0 * mu * eps + wp.vec3(lam * tr)
+    return U * wp.diag(d) * wp.transpose(U)
+
+
+@wp.func
+def kirchhoff_stress(F: wp.mat33, model: int, mu: float, lam: float):
+    """Elastic Kirchhoff stress τ for the hyperelastic models (plasticity already applied to F)."""
+    J = wp.determinant(F)
+    I = wp.identity(n=3, dtype=float)
+    if model == 0:  # fixed-corotated: τ = 2μ(F − R)Fᵀ + λ(J − 1)J I
+        U, sigma, V = wp.svd3(F)
+        R = U * wp.transpose(V)
+        return 2.0 * mu * (F - R) * wp.transpose(F) + I * (lam * (J - 1.0) * J)
+    if model == 1:  # neo-Hookean: τ = μ(FFᵀ − I) + λ ln J I
+        return mu * (F * wp.transpose(F) - I) + I * (lam * wp.log(wp.max(J, 1e-6)))
+    U, sigma, V = wp.svd3(F)
+    return hencky_kirchhoff(U, hencky_strain(sigma), mu, lam)
+
+
+@wp.kernel
+def compute_stress(
+    F: wp.array(dtype=wp.mat33),  # [N] deformation gradient (plastic return written back)
+    material: wp.array(dtype=wp.int32),  # [N] MATERIAL_IDS
+    E: wp.array(dtype=float),  # [N]
+    nu: wp.array(dtype=float),  # [N]
+    yield_stress: wp.array(dtype=float),  # [N] von Mises τ_Y (grows with hardening)
+    hardening: wp.array(dtype=float),  # [N]
+    alpha: wp.array(dtype=float),  # [N] Drucker–Prager cone slope
+    band: wp.array(dtype=wp.int32),  # [N] γ_p
+    release: int,  # 1: band stress release (Eq. stress_release) is on
+    commit: int,  # 1: write the plastic projection back into F (0 for shadow diagnostics)
+    stress: wp.array(dtype=wp.mat33),  # [N] out: Kirchhoff stress used by P2G
+):
+    """Plastic return (models 2, 3), then τ; band particles get (1 − γ_p)τ after the latch."""
+    p = wp.tid()
+    Fp = F[p]
+    model = material[p]
+    mu = E[p] / (2.0 * (1.0 + nu[p]))
+    lam = E[p] * nu[p] / ((1.0 + nu[p]) * (1.0 - 2.0 * nu[p]))
+    tau = wp.mat33(0.0)
+    if model >= 2:
+        U, sigma, V = wp.svd3(Fp)
+        eps = hencky_strain(sigma)
+        if model == 2:
+            eps, dgamma = von_mises_return(eps, mu, yield_stress[p])
+            if commit != 0 and dgamma > 0.0:
+                yield_stress[p] = yield_stress[p] + hardening[p] * 2.0 * mu * dgamma
+        else:
+            eps = drucker_prager_return(eps, mu, lam, alpha[p])
+        Fp = U * wp.diag(wp.vec3(wp.exp(eps[0]), wp.exp(eps[1]), wp.exp(eps[2]))) * wp.transpose(V)
+        if commit != 0:
+            F[p] = Fp
+        tau = hencky_kirchhoff(U, eps, mu, lam)
+    else:
+        tau = kirchhoff_stress(Fp, model, mu, lam)
+    if release != 0 and band[p] != 0:
+        tau = wp.mat33(0.0)
+    stress[p] = tau

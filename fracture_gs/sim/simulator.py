@@ -1,0 +1,278 @@
+"""`Simulator`: one MLS-MPM substep per call, in the transfer variant the config names.
+
+Per substep (Algorithm 1): particle regions → stress (plastic return, band release) → grid reset
+→ P2G (shared or fragment-conditioned) → grid update (normalize + gravity per field, contact
+projection, boundaries) → G2P (own field only). A frame is a whole number of substeps ending
+exactly on the frame time; after it the divergence check (one host sync per frame) and the
+fracture event provider run.
+"""
+from __future__ import annotations
+
+import contextlib
+import math
+from typing import Optional
+
+import torch
+import warp as wp
+
+from ..config import MATERIALS, VARIANTS, SimConfig
+from .boundary import Boundaries
+from .constitutive import compute_stress, lame
+from .grid import Grid, fit_grid
+from .particles import Particles, SimulationError
+from .topology import Topology
+from .transfer import g2p, grid_update, p2g
+
+MULTIFIELD_VARIANTS = ("local_multifield", "full")
+RELEASE_VARIANTS = ("stress_zero", "global_fragment_pass", "local_multifield", "full")
+
+
+
+class SimulationDiverged(RuntimeError):
+    """The state became non-finite or exploded; carries the frame and the likely cause."""
+
+    def __init__(self, message: str, frame: int, count: int):
+        super().__init__(message)
+        self.frame = frame
+        self.count = count
+
+
+def validate_sim_config(cfg: SimConfig) -> None:
+    """One-sentence errors for invalid solver settings."""
+    if cfg.variant not in VARIANTS:
+        raise SimulationError(f"sim.variant '{cfg.variant}' is unknown; use one of {', '.join(VARIANTS)}")
+    if cfg.material not in MATERIALS:
+        raise SimulationError(f"sim.material '{cfg.material}' is unknown; use one of {', '.join(MATERIALS)}")
+    for name in ("dt", "dx", "cfl"):
+        value = getattr(cfg, name)
+        if not (value > 0 and math.isfinite(value)):
+            raise SimulationError(f"sim.{name} must be a positive number, not {value}")
+    if cfg.eps_mass < 0 or cfg.eps_band < 0:
+        raise SimulationError("sim.eps_mass and sim.eps_band must be >= 0")
+
+
+def normalize_device(device) -> str:
+    """'cpu', 'cuda' or 'cuda:N' → a device string both torch and Warp accept."""
+    device = str(device)
+    if device == "cuda":
+        device = "cuda:0"
+    if device.startswith("cuda"):
+        if not torch.cuda.is_available():
+            raise SimulationError(f"device '{device}' was requested but CUDA is not available here; use device='cpu'")
+        return device
+    if device != "cpu":
+        raise SimulationError(f"device '{device}' is not 'cpu' or 'cuda:N'")
+    return device
+
+
+class Simulator:
+    """MLS-MPM on torch tensors with Warp kernels; `particles` is shared with the kernels."""
+
+    def __init__(self, cfg: SimConfig, particles: Particles, device="cpu", provider=None):
+        validate_sim_config(cfg)
+        self.cfg = cfg
+        self.device = normalize_device(device)
+        self.particles = particles.to(self.device)
+        origin, dx, shape = fit_grid(cfg, self.particles.x)
+        n_fields = 2 if cfg.variant in MULTIFIELD_VARIANTS else 1
+        self.grid = Grid(origin, dx, shape, n_fields, self.device)
+        self.boundaries = Boundaries(cfg.boundaries, self.device)
+        self.provider = provider
+        self.topology: Optional[Topology] = None
+        self.time = 0.0
+        self.frame = 0
+        self.substeps = 0
+        self.dt = float(cfg.dt)
+        n = len(self.particles)
+        self.stress = torch.zeros(n, 3, 3, dtype=torch.float32, device=self.device)
+        self.clamped = torch.zeros(1, dtype=torch.int32, device=self.device)
+        P = self.particles
+        self.node_mass = float(P.mass.sum() / P.volume.sum()) * dx**3  # typical occupied-node mass ρ̄Δx³
+        self.eps_m = cfg.eps_mass * self.node_mass
+        self.eps_b = cfg.eps_band * self.node_mass
+        mu, lam = lame(P.E.double(), P.nu.double())
+        rho = (P.mass / P.volume).double()
+        self.wave_speed = float(torch.sqrt((lam + 2 * mu) / rho).max())
+        self._normal = wp.vec3(0.0, 0.0, 0.0)
+        self._diagnostics = None
+        self._bind()
+
+    # ---- set-up -------------------------------------------------------------------------------
+    def _bind(self):
+        """Warp views of the particle tensors, made once (zero-copy)."""
+        P = self.particles
+        self.wp = {k: wp.from_torch(getattr(P, k), dtype=wp.vec3) for k in ("x", "v")}
+        self.wp.update({k: wp.from_torch(getattr(P, k), dtype=wp.mat33) for k in ("C", "F")})
+        self.wp.update({k: wp.from_torch(getattr(P, k)) for k in ("mass", "volume", "E", "nu", "material", "yield_stress",
+                                                                   "hardening", "alpha", "fragment", "band")})
+        self.wp["stress"] = wp.from_torch(self.stress, dtype=wp.mat33)
+        self.wp["clamped"] = wp.from_torch(self.clamped)
+        g = self.grid
+        lo = [o + (self.cfg.wall_cells - 1) * g.dx for o in g.origin]
+        hi = [o + (s - self.cfg.wall_cells) * g.dx for o, s in zip(g.origin, g.shape)]
+        self._lower, self._upper = wp.vec3(*lo), wp.vec3(*hi)
+        self._origin = wp.vec3(*g.origin)
+        self._shape = wp.vec3i(*g.shape)
+        self._gravity = wp.vec3(*[float(a) for a in self.cfg.gravity])
+        self._streams = {}
+
+    def _stream_scope(self):
+        """Launch Warp on torch's current stream (DESIGN.md "Performance rules")."""
+        if not self.device.startswith("cuda"):
+            return contextlib.nullcontext()
+        ts = torch.cuda.current_stream(self.device)
+        key = ts.cuda_stream
+        if key not in self._streams:
+            self._streams[key] = wp.stream_from_torch(ts)
+        return wp.ScopedStream(self._streams[key], sync_enter=False)
+
+    # ---- state queries -----------------------------------------------------------------------
+    @property
+    def latched(self) -> bool:
+        return self.topology is not None
+
+    @property
+    def multifield(self) -> bool:
+        """Fragment-conditioned transfer is in force (multi-field variant, after the latch)."""
+        return self.latched and self.cfg.variant in MULTIFIELD_VARIANTS
+
+    @property
+    def release(self) -> bool:
+        return self.latched and self.cfg.variant in RELEASE_VARIANTS
+
+    def cfl_dt(self, max_speed: float = 0.0) -> float:
+        """Δt ≤ cfl·Δx / (max|v| + wave speed), wave speed √((λ+2μ)/ρ)."""
+        return self.cfg.cfl * self.grid.dx / (max_speed + self.wave_speed)
+
+    # ---- the substep ----------------------------------------------------------------------------
+    def substep(self, dt: Optional[float] = None) -> None:
+        """Advance by one substep Δt (default `cfg.dt`). Allocates nothing, never syncs."""
+        dt = float(self.dt if dt is None else dt)
+        with self._stream_scope():
+            self.boundaries.apply_regions(self.wp["x"], self.wp["v"], len(self.particles), self.time, dt, self.device)
+            self.compute_stress(self.stress, commit=True)
+            if self.latched and self.cfg.variant == "global_fragment_pass":
+                for k in (0, 1):
+                    self._grid_pass(dt, only_fragment=k)
+            else:
+                self._grid_pass(dt, only_fragment=-1)
+        self.time += dt
+        self.substeps += 1
+
+    def compute_stress(self, out: torch.Tensor, commit: bool) -> None:
+        """Kirchhoff stress into `out` ([N,3,3]); `commit` writes the plastic return into F."""
+        w = self.wp
+        out_wp = w["stress"] if out is self.stress else wp.from_torch(out, dtype=wp.mat33)
+        wp.launch(compute_stress, dim=len(self.particles), device=self.device,
+                  inputs=[w["F"], w["material"], w["E"], w["nu"], w["yield_stress"], w["hardening"], w["alpha"], w["band"],
+                          int(self.release), int(commit), out_wp])
+
+    def _grid_pass(self, dt: float, only_fragment: int) -> None:
+        """Grid reset, P2G, grid update, G2P over all particles or one fragment's."""
+        multi = int(self.multifield)
+        n_fields = 2 if multi else 1
+        g, w = self.grid, self.wp
+        g.mass[:n_fields].zero_()
+        g.momentum[:n_fields].zero_()
+        if multi:
+            g.band_mass.zero_()
+        common = [self._origin, g.dx, 1.0 / g.dx, self._shape]
+        wp.launch(p2g, dim=len(self.particles), device=self.device,
+                  inputs=[w["x"], w["v"], w["C"], w["mass"], w["volume"], w["stress"], w["fragment"], w["band"], multi,
+                          only_fragment, multi, dt, *common, g.wp["mass"], g.wp["momentum"], g.wp["band_mass"]])
+        wp.launch(grid_update, dim=g.shape, device=self.device,
+                  inputs=[g.wp["mass"], g.wp["momentum"], g.wp["band_mass"], g.wp["velocity"], n_fields, self.eps_m, self.eps_b,
+                          multi, int(multi and self.cfg.variant == "full"), self._normal, float(self.cfg.restitution), dt,
+                          self._gravity, self._origin, g.dx, self.time, self._shape, int(self.cfg.wall_cells),
+                          *self.boundaries.arrays, g.wp["stats"]])
+        wp.launch(g2p, dim=len(self.particles), device=self.device,
+                  inputs=[w["x"], w["v"], w["C"], w["F"], w["fragment"], multi, only_fragment, dt, *common,
+                          g.wp["velocity"], self._lower, self._upper, w["clamped"]])
+
+    # ---- frames -------------------------------------------------------------------------------
+    def frame_substeps(self, frame_dt: float) -> tuple[int, float]:
+        """(n, Δt) with n·Δt = frame_dt exactly and Δt ≤ cfg.dt (and the CFL bound if adaptive)."""
+        dt = self.cfg.dt
+        if self.cfg.adaptive_dt:
+            vmax = float(self.particles.v.norm(dim=1).max())  # one sync per frame
+            if math.isfinite(vmax):
+                dt = min(dt, self.cfl_dt(vmax))
+        n = max(1, math.ceil(frame_dt / dt - 1e-9))
+        if n > self.cfg.max_substeps_per_frame:
+            raise SimulationError(f"a frame of {frame_dt}s needs {n} substeps of {dt:.3g}s, over sim.max_substeps_per_frame")
+        return n, frame_dt / n
+
+    def advance(self, frame_dt: float) -> int:
+        """Simulate one frame: n substeps, then the divergence check and the event provider."""
+        n, dt = self.frame_substeps(frame_dt)
+        self.dt = dt
+        start = self.time
+        for _ in range(n):
+            self.substep(dt)
+        self.time = start + frame_dt  # end exactly on the frame time (no drift from summing Δt)
+        self.frame += 1
+        self.check_divergence(dt)
+        if self.provider is not None and not self.latched:
+            topology = self.provider(self)
+            if topology is not None:
+                self.latch(topology)
+        if self._diagnostics is not None:
+            self._diagnostics.on_frame()
+        return n
+
+    def check_divergence(self, dt: float) -> None:
+        """Raise `SimulationDiverged` if any particle is non-finite or faster than Δx/Δt."""
+        P = self.particles
+        speed = P.v.norm(dim=1)
+        bad = ~torch.isfinite(speed) | ~torch.isfinite(P.x).all(dim=1) | (speed > self.grid.dx / dt)
+        count = int(bad.sum())
+        if count == 0:
+            return
+        bound = self.cfl_dt()
+        cause = (f"Δt = {dt:.3g}s is over the CFL bound {bound:.3g}s for this stiffness (wave speed {self.wave_speed:.3g} m/s)"
+                 if dt > bound else "an extreme deformation or boundary velocity")
+        raise SimulationDiverged(
+            f"simulation diverged at frame {self.frame} (t = {self.time:.4g}s): {count} of {len(P)} particles have a non-finite "
+            f"or exploding velocity; likely cause: {cause}. Lower sim.dt or set sim.adaptive_dt = true.",
+            frame=self.frame, count=count)
+
+    # ---- topology -----------------------------------------------------------------------------
+    def latch(self, topology: Topology) -> None:
+        """Impulse-free latch (Eq. state_inheritance): only o_p, γ_p and n_Π are written."""
+        if self.latched:
+            raise SimulationError("this simulation has already latched a topology; a binary run latches once")
+        P = self.particles
+        if topology.fragment.shape != (len(P),) or topology.band.shape != (len(P),):
+            raise SimulationError(f"Topology labels must have shape [{len(P)}] like the particles")
+        P.fragment.copy_(topology.fragment.to(P.fragment.device, torch.int32))
+        P.band.copy_(topology.band.to(P.band.device, torch.int32))
+        n = torch.tensor(topology.normal, dtype=torch.float64)
+        self._normal = wp.vec3(*[float(a) for a in n / n.norm()])
+        self.topology = topology
+        if self._diagnostics is not None:
+            self._diagnostics.on_latch()
+
+    def clamped_count(self) -> int:
+        """Particles clamped to the domain walls so far (host read)."""
+        return int(self.clamped.item())
+
+    def diagnostics(self) -> dict:
+        """Metrics of DESIGN.md "Diagnostics" for the current state (see `diagnostics.py`)."""
+        return self.diagnostics_tracker().snapshot()
+
+    def diagnostics_tracker(self):
+        if self._diagnostics is None:
+            from .diagnostics import Diagnostics
+
+            self._diagnostics = Diagnostics(self)
+        return self._diagnostics
+
+    def sort_particles(self) -> torch.Tensor:
+        """Reorder particles into grid-cell order (coalesced P2G atomics); returns the permutation
+        `order` such that new particle i was old particle order[i]."""
+        P, g = self.particles, self.grid
+        cell = torch.floor((P.x - torch.tensor(g.origin, device=P.x.device)) / g.dx).long()
+        key = (cell[:, 0] * g.shape[1] + cell[:, 1]) * g.shape[2] + cell[:, 2]
+        order = torch.argsort(key)
+        P.permute(order)
+        return order

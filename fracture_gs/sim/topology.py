@@ -1,0 +1,92 @@
+"""`Topology` (the latched binary interface) and fracture event providers.
+
+A provider is called once per frame with the simulator and may return a `Topology`; the simulator
+latches the first one it gets and never again (DESIGN.md "Fracture event providers").
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Optional
+
+import numpy as np
+import torch
+
+from ..config import TopologyConfig
+
+
+@dataclass
+class Topology:
+    """O = {o_p, γ_p, n_Π, t_latch} plus the plane's point (paper Section 4.1)."""
+
+    fragment: torch.Tensor  # [N] int32 persistent fragment id o_p ∈ {0, 1}
+    band: torch.Tensor  # [N] bool/int interface-band flag γ_p
+    normal: tuple  # n_Π (unit, fragment 1 on its positive side)
+    point: tuple  # a point on the latched plane
+    latch_time: float = 0.0  # t_latch [s]
+    latch_frame: int = 0
+
+    @staticmethod
+    def from_plane(x: torch.Tensor, point, normal, band_width: float, latch_time: float = 0.0, latch_frame: int = 0) -> "Topology":
+        """Labels by the sign of the signed distance to the plane; band = |distance| < band_width [m]."""
+        n = torch.tensor(normal, dtype=torch.float64)
+        n = n / n.norm()
+        c = torch.tensor(point, dtype=torch.float64)
+        d = (x.double() - c.to(x.device)) @ n.to(x.device)
+        return Topology(
+            fragment=(d >= 0).to(torch.int32),
+            band=(d.abs() < band_width).to(torch.int32),
+            normal=tuple(float(a) for a in n),
+            point=tuple(float(a) for a in c),
+            latch_time=float(latch_time),
+            latch_frame=int(latch_frame),
+        )
+
+    def counts(self) -> dict:
+        frag = self.fragment.cpu()
+        return {"fragment0": int((frag == 0).sum()), "fragment1": int((frag == 1).sum()), "band": int(self.band.cpu().bool().sum())}
+
+    def save(self, path) -> None:
+        np.savez_compressed(
+            path, fragment=self.fragment.cpu().numpy().astype(np.int32), band=self.band.cpu().numpy().astype(np.uint8),
+            normal=np.asarray(self.normal), point=np.asarray(self.point), latch_time=self.latch_time, latch_frame=self.latch_frame,
+        )
+
+    @staticmethod
+    def load(path, device="cpu") -> "Topology":
+        z = np.load(path)
+        return Topology(
+            fragment=torch.from_numpy(z["fragment"]).to(device), band=torch.from_numpy(z["band"].astype(np.int32)).to(device),
+            normal=tuple(float(a) for a in z["normal"]), point=tuple(float(a) for a in z["point"]),
+            latch_time=float(z["latch_time"]), latch_frame=int(z["latch_frame"]),
+        )
+
+
+class OracleProvider:
+    """Latches an analytic plane from the config at a configured frame or time."""
+
+    def __init__(self, cfg: TopologyConfig):
+        self.cfg = cfg
+
+    def due(self, frame: int, time: float) -> bool:
+        if self.cfg.latch_time is not None:
+            return time >= self.cfg.latch_time - 1e-9
+        return frame >= self.cfg.latch_frame
+
+    def __call__(self, sim) -> Optional[Topology]:
+        if not self.due(sim.frame, sim.time):
+            return None
+        return Topology.from_plane(sim.particles.x, self.cfg.point, self.cfg.normal, self.cfg.band_width * sim.grid.dx,
+                                   latch_time=sim.time, latch_frame=sim.frame)
+
+
+def make_provider(cfg: TopologyConfig):
+    """The provider named by the config (None for `none`)."""
+    if cfg.provider == "none":
+        return None
+    if cfg.provider == "oracle":
+        return OracleProvider(cfg)
+    if cfg.provider == "stress":
+        from .stress_provider import StressProvider
+
+        return StressProvider(cfg)
+    raise ValueError(f"topology.provider '{cfg.provider}' is unknown; use none, oracle or stress")

@@ -1,0 +1,241 @@
+"""Particle–grid transfer kernels: P2G, grid update (normalize, gravity, contact projection,
+boundaries) and G2P — shared, fragment-conditioned (FractureFields) and per-fragment passes.
+
+Quadratic B-spline weights with ξ = (x − origin)/Δx, base = ⌊ξ − 0.5⌋, f = ξ − base:
+w = (½(1.5−f)², 0.75−(f−1)², ½(f−0.5)²), ∇w from dw = (f−1.5, −2(f−1), f−0.5)/Δx.
+Routing (Eqs. multifield_p2g, field_g2p): with `multifield` a particle writes to and reads from
+field k = o_p only; otherwise every particle uses field 0. The float64 torch twins are in
+`fracture_gs.sim.reference`.
+"""
+from __future__ import annotations
+
+import warp as wp
+
+from .boundary import apply_boundaries
+
+# contact statistics accumulated by `grid_update` (indices into Grid.contact_stats)
+STAT_GATED, STAT_PROJECTED, STAT_DPX, STAT_DPY, STAT_DPZ, STAT_PNORM, STAT_UN_AFTER, STAT_DVT = range(8)
+N_STATS = 8
+
+
+@wp.func
+def stencil(xp: wp.vec3, origin: wp.vec3, inv_dx: float, shape: wp.vec3i):
+    """Base node, weights w[a, axis] and their ξ-derivatives dw[a, axis] for a = 0, 1, 2.
+
+    The base is clamped into the grid so a stray (or non-finite) particle never indexes outside
+    it; the domain walls keep real particles well inside."""
+    xi = (xp - origin) * inv_dx
+    base = wp.vec3i(0, 0, 0)
+    for a in range(3):
+        b = wp.floor(xi[a] - 0.5)
+        if not (b >= 0.0):  # also catches NaN
+            b = 0.0
+        if b > float(shape[a] - 3):
+            b = float(shape[a] - 3)
+        base[a] = int(b)
+    f = xi - wp.vec3(float(base[0]), float(base[1]), float(base[2]))
+    w = wp.mat33(0.0)
+    dw = wp.mat33(0.0)
+    for a in range(3):
+        w[0, a] = 0.5 * (1.5 - f[a]) * (1.5 - f[a])
+        w[1, a] = 0.75 - (f[a] - 1.0) * (f[a] - 1.0)
+        w[2, a] = 0.5 * (f[a] - 0.5) * (f[a] - 0.5)
+        dw[0, a] = f[a] - 1.5
+        dw[1, a] = -2.0 * (f[a] - 1.0)
+        dw[2, a] = f[a] - 0.5
+    return base, f, w, dw
+
+
+@wp.func
+def field_of(fragment: int, multifield: int):
+    """Routing: field o_p under fragment-conditioned transfer, else the shared field 0."""
+    if multifield != 0 and fragment > 0:
+        return fragment
+    return 0
+
+
+@wp.kernel
+def p2g(
+    x: wp.array(dtype=wp.vec3),  # [N]
+    v: wp.array(dtype=wp.vec3),  # [N]
+    C: wp.array(dtype=wp.mat33),  # [N]
+    mass: wp.array(dtype=float),  # [N]
+    volume: wp.array(dtype=float),  # [N] rest volume V⁰
+    stress: wp.array(dtype=wp.mat33),  # [N] Kirchhoff τ (band-released)
+    fragment: wp.array(dtype=wp.int32),  # [N] o_p (−1 before the latch)
+    band: wp.array(dtype=wp.int32),  # [N] γ_p
+    multifield: int,
+    only_fragment: int,  # ≥ 0: skip every particle of another fragment (global fragment pass)
+    with_band: int,  # accumulate band mass (Eq. band_mass)
+    dt: float,
+    origin: wp.vec3,
+    dx: float,
+    inv_dx: float,
+    shape: wp.vec3i,
+    grid_m: wp.array4d(dtype=float),  # [K, X, Y, Z]
+    grid_p: wp.array4d(dtype=wp.vec3),  # [K, X, Y, Z]
+    grid_mb: wp.array4d(dtype=float),  # [K, X, Y, Z]
+):
+    """m_i^k += w m_p;  p_i^k += w m_p (v_p + C_p(x_i − x_p)) − Δt V⁰ τ_p ∇w  (k = routed field)."""
+    p = wp.tid()
+    o = fragment[p]
+    if only_fragment >= 0 and o != only_fragment:
+        return
+    k = field_of(o, multifield)
+    base, f, w, dw = stencil(x[p], origin, inv_dx, shape)
+    m = mass[p]
+    vp = v[p]
+    Cp = C[p]
+    force = -dt * volume[p] * stress[p]
+    in_band = with_band != 0 and band[p] != 0
+    for i in range(3):
+        for j in range(3):
+            for l in range(3):
+                weight = w[i, 0] * w[j, 1] * w[l, 2]
+                grad = wp.vec3(dw[i, 0] * w[j, 1] * w[l, 2], w[i, 0] * dw[j, 1] * w[l, 2], w[i, 0] * w[j, 1] * dw[l, 2]) * inv_dx
+                dpos = (wp.vec3(float(i), float(j), float(l)) - f) * dx
+                bi = base[0] + i
+                bj = base[1] + j
+                bl = base[2] + l
+                wp.atomic_add(grid_m, k, bi, bj, bl, weight * m)
+                wp.atomic_add(grid_p, k, bi, bj, bl, weight * m * (vp + Cp * dpos) + force * grad)
+                if in_band:
+                    wp.atomic_add(grid_mb, k, bi, bj, bl, weight * m)
+
+
+@wp.func
+def contact_projection(v0: wp.vec3, v1: wp.vec3, m0: float, m1: float, n: wp.vec3, e: float):
+    """Eqs. impulse, contact_update: J_n = −(1+e)u_n / (1/m⁰ + 1/m¹) for approaching fields
+    (u_n = (v¹ − v⁰)·n < 0); equal and opposite, so m⁰v⁰ + m¹v¹ is unchanged."""
+    un = wp.dot(v1 - v0, n)
+    if un >= 0.0:
+        return v0, v1
+    J = -(1.0 + e) * un / (1.0 / m0 + 1.0 / m1)
+    return v0 - (J / m0) * n, v1 + (J / m1) * n
+
+
+@wp.kernel
+def grid_update(
+    grid_m: wp.array4d(dtype=float),
+    grid_p: wp.array4d(dtype=wp.vec3),
+    grid_mb: wp.array4d(dtype=float),
+    grid_v: wp.array4d(dtype=wp.vec3),  # out
+    n_fields: int,
+    eps_m: float,  # absolute ε_m
+    eps_b: float,  # absolute ε_band
+    gate: int,  # evaluate the contact gate (multi-field after the latch)
+    project: int,  # apply the contact projection (FractureFields)
+    normal: wp.vec3,  # n_Π
+    restitution: float,
+    dt: float,
+    gravity: wp.vec3,
+    origin: wp.vec3,
+    dx: float,
+    t: float,
+    shape: wp.vec3i,
+    wall_cells: int,
+    plane_point: wp.array(dtype=wp.vec3),
+    plane_normal: wp.array(dtype=wp.vec3),
+    plane_mode: wp.array(dtype=wp.int32),
+    plane_mu: wp.array(dtype=float),
+    box_lower: wp.array(dtype=wp.vec3),
+    box_upper: wp.array(dtype=wp.vec3),
+    box_velocity: wp.array(dtype=wp.vec3),
+    box_time: wp.array(dtype=wp.vec2),
+    stats: wp.array(dtype=float),  # [N_STATS] contact statistics (accumulated)
+):
+    """Per node: v^k = p^k/m^k + Δt g for each active field (m^k > ε_m), else 0; contact
+    projection where both fields are active, band-supported and approaching; then boundaries."""
+    i, j, l = wp.tid()
+    m0 = grid_m[0, i, j, l]
+    v0 = wp.vec3(0.0)
+    if m0 > eps_m:
+        v0 = grid_p[0, i, j, l] / m0 + dt * gravity
+    m1 = float(0.0)
+    v1 = wp.vec3(0.0)
+    if n_fields > 1:
+        m1 = grid_m[1, i, j, l]
+        if m1 > eps_m:
+            v1 = grid_p[1, i, j, l] / m1 + dt * gravity
+        if gate != 0 and m0 > eps_m and m1 > eps_m and grid_mb[0, i, j, l] > eps_b and grid_mb[1, i, j, l] > eps_b:
+            un = wp.dot(v1 - v0, normal)
+            if un < 0.0:
+                wp.atomic_add(stats, STAT_GATED, 1.0)
+                before = m0 * v0 + m1 * v1
+                w0 = v0
+                w1 = v1
+                if project != 0:
+                    w0, w1 = contact_projection(v0, v1, m0, m1, normal, restitution)
+                    wp.atomic_add(stats, STAT_PROJECTED, 1.0)
+                dp = (m0 * w0 + m1 * w1) - before
+                wp.atomic_add(stats, STAT_DPX, dp[0])
+                wp.atomic_add(stats, STAT_DPY, dp[1])
+                wp.atomic_add(stats, STAT_DPZ, dp[2])
+                wp.atomic_add(stats, STAT_PNORM, wp.length(before))
+                wp.atomic_max(stats, STAT_UN_AFTER, wp.max(0.0, -wp.dot(w1 - w0, normal)))
+                rel_t_before = (v1 - v0) - wp.dot(v1 - v0, normal) * normal
+                rel_t_after = (w1 - w0) - wp.dot(w1 - w0, normal) * normal
+                wp.atomic_max(stats, STAT_DVT, wp.length(rel_t_after - rel_t_before))
+                v0 = w0
+                v1 = w1
+    node = wp.vec3i(i, j, l)
+    xi = origin + wp.vec3(float(i), float(j), float(l)) * dx
+    if m0 > eps_m:
+        v0 = apply_boundaries(v0, node, xi, t, shape, wall_cells, plane_point, plane_normal, plane_mode, plane_mu,
+                              box_lower, box_upper, box_velocity, box_time)
+    grid_v[0, i, j, l] = v0
+    if n_fields > 1:
+        if m1 > eps_m:
+            v1 = apply_boundaries(v1, node, xi, t, shape, wall_cells, plane_point, plane_normal, plane_mode, plane_mu,
+                                  box_lower, box_upper, box_velocity, box_time)
+        grid_v[1, i, j, l] = v1
+
+
+@wp.kernel
+def g2p(
+    x: wp.array(dtype=wp.vec3),
+    v: wp.array(dtype=wp.vec3),
+    C: wp.array(dtype=wp.mat33),
+    F: wp.array(dtype=wp.mat33),
+    fragment: wp.array(dtype=wp.int32),
+    multifield: int,
+    only_fragment: int,
+    dt: float,
+    origin: wp.vec3,
+    dx: float,
+    inv_dx: float,
+    shape: wp.vec3i,
+    grid_v: wp.array4d(dtype=wp.vec3),
+    lower: wp.vec3,  # particles are clamped into [lower, upper] and counted
+    upper: wp.vec3,
+    clamped: wp.array(dtype=wp.int32),  # [1] running count
+):
+    """Eqs. field_g2p, field_apic, field_deformation from field o_p only (no fallback):
+    v = Σ w v_i; C = 4/Δx² Σ w v_i (x_i − x_p)ᵀ; F ← (I + Δt Σ v_i ∇wᵀ) F; x ← x + Δt v."""
+    p = wp.tid()
+    o = fragment[p]
+    if only_fragment >= 0 and o != only_fragment:
+        return
+    k = field_of(o, multifield)
+    base, f, w, dw = stencil(x[p], origin, inv_dx, shape)
+    vp = wp.vec3(0.0)
+    B = wp.mat33(0.0)
+    gradv = wp.mat33(0.0)
+    for i in range(3):
+        for j in range(3):
+            for l in range(3):
+                weight = w[i, 0] * w[j, 1] * w[l, 2]
+                grad = wp.vec3(dw[i, 0] * w[j, 1] * w[l, 2], w[i, 0] * dw[j, 1] * w[l, 2], w[i, 0] * w[j, 1] * dw[l, 2]) * inv_dx
+                dpos = (wp.vec3(float(i), float(j), float(l)) - f) * dx
+                vi = grid_v[k, base[0] + i, base[1] + j, base[2] + l]
+                vp = vp + weight * vi
+                B = B + weight * wp.outer(vi, dpos)
+                gradv = gradv + wp.outer(vi, grad)
+    v[p] = vp
+    C[p] = B * (4.0 * inv_dx * inv_dx)
+    F[p] = (wp.identity(n=3, dtype=float) + dt * gradv) * F[p]
+    xn = x[p] + dt * vp
+    xc = wp.vec3(wp.clamp(xn[0], lower[0], upper[0]), wp.clamp(xn[1], lower[1], upper[1]), wp.clamp(xn[2], lower[2], upper[2]))
+    if xc[0] != xn[0] or xc[1] != xn[1] or xc[2] != xn[2]:
+        wp.atomic_add(clamped, 0, 1)
+    x[p] = xc
