@@ -153,10 +153,11 @@ class SimConfig:
     """PlaneBoundary / CuboidBoundary / ParticleRegion instances."""
     restitution: float = 0.0
     """Contact projection restitution e in Eq. impulse (0 = perfectly inelastic normal)."""
-    eps_mass: float = 1e-3
-    """Field activity threshold ε_m as a fraction of the typical occupied-node mass ρ̄Δx³."""
-    eps_band: float = 1e-3
-    """Band-support threshold ε_band, same unit as eps_mass."""
+    eps_mass: float = 1e-9
+    """Field activity threshold ε_m as a fraction of the typical occupied-node mass ρ̄Δx³. Kept tiny
+    so that fringe nodes still carry their particles' velocity (free fall stays exact)."""
+    eps_band: float = 1e-6
+    """Contact gate ε_band (band mass a field needs at a node), same unit as eps_mass."""
     max_substeps_per_frame: int = 100000
     """Safety bound on substeps in one frame (adaptive Δt)."""
 

@@ -169,25 +169,42 @@ class Simulator:
 
     def _grid_pass(self, dt: float, only_fragment: int) -> None:
         """Grid reset, P2G, grid update, G2P over all particles or one fragment's."""
-        multi = int(self.multifield)
-        n_fields = 2 if multi else 1
-        g, w = self.grid, self.wp
+        self.p2g(dt, only_fragment)
+        self.update_grid(dt)
+        self.g2p(dt, only_fragment)
+
+    def _fields(self) -> int:
+        return 2 if self.multifield else 1
+
+    def p2g(self, dt: float, only_fragment: int = -1) -> None:
+        """Reset the active fields and scatter particles into them (Eq. multifield_p2g)."""
+        g, w, multi = self.grid, self.wp, int(self.multifield)
+        n_fields = self._fields()
         g.mass[:n_fields].zero_()
         g.momentum[:n_fields].zero_()
         if multi:
             g.band_mass.zero_()
-        common = [self._origin, g.dx, 1.0 / g.dx, self._shape]
         wp.launch(p2g, dim=len(self.particles), device=self.device,
                   inputs=[w["x"], w["v"], w["C"], w["mass"], w["volume"], w["stress"], w["fragment"], w["band"], multi,
-                          only_fragment, multi, dt, *common, g.wp["mass"], g.wp["momentum"], g.wp["band_mass"]])
+                          only_fragment, multi, dt, self._origin, g.dx, 1.0 / g.dx, self._shape,
+                          g.wp["mass"], g.wp["momentum"], g.wp["band_mass"]])
+
+    def update_grid(self, dt: float) -> None:
+        """Normalize + gravity per active field, contact projection (full), boundaries."""
+        g, multi = self.grid, int(self.multifield)
         wp.launch(grid_update, dim=g.shape, device=self.device,
-                  inputs=[g.wp["mass"], g.wp["momentum"], g.wp["band_mass"], g.wp["velocity"], n_fields, self.eps_m, self.eps_b,
-                          multi, int(multi and self.cfg.variant == "full"), self._normal, float(self.cfg.restitution), dt,
-                          self._gravity, self._origin, g.dx, self.time, self._shape, int(self.cfg.wall_cells),
-                          *self.boundaries.arrays, g.wp["stats"]])
+                  inputs=[g.wp["mass"], g.wp["momentum"], g.wp["band_mass"], g.wp["velocity"], self._fields(), self.eps_m,
+                          self.eps_b, multi, int(multi and self.cfg.variant == "full"), self._normal,
+                          float(self.cfg.restitution), dt, self._gravity, self._origin, g.dx, self.time, self._shape,
+                          int(self.cfg.wall_cells), *self.boundaries.arrays, g.wp["stats"]])
+
+    def g2p(self, dt: float, only_fragment: int = -1) -> None:
+        """Gather v, C, F's update and x from each particle's own field (Eq. field_g2p)."""
+        g, w = self.grid, self.wp
         wp.launch(g2p, dim=len(self.particles), device=self.device,
-                  inputs=[w["x"], w["v"], w["C"], w["F"], w["fragment"], multi, only_fragment, dt, *common,
-                          g.wp["velocity"], self._lower, self._upper, w["clamped"]])
+                  inputs=[w["x"], w["v"], w["C"], w["F"], w["fragment"], int(self.multifield), only_fragment, dt,
+                          self._origin, g.dx, 1.0 / g.dx, self._shape, g.wp["velocity"], self._lower, self._upper,
+                          w["clamped"]])
 
     # ---- frames -------------------------------------------------------------------------------
     def frame_substeps(self, frame_dt: float) -> tuple[int, float]:
