@@ -1,0 +1,166 @@
+"""`fracture-gs` CLI: help, info, validate and one-line user errors (in-process and via subprocess)."""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from fracture_gs import cli
+
+REPO = Path(__file__).resolve().parent.parent
+COMMANDS = ["render-sim", "bench", "figures", "info", "validate"]
+
+
+def start(*args: str) -> subprocess.Popen:
+    """Start `python -m fracture_gs.cli ARGS` in a fresh interpreter (several run concurrently)."""
+    env = dict(os.environ, PYTHONPATH=str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    env.pop("FRACTURE_GS_DEBUG", None)
+    return subprocess.Popen([sys.executable, "-m", "fracture_gs.cli", *args], cwd=REPO, env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def finish(proc: subprocess.Popen) -> tuple[int, str, str]:
+    out, err = proc.communicate(timeout=120)
+    return proc.returncode, out, err
+
+
+def assert_one_line_error(code: int, err: str) -> None:
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert code == 2, err
+    assert len(lines) == 1 and lines[0].startswith("fracture-gs: error: "), err
+    assert "Traceback" not in err
+
+
+# ---------------------------------------------------------------- subprocess (the real entry point)
+
+
+def test_subprocess_validate_info_and_error(tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[sim]\ngravty = [0, 0, -9.8]\n")
+    procs = [start("validate", "configs/bread.toml"), start("validate", str(bad)), start("info")]
+    (code, out, err), (bad_code, _, bad_err), (info_code, info_out, info_err) = map(finish, procs)
+    assert code == 0, err
+    assert "ok: config is valid" in out and "stress" in out
+    assert_one_line_error(bad_code, bad_err)
+    assert "did you mean 'gravity'" in bad_err
+    assert info_code == 0, info_err
+    assert "torch" in info_out and "warp" in info_out and "renderer" in info_out
+
+
+# ---------------------------------------------------------------- in-process
+
+
+@pytest.mark.parametrize("command", COMMANDS)
+def test_subcommand_help_has_examples(command, capsys):
+    assert cli.main([command, "--help"]) == 0
+    text = capsys.readouterr().out
+    assert "examples:" in text and f"fracture-gs {command}" in text
+
+
+def test_main_help(capsys):
+    assert cli.main(["--help"]) == 0
+    out = capsys.readouterr().out
+    assert "examples:" in out and "render-sim" in out and "bread" in out
+
+
+def test_no_command_prints_help(capsys):
+    assert cli.main([]) == 0
+    assert "COMMAND" in capsys.readouterr().out
+
+
+def test_validate_builtin_name_and_dump(capsys):
+    assert cli.main(["validate", "exp_table5_bread_vlm", "--dump"]) == 0
+    out = capsys.readouterr().out
+    assert "ok: config is valid" in out and "sigma_R = 55.0" in out and "[[sim.boundaries]]" in out
+
+
+def test_info_in_process(capsys):
+    assert cli.main(["info"]) == 0
+    out = capsys.readouterr().out
+    for word in ("python", "torch", "warp", "gsplat", "kernel cache", "renderer"):
+        assert word in out
+
+
+BAD_CALLS = [
+    (["validate", "does/not/exist.toml"], "no such config file"),
+    (["validate", "INVALID"], "unknown key"),
+    (["validate", "INVALID_VALUE"], "material.nu"),
+    (["render-sim", "bread", "--device", "gpu"], "not a device"),
+    (["render-sim", "bread", "--device", "cuda:7"], "cuda:7"),
+    (["render-sim", "bread", "--resolution", "640by480"], "WIDTHxHEIGHT"),
+    (["render-sim", "bread", "--resolution", "1x480"], "too small"),
+    (["render-sim", "bread", "--variants", "baseline,fulll"], "did you mean 'full'"),
+    (["render-sim", "bread", "--preset", "huge"], "--preset"),
+    (["render-sim", "bread", "--frames", "zero"], "--frames"),
+    (["render-sim", "bread", "--bogus"], "unrecognized arguments"),
+    (["figures", "--device", "tpu"], "not a device"),
+    (["bench", "nope", "--device", "cpu"], "no such config file"),
+    (["render-sim", "scene.ply"], "not a config"),
+]
+
+
+@pytest.mark.parametrize("argv,needle", BAD_CALLS, ids=[" ".join(a) for a, _ in BAD_CALLS])
+def test_user_errors_are_one_line(argv, needle, tmp_path, capsys):
+    invalid = tmp_path / "invalid.toml"
+    invalid.write_text('extends = "bread"\n[sim]\ngravty = [0, 0, 0]\n')
+    invalid_value = tmp_path / "invalid_value.toml"
+    invalid_value.write_text('extends = "bread"\n[material]\nnu = 0.5\n')
+    argv = [{"INVALID": str(invalid), "INVALID_VALUE": str(invalid_value)}.get(a, a) for a in argv]
+    code = cli.main(argv)
+    err = capsys.readouterr().err
+    assert_one_line_error(code, err)
+    assert needle in err
+
+
+def test_cuda_request_without_cuda(monkeypatch, capsys):
+    monkeypatch.setattr(cli, "_cuda_devices", lambda: (False, 0, "torch.cuda.is_available() is False"))
+    assert_one_line_error(cli.main(["render-sim", "bread", "--device", "cuda"]), capsys.readouterr().err)
+
+
+def test_resolve_device(monkeypatch):
+    monkeypatch.setattr(cli, "_cuda_devices", lambda: (True, 2, "ok"))
+    assert (cli.resolve_device("auto"), cli.resolve_device("cuda"), cli.resolve_device("cuda:1")) == ("cuda:0", "cuda:0", "cuda:1")
+    monkeypatch.setattr(cli, "_cuda_devices", lambda: (False, 0, "no"))
+    assert (cli.resolve_device("auto"), cli.resolve_device("CPU")) == ("cpu", "cpu")
+
+
+def test_render_sim_dispatches_to_runner(monkeypatch, tmp_path, capsys):
+    calls = {}
+
+    def fake_run(cfg, variants, device, out_dir):
+        calls.update(cfg=cfg, variants=variants, device=device, out_dir=out_dir)
+        return {"video": str(out_dir / "compare.mp4")}
+
+    monkeypatch.setattr(cli, "_import_first", lambda candidates, what: fake_run)
+    code = cli.main(["render-sim", "bread", "--variants", "baseline,full", "--frames", "3", "--resolution", "64x48",
+                     "--preset", "paper", "--device", "cpu", "--out", str(tmp_path)])
+    assert code == 0, capsys.readouterr().err
+    assert calls["variants"] == ["baseline", "full"] and calls["device"] == "cpu" and calls["out_dir"] == tmp_path
+    assert calls["cfg"].frames == 3 and calls["cfg"].sim.grid_shape == (128, 128, 128)
+    assert "compare.mp4" in capsys.readouterr().out
+
+
+def test_keyboard_interrupt_reports_partial_outputs(monkeypatch, tmp_path, capsys):
+    def interrupted(cfg, variants, device, out_dir):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cli, "_import_first", lambda candidates, what: interrupted)
+    assert cli.main(["render-sim", "recontact", "--device", "cpu", "--out", str(tmp_path)]) == 130
+    assert f"partial outputs are in {tmp_path}" in capsys.readouterr().err
+
+
+def test_missing_module_is_one_line(capsys):
+    with pytest.raises(cli.CliError, match="not available"):
+        cli._import_first([("fracture_gs.no_such_module", "run")], "thing")
+
+
+def test_bugs_keep_their_traceback(monkeypatch):
+    def broken(cfg, variants, device, out_dir):
+        raise RuntimeError("bug")
+
+    monkeypatch.setattr(cli, "_import_first", lambda candidates, what: broken)
+    with pytest.raises(RuntimeError):
+        cli.main(["render-sim", "recontact", "--device", "cpu"])
