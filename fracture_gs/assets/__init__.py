@@ -1,1 +1,40 @@
-"""Procedural built-in scenes and interior fill."""
+"""Procedural built-in scenes and interior fill.
+
+`build(name, size="small", seed=0, n=None)` returns a volumetric `GaussianSet` (drawn surface
+Gaussians + interior fill particles, int32 material labels) for one of `names()`; the geometries
+are documented in `fracture_gs.assets.scenes`. `fill_interior(gs)` adds interior particles to a
+surface-only reconstruction.
+"""
+from __future__ import annotations
+
+from ..io.gaussian_set import GaussianSet
+from .builder import SceneSpec, build_scene
+from .fill import fill_interior
+from .scenes import SCENES
+
+SIZES = {"small": 20_000}  # `paper` uses each scene's own count (ficus 171,553, bread 182,959)
+
+
+def names() -> list[str]:
+    """Names of the built-in scenes."""
+    return list(SCENES)
+
+
+def build(name: str, size: str = "small", seed: int = 0, n: int | None = None,
+          sh_degree: int = 1, device="cpu") -> GaussianSet:
+    """Build scene `name` with `size` (`small` ≈ 20k, `paper` = the paper's count) or exactly `n`
+    particles; deterministic for a given seed."""
+    if name not in SCENES:
+        raise ValueError(f"unknown built-in scene '{name}'; valid names are: {', '.join(SCENES)}")
+    spec = SCENES[name]
+    if n is None:
+        if size not in ("small", "paper"):
+            raise ValueError(f"unknown size '{size}' for scene '{name}'; use 'small' or 'paper'")
+        n = spec.paper_n if size == "paper" else SIZES[size]
+    if int(n) < 1 or not 0 <= int(sh_degree) <= 3:
+        raise ValueError(f"scene '{name}': n must be ≥ 1 and sh_degree in 0..3 (got n={n}, "
+                         f"sh_degree={sh_degree})")
+    return build_scene(spec, int(n), seed=seed, sh_degree=int(sh_degree), device=device)
+
+
+__all__ = ["build", "names", "fill_interior", "SceneSpec", "SCENES"]
