@@ -7,7 +7,7 @@ import torch
 import warp as wp
 
 from ..config import SimConfig
-from .transfer import N_STATS
+from .transfer import N_STATS, NEVER, STAT_FIRST_T
 
 
 def fit_grid(cfg: SimConfig, x: torch.Tensor) -> tuple[tuple, float, tuple]:
@@ -51,6 +51,7 @@ class Grid:
         self.velocity = torch.zeros((*full, 3), dtype=torch.float32, device=device)
         self.band_mass = torch.zeros(full, dtype=torch.float32, device=device)
         self.contact_stats = torch.zeros(N_STATS, dtype=torch.float32, device=device)
+        self.contact_stats[STAT_FIRST_T] = NEVER
         self.wp = dict(
             mass=wp.from_torch(self.mass),
             momentum=wp.from_torch(self.momentum, dtype=wp.vec3),

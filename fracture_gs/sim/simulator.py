@@ -176,17 +176,21 @@ class Simulator:
     def _fields(self) -> int:
         return 2 if self.multifield else 1
 
-    def p2g(self, dt: float, only_fragment: int = -1) -> None:
-        """Reset the active fields and scatter particles into them (Eq. multifield_p2g)."""
-        g, w, multi = self.grid, self.wp, int(self.multifield)
-        n_fields = self._fields()
+    def p2g(self, dt: float, only_fragment: int = -1, target=None, multifield=None, stress=None) -> None:
+        """Reset the active fields and scatter particles into them (Eq. multifield_p2g).
+
+        `target` (a Grid), `multifield` and `stress` (a Warp view) override the destination, the
+        routing and the stress; the diagnostics use them for the per-fragment shadow transfer."""
+        g, w = target or self.grid, self.wp
+        multi = int(self.multifield if multifield is None else multifield)
+        n_fields = 2 if multi else 1
         g.mass[:n_fields].zero_()
         g.momentum[:n_fields].zero_()
         if multi:
             g.band_mass.zero_()
         wp.launch(p2g, dim=len(self.particles), device=self.device,
-                  inputs=[w["x"], w["v"], w["C"], w["mass"], w["volume"], w["stress"], w["fragment"], w["band"], multi,
-                          only_fragment, multi, dt, self._origin, g.dx, 1.0 / g.dx, self._shape,
+                  inputs=[w["x"], w["v"], w["C"], w["mass"], w["volume"], w["stress"] if stress is None else stress,
+                          w["fragment"], w["band"], multi, only_fragment, multi, dt, self._origin, g.dx, 1.0 / g.dx, self._shape,
                           g.wp["mass"], g.wp["momentum"], g.wp["band_mass"]])
 
     def update_grid(self, dt: float) -> None:
@@ -221,6 +225,8 @@ class Simulator:
 
     def advance(self, frame_dt: float) -> int:
         """Simulate one frame: n substeps, then the divergence check and the event provider."""
+        if self.substeps == 0:
+            self._poll_provider()  # an oracle may latch before the first substep
         n, dt = self.frame_substeps(frame_dt)
         self.dt = dt
         start = self.time
@@ -229,13 +235,17 @@ class Simulator:
         self.time = start + frame_dt  # end exactly on the frame time (no drift from summing Δt)
         self.frame += 1
         self.check_divergence(dt)
+        self._poll_provider()
+        if self._diagnostics is not None:
+            self._diagnostics.on_frame()
+        return n
+
+    def _poll_provider(self) -> None:
+        """Ask the event provider for a topology; the first one returned is latched, once."""
         if self.provider is not None and not self.latched:
             topology = self.provider(self)
             if topology is not None:
                 self.latch(topology)
-        if self._diagnostics is not None:
-            self._diagnostics.on_frame()
-        return n
 
     def check_divergence(self, dt: float) -> None:
         """Raise `SimulationDiverged` if any particle is non-finite or faster than Δx/Δt."""

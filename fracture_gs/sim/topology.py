@@ -24,9 +24,11 @@ class Topology:
     point: tuple  # a point on the latched plane
     latch_time: float = 0.0  # t_latch [s]
     latch_frame: int = 0
+    pair_radius: float = 1.5  # interface pairs: nearest opposite band particle within this many Δx
 
     @staticmethod
-    def from_plane(x: torch.Tensor, point, normal, band_width: float, latch_time: float = 0.0, latch_frame: int = 0) -> "Topology":
+    def from_plane(x: torch.Tensor, point, normal, band_width: float, latch_time: float = 0.0, latch_frame: int = 0,
+                   pair_radius: float = 1.5) -> "Topology":
         """Labels by the sign of the signed distance to the plane; band = |distance| < band_width [m]."""
         n = torch.tensor(normal, dtype=torch.float64)
         n = n / n.norm()
@@ -39,6 +41,7 @@ class Topology:
             point=tuple(float(a) for a in c),
             latch_time=float(latch_time),
             latch_frame=int(latch_frame),
+            pair_radius=float(pair_radius),
         )
 
     def counts(self) -> dict:
@@ -49,6 +52,7 @@ class Topology:
         np.savez_compressed(
             path, fragment=self.fragment.cpu().numpy().astype(np.int32), band=self.band.cpu().numpy().astype(np.uint8),
             normal=np.asarray(self.normal), point=np.asarray(self.point), latch_time=self.latch_time, latch_frame=self.latch_frame,
+            pair_radius=self.pair_radius,
         )
 
     @staticmethod
@@ -58,6 +62,7 @@ class Topology:
             fragment=torch.from_numpy(z["fragment"]).to(device), band=torch.from_numpy(z["band"].astype(np.int32)).to(device),
             normal=tuple(float(a) for a in z["normal"]), point=tuple(float(a) for a in z["point"]),
             latch_time=float(z["latch_time"]), latch_frame=int(z["latch_frame"]),
+            pair_radius=float(z["pair_radius"]) if "pair_radius" in z else 1.5,
         )
 
 
@@ -76,7 +81,7 @@ class OracleProvider:
         if not self.due(sim.frame, sim.time):
             return None
         return Topology.from_plane(sim.particles.x, self.cfg.point, self.cfg.normal, self.cfg.band_width * sim.grid.dx,
-                                   latch_time=sim.time, latch_frame=sim.frame)
+                                   latch_time=sim.time, latch_frame=sim.frame, pair_radius=self.cfg.pair_radius)
 
 
 def make_provider(cfg: TopologyConfig):

@@ -14,8 +14,9 @@ import warp as wp
 from .boundary import apply_boundaries
 
 # contact statistics accumulated by `grid_update` (indices into Grid.contact_stats)
-STAT_GATED, STAT_PROJECTED, STAT_DPX, STAT_DPY, STAT_DPZ, STAT_PNORM, STAT_UN_AFTER, STAT_DVT = range(8)
-N_STATS = 8
+STAT_GATED, STAT_PROJECTED, STAT_DPX, STAT_DPY, STAT_DPZ, STAT_PNORM, STAT_UN_AFTER, STAT_DVT, STAT_FIRST_T = range(9)
+N_STATS = 9
+NEVER = 1e30  # STAT_FIRST_T before any contact
 
 
 @wp.func
@@ -161,6 +162,7 @@ def grid_update(
             un = wp.dot(v1 - v0, normal)
             if un < 0.0:
                 wp.atomic_add(stats, STAT_GATED, 1.0)
+                wp.atomic_min(stats, STAT_FIRST_T, t)
                 before = m0 * v0 + m1 * v1
                 w0 = v0
                 w1 = v1
