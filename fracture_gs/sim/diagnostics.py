@@ -136,6 +136,8 @@ class Diagnostics:
 
     def on_frame(self):
         row = self.snapshot()
+        if self.latch_info is not None and not any("latch" in r for r in self.history):
+            row["latch"] = self.latch_info  # the first frame row after the latch reports it
         stats = self.sim.grid.contact_stats
         first = float(stats[STAT_FIRST_T])
         stats.zero_()
@@ -163,8 +165,6 @@ class Diagnostics:
             row.update(self._transfer_metrics())
             row.update(self._interface_metrics())
             row.update(self._contact_metrics())
-            if self.latch_info["latch_frame"] == sim.frame:
-                row["latch"] = self.latch_info
         if self.planes:
             row.update(self._plane_metrics(mom))
         return row
