@@ -123,6 +123,7 @@ class Diagnostics:
         P, topo = sim.particles, sim.topology
         self.pairs = interface_pairs(P.x, P.fragment, P.band, topo.pair_radius * sim.grid.dx)
         self.n = torch.tensor(topo.normal, dtype=torch.float64, device=P.x.device)
+        self.latch_substeps = sim.substeps
         self.point = torch.tensor(topo.point, dtype=torch.float64, device=P.x.device)
         self.opening0 = self._raw_opening()
         self.open_max = 0.0
@@ -175,7 +176,8 @@ class Diagnostics:
         sim.p2g(sim.dt, target=self.shadow, multifield=True, stress=self.shadow_stress_wp)
         per_fragment = sim.multifield or sim.cfg.variant == "global_fragment_pass"
         cf, real, shared = mixing(self.shadow.mass, self.shadow.momentum, sim.eps_m, (0, 1) if per_fragment else (0, 0))
-        source = sim.grid.mass if sim.multifield else self.shadow.mass
+        # the realized fields once a fragment-conditioned P2G has run, else the shadow (same kernel)
+        source = sim.grid.mass if sim.multifield and sim.substeps > self.latch_substeps else self.shadow.mass
         P = sim.particles
         residual = []
         for k in (0, 1):

@@ -1,0 +1,116 @@
+"""Scene → simulator → per-frame Gaussians: the path shared by the CLI runner and `FractureSim`.
+
+Frame 0 is the initial state; frame f ≥ 1 is the state after f·frame_dt. Each frame yields the
+Gaussians' means x_p, covariances Σ_p = F_p Σ_p⁰ F_pᵀ, the polar rotations R(F_p) (for SH) and
+the fragment ids, as tensors on the simulation device (no host copies).
+"""
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Iterator, Optional
+
+import torch
+
+from . import assets
+from .config import SceneConfig
+from .io import GaussianSet
+from .render.gaussians import deform_covariances, polar_rotation
+from .sim import Particles, Simulator, SimulationError, Topology, make_provider
+
+
+@dataclass
+class FrameOutput:
+    frame: int
+    time: float
+    means: torch.Tensor  # [N, 3]
+    covars: torch.Tensor  # [N, 3, 3]
+    rotations: torch.Tensor  # [N, 3, 3] R(F)
+    fragment: torch.Tensor  # [N] int32, −1 before the latch
+    band: torch.Tensor  # [N] int32
+    metrics: dict = field(default_factory=dict)
+    substeps: int = 0
+
+
+def load_scene(cfg: SceneConfig, device="cpu") -> GaussianSet:
+    """The config's scene: a built-in asset at the config's preset, or a 3DGS PLY (interior filled
+    when it has no interior particles and `fill_interior` is on)."""
+    if cfg.scene in assets.names():
+        return assets.build(cfg.scene, size=cfg.preset).to(device)
+    from .io.ply import load_ply
+
+    path = Path(cfg.scene)
+    if not path.exists():
+        raise FileNotFoundError(f"scene '{cfg.scene}' is neither a built-in scene ({', '.join(assets.names())}) nor an existing .ply file")
+    gs = load_ply(path)
+    if cfg.fill_interior and not bool(gs.interior.any()):
+        gs = assets.fill_interior(gs)
+    if cfg.material_property:
+        if cfg.material_property not in gs.extra:
+            raise SimulationError(f"{path}: material_property '{cfg.material_property}' is not a vertex property of the PLY; "
+                                  f"available: {', '.join(sorted(gs.extra)) or 'none'}")
+        gs.labels = gs.extra[cfg.material_property].to(torch.int32)
+    return gs.to(device)
+
+
+def check_inside_grid(sim: Simulator, source: str) -> None:
+    """A scene that does not fit the grid is a config error, not a silent clamp."""
+    g = sim.grid
+    lo = torch.tensor(g.origin, device=sim.particles.x.device) + (sim.cfg.wall_cells - 1) * g.dx
+    hi = torch.tensor(g.origin, device=sim.particles.x.device) + (torch.tensor(g.shape, device=lo.device) - sim.cfg.wall_cells) * g.dx
+    x = sim.particles.x
+    outside = int(((x < lo) | (x > hi)).any(dim=1).sum())
+    if outside:
+        raise SimulationError(f"{source}: {outside} of {len(x)} particles lie outside the simulation grid "
+                              f"[{lo.tolist()}, {hi.tolist()}]; enlarge sim.grid_shape, move sim.grid_origin or use sim.grid = \"auto\"")
+
+
+def make_simulator(cfg: SceneConfig, gs: GaussianSet, variant: str, device: str,
+                   topology: Optional[Topology] = None) -> Simulator:
+    """A simulator for one variant. `topology` (a saved one) is replayed at its latch frame instead
+    of running the event provider, so every variant uses the same topology; `baseline` runs no
+    provider but still receives the saved labels for its diagnostics (its transfer ignores them)."""
+    sim_cfg = copy.deepcopy(cfg.sim)
+    sim_cfg.variant = variant
+    particles = Particles.from_gaussians(gs, cfg, dx=sim_cfg.dx)
+    if topology is not None:
+        provider = ReplayProvider(topology)
+    elif variant == "baseline":
+        provider = None
+    else:
+        provider = make_provider(cfg.topology)
+    sim = Simulator(sim_cfg, particles, device=device, provider=provider)
+    check_inside_grid(sim, cfg.name)
+    return sim
+
+
+class ReplayProvider:
+    """Latches a saved topology at its recorded frame (labels identical across variants)."""
+
+    def __init__(self, topology: Topology):
+        self.topology = topology
+
+    def __call__(self, sim) -> Optional[Topology]:
+        if sim.frame < self.topology.latch_frame:
+            return None
+        t = self.topology
+        return Topology(fragment=t.fragment.to(sim.device), band=t.band.to(sim.device), normal=t.normal, point=t.point,
+                        latch_time=sim.time, latch_frame=sim.frame, pair_radius=t.pair_radius)
+
+
+def frame_output(sim: Simulator, cov0: torch.Tensor, metrics: dict, substeps: int = 0) -> FrameOutput:
+    P = sim.particles
+    return FrameOutput(frame=sim.frame, time=sim.time, means=P.x.clone(), covars=deform_covariances(P.F, cov0),
+                       rotations=polar_rotation(P.F), fragment=P.fragment.clone(), band=P.band.clone(),
+                       metrics=metrics, substeps=substeps)
+
+
+def simulate(sim: Simulator, cov0: torch.Tensor, frames: int, frame_dt: float) -> Iterator[FrameOutput]:
+    """Yield frame 0 (initial state), then one FrameOutput per simulated frame. Raises
+    `SimulationDiverged` at the frame that diverged (everything yielded before stays valid)."""
+    tracker = sim.diagnostics_tracker()
+    yield frame_output(sim, cov0, tracker.snapshot())
+    for _ in range(frames):
+        n = sim.advance(frame_dt)
+        yield frame_output(sim, cov0, tracker.history[-1], n)

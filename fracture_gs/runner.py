@@ -1,0 +1,222 @@
+"""`fracture-gs render-sim`: simulate each variant, render it, and write videos, metrics and a summary.
+
+Outputs in DIR: <variant>.mp4, comparison.mp4 (side by side, captions, circular fracture insets),
+frames/compare_NNNN.png, metrics.jsonl, summary.json, summary.md, topology.npz, config.toml.
+Ctrl-C or a divergence keeps every frame and metric already written.
+"""
+from __future__ import annotations
+
+import json
+import math
+import time
+from pathlib import Path
+from typing import Optional
+
+import numpy as np
+import torch
+from tqdm import tqdm
+
+from .config import SceneConfig
+from .io.config import dump_config
+from .io.video import VideoWriter, save_png
+from .pipeline import FrameOutput, load_scene, make_simulator, simulate
+from .render import compose
+from .render.camera import from_config
+from .render.gaussians import exposed_interior_colors, sh_colors
+from .render.splat import render
+from .sim import SimulationDiverged, Topology
+
+SUMMARY_KEYS = ("opening", "reapproach", "stringing", "separated", "penetration", "identity_crossing", "first_contact_time",
+                "cp_momentum_residual", "rel_normal_velocity_after", "max_delta_vt")
+
+
+class Painter:
+    """Per-scene render state: rest covariances, SH, visibility (interior hidden until exposed)."""
+
+    def __init__(self, gs, cfg: SceneConfig, device: str):
+        self.cfg = cfg.render
+        self.frames = max(cfg.frames, 1)
+        self.cov0 = gs.covariances().to(device, torch.float32)
+        self.sh = gs.sh.to(device, torch.float32)
+        self.opacities = gs.opacities.to(device, torch.float32)
+        self.interior = gs.interior.to(device)
+        self.surface_dc = (gs.sh[:, 0, :] * 0.28209479177387814 + 0.5).clamp(0, 1).to(device, torch.float32)
+        self.exposed_rgb: Optional[torch.Tensor] = None
+        self.width, self.height = int(cfg.render.width), int(cfg.render.height)
+
+    def camera(self, frame: int):
+        return from_config(self.cfg.camera, self.width, self.height, t=frame / self.frames)
+
+    def _exposed(self, out: FrameOutput) -> torch.Tensor:
+        if not self.cfg.show_exposed_interior or not bool((out.fragment >= 0).any()):
+            return torch.zeros_like(self.interior)
+        exposed = self.interior & (out.band != 0)
+        if self.exposed_rgb is None and bool(exposed.any()) and bool((~self.interior).any()):
+            # colour of the nearest surface Gaussian at the latch (computed once)
+            self.exposed_rgb = exposed_interior_colors(out.means[exposed], out.means[~self.interior], self.surface_dc[~self.interior])
+            self.exposed_idx = torch.nonzero(exposed).flatten()
+        return exposed
+
+    def __call__(self, out: FrameOutput) -> np.ndarray:
+        cam = self.camera(out.frame)
+        exposed = self._exposed(out)
+        colors = sh_colors(self.sh, out.means, cam.campos.to(out.means), out.rotations)
+        if self.exposed_rgb is not None:
+            colors[self.exposed_idx] = self.exposed_rgb
+        keep = ~self.interior | exposed
+        img = render(out.means[keep], out.covars[keep], colors[keep], self.opacities[keep], cam.to(out.means.device),
+                     background=self.cfg.background, backend=self.cfg.backend, mode=self.cfg.mode).image
+        return (img.clamp(0, 1) * 255).round().to(torch.uint8).cpu().numpy()
+
+
+def _post(rows: list, key: str):
+    vals = [r[key] for r in rows if r.get(key) is not None]
+    return vals
+
+
+def summarize(variant: str, rows: list, status: str, seconds: float) -> dict:
+    """Run-level numbers: final opening, max re-approach, mean stringing after the latch, mixing
+    mean/max, max mass residual, contact metrics, penetration max, speed."""
+    post = [r for r in rows if r.get("latched")]
+    out = {"variant": variant, "status": status, "frames": rows[-1]["frame"] if rows else 0,
+           "substeps": rows[-1]["substeps"] if rows else 0, "wall_s": round(seconds, 3)}
+    out["substeps_per_s"] = round(out["substeps"] / seconds, 2) if seconds > 0 else None
+    latch = next((r["latch"] for r in rows if "latch" in r), None)
+    out["latch"] = latch
+    if post:
+        last = post[-1]
+        for k in ("mixing_counterfactual", "mixing_realized"):
+            vals = _post(post, k)
+            out[k + "_mean"], out[k + "_max"] = float(np.mean(vals)), float(np.max(vals))
+        out["shared_support_pct_mean"] = float(np.mean(_post(post, "shared_support_pct")))
+        out["mass_residual_max"] = float(max(max(r["mass_residual"]) for r in post))
+        out["opening"] = last["opening"]
+        out["separated"] = bool(last["separated"])
+        out["reapproach"] = last["reapproach"]
+        out["stringing"] = float(np.mean(_post(post, "stringing")))
+        out["penetration_max"] = float(max(_post(post, "penetration")))
+        out["identity_crossing_max"] = int(max(_post(post, "identity_crossing")))
+        for k in ("first_contact_time", "cp_momentum_residual", "rel_normal_velocity_after", "max_delta_vt"):
+            out[k] = last.get(k)
+    if rows and "plane_penetration" in rows[-1]:
+        last = rows[-1]
+        for k in ("plane_first_contact", "plane_penetration", "plane_max_vt_near", "plane_max_vn_post", "plane_momentum_residual"):
+            out[k] = last[k]
+    return out
+
+
+def summary_markdown(summaries: list) -> str:
+    cols = [("variant", "variant"), ("status", "status"), ("latch frame", None), ("opening/Δx", "opening"),
+            ("re-approach", "reapproach"), ("stringing", "stringing"), ("separated", "separated"),
+            ("E_mix cf mean", "mixing_counterfactual_mean"), ("E_mix real mean", "mixing_realized_mean"),
+            ("max E_m", "mass_residual_max"), ("pen./Δx", "penetration_max"), ("substeps/s", "substeps_per_s")]
+
+    def fmt(v):
+        if v is None:
+            return "—"
+        if isinstance(v, bool):
+            return "yes" if v else "no"
+        if isinstance(v, float):
+            return f"{v:.3g}"
+        return str(v)
+
+    lines = ["| " + " | ".join(c for c, _ in cols) + " |", "|" + "---|" * len(cols)]
+    for s in summaries:
+        cells = [fmt(s.get(k)) if k else fmt((s.get("latch") or {}).get("latch_frame")) for _, k in cols]
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def run_variant(cfg, gs, variant, device, out_dir: Path, painter: Painter, topology, metrics_file, frames_store: list):
+    """Simulate + render one variant; appends frames to `frames_store`; returns (summary, topology)."""
+    sim = make_simulator(cfg, gs, variant, device, topology=topology)
+    rows, status, t0 = [], "ok", time.perf_counter()
+    bar = tqdm(total=cfg.frames, desc=f"{variant:>20s}", unit="frame", leave=True, dynamic_ncols=True)
+    try:
+        with VideoWriter(out_dir / f"{variant}.mp4", fps=cfg.render.fps) as video:
+            for out in simulate(sim, painter.cov0, cfg.frames, cfg.frame_dt):
+                row = {"variant": variant, **out.metrics}
+                metrics_file.write(json.dumps(row, default=_json_default) + "\n")
+                metrics_file.flush()
+                rows.append(out.metrics)
+                img = painter(out)
+                video.write(img)
+                frames_store.append(img)
+                if out.frame > 0:
+                    elapsed = time.perf_counter() - t0
+                    bar.set_postfix(substeps_per_s=f"{sim.substeps / elapsed:.0f}", latched=sim.latched)
+                    bar.update(1)
+    except SimulationDiverged as err:
+        status = f"diverged at frame {err.frame}"
+        tqdm.write(f"{variant}: {err}")
+        metrics_file.write(json.dumps({"variant": variant, "frame": err.frame, "diverged": str(err)}) + "\n")
+    finally:
+        bar.close()
+    if sim.topology is not None and topology is None:
+        topology = sim.topology
+    return summarize(variant, rows, status, time.perf_counter() - t0), topology
+
+
+def _json_default(o):
+    if torch.is_tensor(o):
+        return o.tolist()
+    if isinstance(o, (np.floating, np.integer)):
+        return o.item()
+    raise TypeError(type(o))
+
+
+def compose_comparison(cfg, variants, frame_lists, topology: Optional[Topology], painter: Painter, out_dir: Path):
+    """Side-by-side video at matched frames with captions and, after the latch, circular insets
+    around the latched interface projected into each panel."""
+    n = min(len(f) for f in frame_lists)
+    latch_frame = topology.latch_frame if topology is not None else None
+    with VideoWriter(out_dir / "comparison.mp4", fps=cfg.render.fps) as video:
+        for i in range(n):
+            panels = []
+            for variant, frames in zip(variants, frame_lists):
+                img = frames[i]
+                if latch_frame is not None and i >= latch_frame:
+                    cx, cy, r = compose.interface_region(topology.point, topology.normal, 0.04, painter.camera(i))
+                    if 0 <= cx < img.shape[1] and 0 <= cy < img.shape[0]:
+                        r = float(np.clip(r, 8, cfg.render.inset_radius))
+                        img = compose.add_inset(img, (cx, cy), r, cfg.render.inset_zoom)
+                panels.append(img)
+            caps = [compose.caption_text(v, i * cfg.frame_dt, i) for v in variants]
+            frame = compose.side_by_side(panels, caps)
+            video.write(frame)
+            save_png(out_dir / "frames" / f"compare_{i:04d}.png", frame)
+
+
+def run_render_sim(cfg: SceneConfig, variants, device: str, out_dir, progress: bool = True) -> dict:
+    """The main job. Returns the summary dict (also written to summary.json / summary.md)."""
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    (out_dir / "config.toml").write_text(dump_config(cfg))
+    gs = load_scene(cfg, device)
+    painter = Painter(gs, cfg, device)
+    # a variant with a provider runs first; its latched topology is replayed by all the others
+    order = sorted(variants, key=lambda v: v == "baseline")
+    frames, summaries, topology = {}, {}, None
+    interrupted = False
+    with open(out_dir / "metrics.jsonl", "w") as metrics_file:
+        try:
+            for variant in order:
+                frames[variant] = []
+                summaries[variant], topology = run_variant(cfg, gs, variant, device, out_dir, painter, topology,
+                                                           metrics_file, frames[variant])
+                if topology is not None and not (out_dir / "topology.npz").exists():
+                    topology.save(out_dir / "topology.npz")
+        except KeyboardInterrupt:
+            interrupted = True
+    done = [v for v in variants if v in summaries]
+    if done and all(frames[v] for v in done):
+        compose_comparison(cfg, done, [frames[v] for v in done], topology, painter, out_dir)
+    summary = {"name": cfg.name, "scene": cfg.scene, "preset": cfg.preset, "device": device, "particles": len(gs),
+               "frames": cfg.frames, "frame_dt": cfg.frame_dt, "variants": [summaries[v] for v in done],
+               "interrupted": interrupted, "out_dir": str(out_dir)}
+    (out_dir / "summary.json").write_text(json.dumps(summary, indent=2, default=_json_default))
+    (out_dir / "summary.md").write_text(f"# {cfg.name}: {cfg.scene} ({cfg.preset}, {len(gs)} particles, {device})\n\n"
+                                        + summary_markdown(summary["variants"]))
+    if interrupted:
+        raise KeyboardInterrupt(f"interrupted; partial outputs (frames, metrics, videos so far) are in {out_dir}")
+    return summary
