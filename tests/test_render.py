@@ -3,6 +3,7 @@ projection vs gsplat's pure-torch helpers. Every random test draws a fresh seed 
 from __future__ import annotations
 
 import math
+import os
 import random
 import subprocess
 import sys
@@ -21,7 +22,8 @@ from fracture_gs.render.gaussians import sh_basis
 
 
 def fresh_seed() -> tuple[int, torch.Generator]:
-    seed = random.SystemRandom().randrange(2**31)
+    """A fresh seed per test (FGS_SEED=<seed> reproduces a failure) and a generator seeded with it."""
+    seed = int(os.environ.get("FGS_SEED", random.SystemRandom().randrange(2**31)))
     return seed, torch.Generator().manual_seed(seed)
 
 
@@ -130,20 +132,20 @@ def test_rigid_rotation_renders_like_inverse_rotated_camera():
     x0, cov0, sh, opac = random_scene(n, g, spread=0.3, scale=0.06, sh_degree=3, dtype=torch.float64)
     sh = 2.0 * sh  # strong view dependence
     Q = random_rotations(1, g)[0]
-    cam = look_at((0.2, -2.0, 0.7), (0, 0, 0), (0, 0, 1), 45, 48, 40)
+    cam = look_at((0.2, -2.0, 0.7), (0, 0, 0), (0, 0, 1), 45, 48, 40).to(dtype=torch.float64)
     F = Q.expand(n, 3, 3)
     x = x0 @ Q.T
-    img_rot = render(x, deform_covariances(F, cov0), sh_colors(sh, x, cam.campos.double(), polar_rotation(F)),
+    img_rot = render(x, deform_covariances(F, cov0), sh_colors(sh, x, cam.campos, polar_rotation(F)),
                      opac, cam, backend="torch").image
-    V = cam.viewmat.double().clone()
+    V = cam.viewmat.clone()
     V[:3, :3] = V[:3, :3] @ Q
-    cam0 = Camera(V, cam.K.double(), cam.width, cam.height)
-    assert_close(cam0.campos, Q.T @ cam.campos.double())
+    cam0 = Camera(V, cam.K, cam.width, cam.height)
+    assert_close(cam0.campos, Q.T @ cam.campos)
     img_rest = render(x0, cov0, sh_colors(sh, x0, cam0.campos), opac, cam0, backend="torch").image
     assert img_rest.std() > 0.05, f"seed {seed}: empty image"
     assert_close(img_rot, img_rest, rtol=0, atol=1e-9, msg=lambda m: f"seed {seed}: {m}")
     # the test is sensitive: without rotating the view direction the images differ
-    img_norot = render(x, deform_covariances(F, cov0), sh_colors(sh, x, cam.campos.double(), None),
+    img_norot = render(x, deform_covariances(F, cov0), sh_colors(sh, x, cam.campos, None),
                        opac, cam, backend="torch").image
     assert (img_norot - img_rest).abs().max() > 1e-2, f"seed {seed}: SH rotation has no effect"
 
@@ -225,28 +227,66 @@ def test_projection_matches_gsplat_torch_impl(mode):
         assert_close(p.compensations[ok], comp[0][ok], msg=msg)
 
 
+def _threshold_ambiguous(means, cov, opac, cam, mode, pixels, rel=1e-4):
+    """For each pixel (row, col): does some compositing decision at it (α ≥ 1/255, T(1−α) ≤ 1e-4)
+    sit within `rel` of its threshold in float64, so float32 rounding may flip it?"""
+    f = lambda t: t.double()
+    p = project_gaussians(f(means), f(cov), f(cam.viewmat), f(cam.K), cam.width, cam.height, 0.3, 0.01, 1e10,
+                          mode, None)
+    ids = torch.nonzero((p.depths >= 0.01) & (torch.linalg.det(p.covars2d) > 0)).squeeze(1)
+    ids = ids[torch.sort(p.depths[ids], stable=True).indices]
+    o = f(opac) * (p.compensations if mode == "antialiased" else 1.0)
+    out = []
+    for r, c in pixels:
+        d = p.means2d[ids] - torch.tensor([c + 0.5, r + 0.5], dtype=torch.float64)
+        a, b, cc = p.conics[ids].unbind(-1)
+        alpha = (o[ids] * torch.exp(-(0.5 * (a * d[:, 0] ** 2 + cc * d[:, 1] ** 2) + b * d[:, 0] * d[:, 1])))
+        alpha = alpha.clamp_max(0.999)
+        T, near = 1.0, False
+        for al in alpha.tolist():
+            near |= abs(al * 255.0 - 1.0) < rel
+            if al < 1 / 255:
+                continue
+            near |= abs(T * (1 - al) / 1e-4 - 1.0) < rel
+            if T * (1 - al) <= 1e-4:
+                break
+            T *= 1 - al
+        out.append(near)
+    return out
+
+
 @pytest.mark.parametrize("mode", ["classic", "antialiased"])
 @pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
 def test_torch_backend_matches_float64_reference(mode, dtype):
+    """Tile rasterizer vs the per-pixel float64 reference: ≤ 1e-4 everywhere (1e-10 in float64).
+    In float32 a pixel may differ more only where a threshold decision (α vs 1/255, T vs 1e-4) lies
+    within float32 rounding of its boundary; such pixels are verified to be exactly those."""
     seed, g = fresh_seed()
     n = 160
     means, cov, _, opac = random_scene(n, g, spread=0.35, scale=0.05)
     cols = torch.rand(n, 3, generator=g)
-    # an opaque stack in front: pixels reach T ≤ 1e-4 and stop early
-    means[:12] = 0.02 * torch.randn(12, 3, generator=g) + torch.tensor([0.0, -0.6, 0.0])
+    eye = torch.tensor([0.05, -2.0, 0.3])
+    # an opaque stack on the view axis: its pixels reach T ≤ 1e-4 and stop early
+    means[:12] = 0.3 * eye + 0.003 * torch.randn(12, 3, generator=g)
+    cov[:12] = 0.04**2 * torch.eye(3)
     opac[:12] = 0.99
     means[12:20, 1] = -2.5  # behind the camera
     cov[20:30] *= 30.0  # a few big, soft Gaussians
-    cam = look_at((0.05, -2.0, 0.3), (0, 0, 0), (0, 0, 1), 45, 61, 45)  # sizes not multiples of 16
+    cam = look_at(eye.tolist(), (0, 0, 0), (0, 0, 1), 45, 61, 45)  # sizes not multiples of 16
     bg = (0.2, 0.6, 1.0)
     ref = render_reference(means, cov, cols, opac, cam, bg, mode)
     out = render(means.to(dtype), cov.to(dtype), cols.to(dtype), opac.to(dtype), cam, bg, "torch", mode)
     assert out.backend == "torch" and out.image.shape == (45, 61, 3) and out.alpha.shape == (45, 61)
-    assert (ref.alpha > 0.9999).any() and (ref.alpha < 0.5).any(), f"seed {seed}: scene lacks stops/background"
-    atol = 1e-4 if dtype == torch.float32 else 1e-10
+    assert (ref.alpha > 0.999).any() and (ref.alpha < 0.5).any(), f"seed {seed}: scene lacks stops/background"
     msg = lambda m: f"seed {seed} {mode} {dtype}: {m}"
-    assert_close(out.image.double(), ref.image, rtol=0, atol=atol, msg=msg)
-    assert_close(out.alpha.double(), ref.alpha, rtol=0, atol=atol, msg=msg)
+    if dtype == torch.float64:
+        assert_close(out.image, ref.image, rtol=0, atol=1e-10, msg=msg)
+        assert_close(out.alpha, ref.alpha, rtol=0, atol=1e-10, msg=msg)
+        return
+    err = torch.maximum((out.image.double() - ref.image).abs().amax(-1), (out.alpha.double() - ref.alpha).abs())
+    bad = torch.nonzero(err > 1e-4).tolist()
+    assert len(bad) <= 5, msg(f"{len(bad)} pixels over 1e-4, max {err.max():.2e}")
+    assert all(_threshold_ambiguous(means, cov, opac, cam, mode, bad)), msg(f"pixels {bad} differ by {err.max():.2e}")
 
 
 def test_empty_and_offscreen_scenes_render_background():
@@ -286,9 +326,10 @@ def test_print_cpu_speed_20k_256():
     cam = look_at((0, -2.2, 0.6), (0, 0, 0), (0, 0, 1), 40, 256, 256)
     render(means, cov, cols, opac, cam)  # warm-up
     times = []
-    for _ in range(3):
+    for _ in range(2):
         t0 = time.perf_counter()
         out = render(means, cov, cols, opac, cam)
         times.append(time.perf_counter() - t0)
     print(f"\n[speed] torch backend, {n} Gaussians, 256x256, {torch.get_num_threads()} threads: "
-          f"median {sorted(times)[1]:.3f} s/frame (seed {seed}, coverage {out.alpha.mean():.2f})")
+          f"best {min(times):.3f} s/frame (seed {seed}, coverage {out.alpha.mean():.2f}; "
+          f"load average {os.getloadavg()[0]:.1f})")

@@ -1,0 +1,122 @@
+"""Per-frame Gaussian update from the deformation gradient (DESIGN.md "Rendering").
+
+A particle that came from a Gaussian carries its rest covariance Σ⁰ = R S Sᵀ Rᵀ and its SH
+coefficients, expressed in the rest frame. After deformation by F:
+
+    mean  = x_p,                 Σ = F Σ⁰ Fᵀ                      (affine push-forward)
+    F = R U (polar),             colour(d) = SH(Rᵀ d)              (view direction into rest frame)
+
+The SH rotation is done by rotating the *view direction* instead of the coefficients: evaluating
+the rest-frame SH at Rᵀd is exactly the SH of the rotated signal at d, for every degree.
+Takes tensors only; never imports `fracture_gs.sim`.
+"""
+from __future__ import annotations
+
+import torch
+from torch import Tensor
+
+# Real SH constants of the reference 3DGS implementation (Kerbl et al. 2023, `sh_utils.py`).
+SH_C0 = 0.28209479177387814
+SH_C1 = 0.4886025119029199
+SH_C2 = (1.0925484305920792, -1.0925484305920792, 0.31539156525252005,
+         -1.0925484305920792, 0.5462742152960396)
+SH_C3 = (-0.5900435899266435, 2.890611442640554, -0.4570457994644658, 0.3731763325901154,
+         -0.4570457994644658, 1.445305721320277, -0.5900435899266435)
+
+
+def polar_rotation(F: Tensor) -> Tensor:  # [N,3,3] -> [N,3,3]
+    """Rotation R of the polar decomposition F = R U (U symmetric positive semi-definite).
+
+    From the SVD F = W Σ Vᵀ: R = W D Vᵀ with D = diag(1, 1, det(W Vᵀ)). D flips the axis of the
+    smallest singular value when det F < 0, so R is always a proper rotation (det R = +1), the
+    closest one to F in the Frobenius norm — the same convention as the fixed-corotated model.
+    Computed in float64 so near-singular F (tiny σ₃) still gives an orthonormal R.
+    """
+    dtype = F.dtype
+    Fd = F.to(torch.float64)
+    W, _, Vh = torch.linalg.svd(Fd)
+    d = torch.linalg.det(W @ Vh)  # [N], ±1
+    D = torch.ones(F.shape[:-2] + (3,), dtype=torch.float64, device=F.device)
+    D[..., 2] = torch.where(d < 0, -1.0, 1.0)
+    return ((W * D[..., None, :]) @ Vh).to(dtype)
+
+
+def deform_covariances(F: Tensor, cov0: Tensor) -> Tensor:  # [N,3,3], [N,3,3] -> [N,3,3]
+    """Σ = F Σ⁰ Fᵀ, symmetrized so the result is exactly symmetric (SPD when det F ≠ 0)."""
+    S = F @ cov0 @ F.transpose(-1, -2)
+    return 0.5 * (S + S.transpose(-1, -2))
+
+
+def sh_basis(dirs: Tensor, degree: int) -> Tensor:  # [N,3] unit -> [N,(degree+1)²]
+    """Real SH basis of degree 0–3 at unit directions, in the 3DGS ordering and sign convention."""
+    if not 0 <= degree <= 3:
+        raise ValueError(f"SH degree must be 0..3, got {degree}")
+    x, y, z = dirs.unbind(-1)
+    out = [torch.full_like(x, SH_C0)]
+    if degree >= 1:
+        out += [-SH_C1 * y, SH_C1 * z, -SH_C1 * x]
+    if degree >= 2:
+        xx, yy, zz, xy, yz, xz = x * x, y * y, z * z, x * y, y * z, x * z
+        out += [SH_C2[0] * xy, SH_C2[1] * yz, SH_C2[2] * (2 * zz - xx - yy),
+                SH_C2[3] * xz, SH_C2[4] * (xx - yy)]
+    if degree >= 3:
+        out += [SH_C3[0] * y * (3 * xx - yy), SH_C3[1] * xy * z, SH_C3[2] * y * (4 * zz - xx - yy),
+                SH_C3[3] * z * (2 * zz - 3 * xx - 3 * yy), SH_C3[4] * x * (4 * zz - xx - yy),
+                SH_C3[5] * z * (xx - yy), SH_C3[6] * x * (xx - 3 * yy)]
+    return torch.stack(out, dim=-1)
+
+
+def sh_colors(
+    sh: Tensor,  # [N, K, 3] SH coefficients in the rest frame, K = (deg+1)², DC first
+    means: Tensor,  # [N, 3] current (deformed) world positions
+    campos: Tensor,  # [3] camera centre in world coordinates
+    R: Tensor | None = None,  # [N, 3, 3] polar rotation of F, or None (no rotation)
+) -> Tensor:  # [N, 3] RGB, ≥ 0
+    """colour = max(0, Σ_lm c_lm Y_lm(d_rest) + 0.5) with d_rest = Rᵀ (x − c)/|x − c|."""
+    K = sh.shape[-2]
+    degree = int(round(K ** 0.5)) - 1
+    if (degree + 1) ** 2 != K:
+        raise ValueError(f"sh has K={K} coefficients per channel; expected a square (1, 4, 9, 16)")
+    d = means - campos.to(means)[None, :]
+    d = d / d.norm(dim=-1, keepdim=True).clamp_min(1e-12)
+    if R is not None and degree > 0:  # degree 0 is view-independent
+        d = torch.einsum("nji,nj->ni", R.to(d), d)  # Rᵀ d
+    basis = sh_basis(d, degree)  # [N, K]
+    rgb = torch.einsum("nk,nkc->nc", basis.to(sh.dtype), sh) + 0.5
+    return rgb.clamp_min(0.0)
+
+
+def exposed_interior_colors(
+    interior_means: Tensor,  # [N, 3] interior fill particles to colour
+    surface_means: Tensor,  # [M, 3] surface Gaussians
+    surface_colors: Tensor,  # [M, C] their colours
+    chunk: int = 4096,
+) -> Tensor:  # [N, C]
+    """Colour of the nearest surface Gaussian, found by chunked `cdist` (memory ≤ chunk² floats)."""
+    n, m = interior_means.shape[0], surface_means.shape[0]
+    if m == 0:
+        raise ValueError("exposed_interior_colors: no surface Gaussians to take colours from")
+    best_d = torch.full((n,), float("inf"), dtype=interior_means.dtype, device=interior_means.device)
+    best_i = torch.zeros(n, dtype=torch.long, device=interior_means.device)
+    for i0 in range(0, n, chunk):
+        q = interior_means[i0:i0 + chunk]
+        bd, bi = best_d[i0:i0 + chunk], best_i[i0:i0 + chunk]
+        for j0 in range(0, m, chunk):
+            dmin, jmin = torch.cdist(q, surface_means[j0:j0 + chunk]).min(dim=1)
+            better = dmin < bd
+            bd = torch.where(better, dmin, bd)
+            bi = torch.where(better, jmin + j0, bi)
+        best_d[i0:i0 + chunk], best_i[i0:i0 + chunk] = bd, bi
+    return surface_colors[best_i]
+
+
+def visible_mask(
+    interior: Tensor,  # [N] bool: interior fill particle
+    exposed: Tensor,  # [N] bool: exposed by a fracture
+    show_exposed: bool,
+) -> Tensor:  # [N] bool
+    """Surface Gaussians always; interior ones only when exposed and `show_exposed`."""
+    interior = interior.bool()
+    if not show_exposed:
+        return ~interior
+    return ~interior | exposed.bool()

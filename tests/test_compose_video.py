@@ -1,0 +1,142 @@
+"""Composer layouts, circular insets, interface regions and H.264 video output (CPU)."""
+from __future__ import annotations
+
+import math
+import os
+import random
+
+import cv2
+import numpy as np
+import pytest
+import torch
+
+from fracture_gs.io.video import VideoWriter, read_video, save_png, write_video
+from fracture_gs.render import look_at
+from fracture_gs.render.compose import (add_inset, caption, caption_text, grid, inset_placement,
+                                        interface_region, side_by_side)
+
+
+def fresh_rng():
+    """A fresh seed per test (FGS_SEED=<seed> reproduces a failure) and a numpy generator."""
+    seed = int(os.environ.get("FGS_SEED", random.SystemRandom().randrange(2**31)))
+    return seed, np.random.default_rng(seed)
+
+
+def smooth_image(rng, h, w):
+    """A smooth random RGB image (low-frequency), so bilinear magnification is well defined."""
+    small = rng.integers(0, 256, (max(2, h // 12), max(2, w // 12), 3)).astype(np.float32)
+    return np.clip(cv2.resize(small, (w, h), interpolation=cv2.INTER_CUBIC), 0, 255).astype(np.uint8)
+
+
+def even(n):
+    return n + n % 2
+
+
+def test_caption_adds_bar_and_keeps_even_size():
+    seed, rng = fresh_rng()
+    img = rng.integers(0, 256, (51, 77, 3), dtype=np.uint8)
+    out = caption(img, "FractureFields  t=0.100 s  #10")
+    assert out.dtype == np.uint8 and out.shape[0] % 2 == 0 and out.shape[1] % 2 == 0, seed
+    assert out.shape[1] == 78 and out.shape[0] > 51
+    bar = out.shape[0] - 52  # 51 rows of image padded to 52
+    np.testing.assert_array_equal(out[bar:bar + 51, :77], img, err_msg=f"seed {seed}")
+    assert out[:bar].std() > 0, "caption text not drawn"
+
+
+def test_side_by_side_and_grid_sizes():
+    seed, rng = fresh_rng()
+    a, b, c = (rng.integers(0, 256, s, dtype=np.uint8) for s in [(64, 48, 3), (60, 50, 3), (64, 41, 3)])
+    out = side_by_side([a, b, c], gap=4)
+    assert out.shape == (64, even(48 + 50 + 41 + 8), 3), seed
+    np.testing.assert_array_equal(out[:, :48], a)
+    np.testing.assert_array_equal(out[:60, 52:102], b)
+    capd = side_by_side([a, b, c], ["baseline", "stress", "full"])
+    assert capd.shape[1] == out.shape[1] and capd.shape[0] > 64 and capd.shape[0] % 2 == 0
+    with pytest.raises(ValueError):
+        side_by_side([a, b], ["only one"])
+    g = grid([[a, b, c], [c, b, a]], row_labels=["t=0", "t=1"], col_labels=["baseline", "stress", "full"])
+    assert g.shape[0] % 2 == 0 and g.shape[1] % 2 == 0
+    plain = grid([[a, b, c], [c, b, a]])
+    assert plain.shape == (even(2 * 64 + 4), even(3 * 50 + 2 * 4), 3)
+    assert g.shape[0] > plain.shape[0] and g.shape[1] > plain.shape[1]
+    # float images in [0, 1] are accepted
+    assert side_by_side([a / 255.0, torch.from_numpy(b / 255.0)]).dtype == np.uint8
+
+
+@pytest.mark.parametrize("where", ["centre", "corner", "random"])
+def test_inset_placement_avoids_source_and_magnifies(where):
+    seed, rng = fresh_rng()
+    h, w = 240, 320
+    img = smooth_image(rng, h, w) if where != "random" else rng.integers(0, 256, (h, w, 3), dtype=np.uint8)
+    r, zoom = 22.0, 2.5
+    if where == "centre":
+        c = (w / 2, h / 2)
+    elif where == "corner":
+        c = (40.0, 35.0)  # near the top-left: the inset must go elsewhere
+    else:
+        c = (float(rng.uniform(r, w - r)), float(rng.uniform(r, h - r)))
+    ix, iy, R = inset_placement(img.shape, c, r, zoom)
+    msg = f"seed {seed}, source {c}, inset {(ix, iy, R)}"
+    assert math.hypot(ix - c[0], iy - c[1]) >= R + r, msg  # no overlap with the source circle
+    assert R >= 8 and ix - R >= 0 and iy - R >= 0 and ix + R <= w and iy + R <= h, msg
+    out = add_inset(img, c, r, zoom)
+    assert out.shape == img.shape and out.dtype == np.uint8
+    # pixels well inside the inset disc equal the source magnified by R/r about the source centre
+    z = R / r
+    ys, xs = np.mgrid[0:h, 0:w] + 0.5
+    inner = (xs - ix) ** 2 + (ys - iy) ** 2 <= (R - 4) ** 2
+    sx = np.clip(c[0] + (xs[inner] - ix) / z - 0.5, 0, w - 1)
+    sy = np.clip(c[1] + (ys[inner] - iy) / z - 0.5, 0, h - 1)
+    x0, y0 = np.floor(sx).astype(int), np.floor(sy).astype(int)
+    x1, y1 = np.minimum(x0 + 1, w - 1), np.minimum(y0 + 1, h - 1)
+    fx, fy = (sx - x0)[:, None], (sy - y0)[:, None]
+    f = img.astype(np.float64)
+    ref = (f[y0, x0] * (1 - fx) + f[y0, x1] * fx) * (1 - fy) + (f[y1, x0] * (1 - fx) + f[y1, x1] * fx) * fy
+    assert np.abs(out[inner].astype(float) - ref).max() <= 1.0, msg
+    # the source region itself is untouched inside its outline
+    src = (xs - c[0]) ** 2 + (ys - c[1]) ** 2 <= (r - 3) ** 2
+    np.testing.assert_array_equal(out[src], img[src], err_msg=msg)
+
+
+def test_interface_region_projects_the_disc():
+    cam = look_at((0.0, -2.0, 0.0), (0, 0, 0), (0, 0, 1), 40, 256, 192)
+    f = float(cam.K[1, 1])
+    cx, cy, r = interface_region((0, 0, 0), (0, 1, 0), 0.2, cam)  # disc facing the camera
+    assert abs(cx - 128) < 1e-6 and abs(cy - 96) < 1e-6
+    assert abs(r - f * 0.2 / 2.0) < 0.05 * r
+    cx2, cy2, r2 = interface_region((0.3, 0, 0.1), (1, 0, 0), 0.2, cam)  # seen edge-on
+    uv, _ = cam.project(torch.tensor([[0.3, 0.0, 0.1]]))
+    assert abs(cx2 - float(uv[0, 0])) < 1e-3 and abs(cy2 - float(uv[0, 1])) < 1e-3
+    assert r2 > 1.0
+    with pytest.raises(ValueError):
+        interface_region((0, -5, 0), (0, 1, 0), 0.1, cam)
+
+
+def test_caption_text():
+    s = caption_text("full", 0.25, 25)
+    assert "FractureFields" in s and "0.250" in s and "25" in s
+    assert caption_text("my_variant", 0.0, 0).startswith("my_variant")
+
+
+def test_video_roundtrip_odd_size_padded(tmp_path):
+    seed, rng = fresh_rng()
+    frames = [rng.integers(0, 256, (33, 47, 3), dtype=np.uint8) for _ in range(7)]
+    p = tmp_path / "v" / "out.mp4"
+    assert write_video(p, frames, fps=12) == 7
+    assert read_video(p) == (7, 34, 48), seed
+    with VideoWriter(tmp_path / "f.mp4", fps=24) as vw:
+        for k in range(5):
+            vw.write(np.full((20, 30, 3), k / 5.0))  # float frames
+    assert read_video(tmp_path / "f.mp4") == (5, 20, 30)
+    with pytest.raises(ValueError, match="same size"):
+        with VideoWriter(tmp_path / "bad.mp4") as vw:
+            vw.write(np.zeros((20, 30, 3), np.uint8))
+            vw.write(np.zeros((22, 30, 3), np.uint8))
+
+
+def test_save_png_roundtrip(tmp_path):
+    seed, rng = fresh_rng()
+    img = rng.integers(0, 256, (21, 30, 3), dtype=np.uint8)
+    save_png(tmp_path / "a" / "x.png", img)
+    back = cv2.imread(str(tmp_path / "a" / "x.png"))[..., ::-1]
+    np.testing.assert_array_equal(back, img, err_msg=f"seed {seed}")
