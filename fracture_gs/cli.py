@@ -127,6 +127,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--variants", metavar="A,B,C", help="comma-separated variants (default: the config's `variants`)")
     p.add_argument("--preset", metavar="small|paper", help="small (dx 1/64, CPU sized) or paper (dx 1/128, paper particle counts)")
     p.add_argument("--frames", metavar="N", type=_positive_int, help="number of frames (default: the config's)")
+    p.add_argument("--particles", metavar="N", type=_positive_int,
+                   help="built-in scenes only: override the preset's particle count (quick looks)")
     p.add_argument("--resolution", metavar="WxH", help="image size, e.g. 640x480 (default: the config's)")
     _add_common_run_flags(p, "output folder (default: runs/<config name>)")
 
@@ -247,8 +249,16 @@ def cmd_render_sim(args: argparse.Namespace) -> int:
     out_dir = Path(args.out) if args.out else Path("runs") / cfg.name
     run = _import_first([("fracture_gs.runner", "run_render_sim")], "render-sim (fracture_gs.runner.run_render_sim)")
     _PARTIAL_OUT = out_dir
+    if getattr(args, "particles", None):
+        cfg.particles = args.particles
     print(f"render-sim: {cfg.name} ({cfg.scene}, preset {cfg.preset}), {cfg.frames} frames, variants {', '.join(cfg.variants)}, device {device} -> {out_dir}")
-    _print_summary(run(cfg, list(cfg.variants), device, out_dir))
+    summary = run(cfg, list(cfg.variants), device, out_dir)
+    print((out_dir / "summary.md").read_text())
+    print(f"outputs in {out_dir}: comparison.mp4, one <variant>.mp4 each, frames/, metrics.jsonl, summary.json, topology.npz, config.toml")
+    failed = [f"{v['variant']} {v['status']}" for v in summary["variants"] if v["status"] != "ok"]
+    if failed:
+        print(f"fracture-gs: error: {'; '.join(failed)}; every frame and metric written before that is in {out_dir}", file=sys.stderr)
+        return 1
     return 0
 
 

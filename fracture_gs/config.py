@@ -240,6 +240,8 @@ class SceneConfig:
     """Built-in asset name (bread, ficus, recontact, beam, plane_drop) or a path to a 3DGS .ply."""
     preset: str = "small"
     """Built-in asset size: `small` (≈20k particles, CPU) or `paper` (the paper's counts)."""
+    particles: Optional[int] = None
+    """Override a built-in scene's particle count (quick looks and tests); None = the preset's."""
     fill_interior: bool = True
     """Fill the inside of a surface-only PLY with simulated particles."""
     material_property: Optional[str] = None

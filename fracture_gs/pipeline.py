@@ -37,7 +37,7 @@ def load_scene(cfg: SceneConfig, device="cpu") -> GaussianSet:
     """The config's scene: a built-in asset at the config's preset, or a 3DGS PLY (interior filled
     when it has no interior particles and `fill_interior` is on)."""
     if cfg.scene in assets.names():
-        return assets.build(cfg.scene, size=cfg.preset).to(device)
+        return assets.build(cfg.scene, size=cfg.preset, n=cfg.particles).to(device)
     from .io.ply import load_ply
 
     path = Path(cfg.scene)
@@ -106,11 +106,13 @@ def frame_output(sim: Simulator, cov0: torch.Tensor, metrics: dict, substeps: in
                        metrics=metrics, substeps=substeps)
 
 
-def simulate(sim: Simulator, cov0: torch.Tensor, frames: int, frame_dt: float) -> Iterator[FrameOutput]:
+def simulate(sim: Simulator, cov0: torch.Tensor, frames: int, frame_dt: float,
+             diagnostics: bool = True) -> Iterator[FrameOutput]:
     """Yield frame 0 (initial state), then one FrameOutput per simulated frame. Raises
-    `SimulationDiverged` at the frame that diverged (everything yielded before stays valid)."""
-    tracker = sim.diagnostics_tracker()
-    yield frame_output(sim, cov0, tracker.snapshot())
+    `SimulationDiverged` at the frame that diverged (everything yielded before stays valid).
+    Without `diagnostics` nothing is read back to the host but the per-frame divergence check."""
+    tracker = sim.diagnostics_tracker() if diagnostics else None
+    yield frame_output(sim, cov0, tracker.snapshot() if tracker else {})
     for _ in range(frames):
         n = sim.advance(frame_dt)
-        yield frame_output(sim, cov0, tracker.history[-1], n)
+        yield frame_output(sim, cov0, tracker.history[-1] if tracker else {}, n)
