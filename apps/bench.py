@@ -1,0 +1,267 @@
+"""Transfer benchmarks: the baseline substep by phase and the paper's Table 2 branches.
+
+    python apps/bench.py --device cuda:0                 # full table, writes BENCHMARKS-run.md
+    python apps/bench.py --device cpu --particles 20000  # a CPU smoke run
+    python apps/bench.py --accuracy                      # speed against error (apps/accuracy.py)
+
+Scope of Table 2 (as in the paper): grid reset, P2G, normalization (+ contact), G2P; stress,
+probing, diagnostics and rendering excluded. All branches run on the same latched particle state
+(the built-in ficus at the paper's 171,553 particles in a 128³ grid, Δx = 1/128). On CUDA each
+timing is a median of CUDA-event intervals over ≥ 200 substeps after warm-up, per trial; on the
+CPU, wall-clock medians (marked as CPU).
+"""
+from __future__ import annotations
+
+import argparse
+import datetime
+import json
+import platform
+import statistics
+import sys
+import time
+from pathlib import Path
+
+import torch
+
+ROOT = Path(__file__).resolve().parents[1]
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
+
+import warp as wp  # noqa: E402
+
+from fracture_gs import assets  # noqa: E402
+from fracture_gs.config import SceneConfig, SimConfig  # noqa: E402
+from fracture_gs.sim import Particles, Simulator, Topology  # noqa: E402
+
+BRANCHES = [  # (label, variant, passes P2G/G2P/frag)
+    ("Shared Field", "stress_zero", "1/1/0"),
+    ("Global Fragment Pass", "global_fragment_pass", "2/2/1"),
+    ("Local Multi-Field", "local_multifield", "1/1/0"),
+    ("FractureFields", "full", "1/1/0"),
+]
+
+
+def bench_state(particles: int | None, device: str, n: int = 128, shuffle: bool = False):
+    """The ficus at `particles` (default: the paper's 171,553) with a latched plane through the trunk."""
+    gs = assets.build("ficus", size="paper", n=particles)
+    cfg = SceneConfig(scene="ficus")
+    cfg.sim = SimConfig(dx=1.0 / n, grid_shape=(n, n, n), grid_origin=(0.0, 0.0, 0.0), dt=1e-4, gravity=(0.0, 0.0, -9.8))
+    cfg.material.E, cfg.material.density = 2e6, 200.0
+    P = Particles.from_gaussians(gs, cfg)
+    if shuffle:
+        P.permute(torch.randperm(len(P)))
+    topo = Topology.from_plane(P.x, (0.5, 0.5, 0.40), (0.2, 0.0, 1.0), band_width=1.5 / n)
+    return cfg, P, topo
+
+
+def make_sim(cfg, P, topo, variant, device, sort: bool):
+    import copy
+
+    sim_cfg = copy.deepcopy(cfg.sim)
+    sim_cfg.variant = variant
+    sim = Simulator(sim_cfg, P.clone(), device=device)
+    if sort:
+        order = sim.sort_particles()
+        topo = Topology(fragment=topo.fragment[order.cpu()], band=topo.band[order.cpu()], normal=topo.normal,
+                        point=topo.point)
+    sim.latch(topo)
+    sim.compute_stress(sim.stress, commit=True)
+    return sim
+
+
+def transfer_step(sim: Simulator, dt: float):
+    """Table 2 scope: reset + P2G, normalization (+contact) + boundaries, G2P (one or two passes)."""
+    if sim.cfg.variant == "global_fragment_pass":
+        for k in (0, 1):
+            sim._grid_pass(dt, only_fragment=k)
+    else:
+        sim._grid_pass(dt, only_fragment=-1)
+
+
+class Timer:
+    """CUDA events on torch's current stream (where Warp launches too), or wall clock on CPU."""
+
+    def __init__(self, device: str):
+        self.cuda = device.startswith("cuda")
+
+    def mark(self):
+        if self.cuda:
+            e = torch.cuda.Event(enable_timing=True)
+            e.record()
+            return e
+        return time.perf_counter()
+
+    def ms(self, a, b) -> float:
+        if self.cuda:
+            return a.elapsed_time(b)
+        return (b - a) * 1e3
+
+    def sync(self):
+        if self.cuda:
+            torch.cuda.synchronize()
+
+
+def capture(sim: Simulator, fn):
+    """A CUDA graph of `fn` (Warp launches and torch zero_ on the current, non-default stream)."""
+    with sim._stream_scope():
+        with wp.ScopedCapture(device=sim.device, force_module_load=False) as cap:
+            fn()
+    return cap.graph
+
+
+def time_fn(sim: Simulator, fn, steps: int, warmup: int, trials: int, graph: bool) -> list[float]:
+    """Per-trial median milliseconds of `fn` (one substep each)."""
+    timer = Timer(sim.device)
+    for _ in range(warmup):
+        with sim._stream_scope():
+            fn()
+    g = capture(sim, fn) if graph and timer.cuda else None
+    medians = []
+    for _ in range(trials):
+        marks = [timer.mark()]
+        for _ in range(steps):
+            if g is not None:
+                with sim._stream_scope():
+                    wp.capture_launch(g)
+            else:
+                with sim._stream_scope():
+                    fn()
+            marks.append(timer.mark())
+        timer.sync()
+        medians.append(statistics.median(timer.ms(a, b) for a, b in zip(marks, marks[1:])))
+    return medians
+
+
+def phase_times(sim: Simulator, dt: float, steps: int, warmup: int) -> dict:
+    """Median ms per phase of the baseline substep (stress, P2G incl. reset, grid, G2P)."""
+    timer = Timer(sim.device)
+    phases = {"stress": lambda: sim.compute_stress(sim.stress, commit=True), "p2g": lambda: sim.p2g(dt),
+              "grid": lambda: sim.update_grid(dt), "g2p": lambda: sim.g2p(dt)}
+    samples = {k: [] for k in phases}
+    for i in range(warmup + steps):
+        marks = [timer.mark()]
+        with sim._stream_scope():
+            for fn in phases.values():
+                fn()
+                marks.append(timer.mark())
+        timer.sync()
+        if i >= warmup:
+            for (k, _), a, b in zip(phases.items(), marks, marks[1:]):
+                samples[k].append(timer.ms(a, b))
+    out = {k: statistics.median(v) for k, v in samples.items()}
+    out["total"] = sum(out.values())
+    return out
+
+
+def time_branches(cfg, P, topo, device: str, steps=200, warmup=20, trials=3, graph=True, sort=True) -> list[dict]:
+    """Table 2 rows: median ms, relative to Shared, grid-buffer MiB, passes."""
+    rows = []
+    dt = cfg.sim.dt
+    for label, variant, passes in BRANCHES:
+        sim = make_sim(cfg, P, topo, variant, device, sort)
+        ms = time_fn(sim, lambda: transfer_step(sim, dt), steps, warmup, trials, graph)
+        rows.append({"branch": label, "variant": variant, "passes": passes, "median_ms": statistics.median(ms),
+                     "trials_ms": ms, "grid_mib": sim.grid.nbytes / 2**20})
+        del sim
+        if device.startswith("cuda"):
+            torch.cuda.empty_cache()
+    base = rows[0]["median_ms"]
+    for r in rows:
+        r["relative"] = r["median_ms"] / base
+    return rows
+
+
+def baseline_rows(cfg, P, topo, device, steps, warmup, trials, graph) -> list[dict]:
+    """The whole baseline substep (stress + transfer) under each optimization, and its phases."""
+    rows = []
+    dt = cfg.sim.dt
+    for label, sort, use_graph in (("as built", False, False), ("cell-sorted", True, False),
+                                   ("cell-sorted + CUDA graph", True, True)):
+        if use_graph and not (graph and device.startswith("cuda")):
+            continue
+        sim = Simulator(_variant(cfg.sim, "baseline"), P.clone(), device=device)
+        if sort:
+            sim.sort_particles()
+
+        def step():
+            sim.compute_stress(sim.stress, commit=True)
+            sim._grid_pass(dt, only_fragment=-1)
+
+        ms = time_fn(sim, step, steps, warmup, trials, use_graph)
+        row = {"setting": label, "median_ms": statistics.median(ms), "trials_ms": ms}
+        if not use_graph:
+            row["phases"] = phase_times(sim, dt, min(steps, 100), warmup)
+        rows.append(row)
+    return rows
+
+
+def _variant(sim_cfg, variant):
+    import copy
+
+    c = copy.deepcopy(sim_cfg)
+    c.variant = variant
+    return c
+
+
+def markdown(result: dict) -> str:
+    env = result["env"]
+    lines = [f"### {env['date']} — {env['device_name']} ({result['particles']} particles, grid {result['grid']}³)", "",
+             f"Command: `{env['command']}`", "", "Baseline substep (stress + reset + P2G + grid + G2P):", "",
+             "| setting | median (ms) | stress | P2G | grid | G2P |", "|---|---|---|---|---|---|"]
+    for r in result["baseline"]:
+        ph = r.get("phases")
+        cells = [f"{ph[k]:.4f}" for k in ("stress", "p2g", "grid", "g2p")] if ph else ["—"] * 4
+        lines.append(f"| {r['setting']} | {r['median_ms']:.4f} | " + " | ".join(cells) + " |")
+    lines += ["", "Table 2 (scope: grid reset, P2G, normalization, contact, G2P; cell-sorted"
+              + (", CUDA graph" if result["graph"] else "") + "):", "",
+              "| Branch | Passes (P2G/G2P/frag) | Median (ms) | Relative | Grid-buffer footprint (MiB) |",
+              "|---|---|---|---|---|"]
+    for r in result["table2"]:
+        lines.append(f"| {r['branch']} | {r['passes']} | {r['median_ms']:.4f} | {r['relative']:.3f} | {r['grid_mib']:.1f} |")
+    if not env["device"].startswith("cuda"):
+        lines += ["", "(CPU: Warp runs kernels single-threaded here; wall-clock medians, not comparable with GPU rows.)"]
+    return "\n".join(lines) + "\n"
+
+
+def run_bench(cfg=None, variants=None, device="cuda:0", out_dir="runs/bench", particles=None, steps=200, warmup=20,
+              trials=3, graph=True) -> dict:
+    """Entry point of `fracture-gs bench`: writes bench.json and bench.md into out_dir."""
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    scfg, P, topo = bench_state(particles, device)
+    dev_name = torch.cuda.get_device_name(torch.device(device)) if device.startswith("cuda") else platform.processor() or "CPU"
+    result = {"particles": len(P), "grid": scfg.sim.grid_shape[0], "graph": graph and device.startswith("cuda"),
+              "env": {"device": device, "device_name": dev_name, "date": datetime.date.today().isoformat(),
+                      "torch": torch.__version__, "warp": wp.config.version, "command": " ".join(sys.argv)}}
+    result["baseline"] = baseline_rows(scfg, P, topo, device, steps, warmup, trials, graph)
+    result["table2"] = time_branches(scfg, P, topo, device, steps, warmup, trials, graph=graph, sort=True)
+    (out_dir / "bench.json").write_text(json.dumps(result, indent=2))
+    (out_dir / "bench.md").write_text(markdown(result))
+    print(markdown(result))
+    return {"out_dir": str(out_dir), "table2_ms": {r["branch"]: round(r["median_ms"], 4) for r in result["table2"]}}
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--device", default="cuda:0" if torch.cuda.is_available() else "cpu")
+    ap.add_argument("--particles", type=int, default=None, help="ficus particle count (default: the paper's 171,553)")
+    ap.add_argument("--steps", type=int, default=200)
+    ap.add_argument("--warmup", type=int, default=20)
+    ap.add_argument("--trials", type=int, default=3)
+    ap.add_argument("--no-graph", action="store_true", help="time plain launches, no CUDA graph capture")
+    ap.add_argument("--out", default="runs/bench")
+    ap.add_argument("--accuracy", action="store_true", help="run the speed-against-error sweeps instead (apps/accuracy.py)")
+    ap.add_argument("--quick", action="store_true", help="with --accuracy: the short sweep")
+    args = ap.parse_args(argv)
+    if args.accuracy:
+        from apps.accuracy import run_accuracy
+
+        return run_accuracy(args.device, args.out, quick=args.quick)
+    if args.device.startswith("cuda") and not torch.cuda.is_available():
+        sys.exit("bench: error: CUDA was requested but is not available here; use --device cpu")
+    return run_bench(device=args.device, particles=args.particles, steps=args.steps, warmup=args.warmup, trials=args.trials,
+                     graph=not args.no_graph, out_dir=args.out)
+
+
+if __name__ == "__main__":
+    main()
