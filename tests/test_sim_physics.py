@@ -178,8 +178,10 @@ def test_drucker_prager_returns_onto_cone(device, seed):
     dn, tr = deviatoric_norm(tau)
     alpha = sim.particles.alpha.double().cpu()
     scale = tau.flatten(1).norm(dim=1) + 1.0
-    assert (tr <= 1e-4 * scale).all(), f"seed {seed}"
-    assert (dn <= -alpha * tr + 1e-4 * scale).all(), f"seed {seed}"
+    tol = 5e-4 * scale  # float32 SVD/log/exp; a missing return would be off by O(1)
+    assert (tr <= tol).all(), f"seed {seed}"
+    assert (dn <= -alpha * tr + tol).all(), f"seed {seed}"
+    assert ((dn - (-alpha * tr)).abs() < tol).float().mean() > 0.2  # many particles sit on the cone
     # the reference agrees on the projected F
     P = sim.particles
     _, F_ref, _ = ref.stress(P.F.cpu(), P.material.cpu(), P.E.cpu(), P.nu.cpu(), P.yield_stress.cpu(), P.alpha.cpu())
