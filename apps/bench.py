@@ -45,7 +45,8 @@ def bench_state(particles: int | None, device: str, n: int = 128, shuffle: bool 
     """The ficus at `particles` (default: the paper's 171,553) with a latched plane through the trunk."""
     gs = assets.build("ficus", size="paper", n=particles)
     cfg = SceneConfig(scene="ficus")
-    cfg.sim = SimConfig(dx=1.0 / n, grid_shape=(n, n, n), grid_origin=(0.0, 0.0, 0.0), dt=1e-4, gravity=(0.0, 0.0, -9.8))
+    # Δt = 2e-5 s: under the CFL bound 0.4·Δx/c ≈ 2.7e-5 s for E = 2e6, ρ = 200 at Δx = 1/128
+    cfg.sim = SimConfig(dx=1.0 / n, grid_shape=(n, n, n), grid_origin=(0.0, 0.0, 0.0), dt=2e-5, gravity=(0.0, 0.0, -9.8))
     cfg.material.E, cfg.material.density = 2e6, 200.0
     P = Particles.from_gaussians(gs, cfg)
     if shuffle:
@@ -54,19 +55,23 @@ def bench_state(particles: int | None, device: str, n: int = 128, shuffle: bool 
     return cfg, P, topo
 
 
-def make_sim(cfg, P, topo, variant, device, sort: bool):
+def make_sim(cfg, P, topo, variant, device, sort):
     import copy
 
     sim_cfg = copy.deepcopy(cfg.sim)
     sim_cfg.variant = variant
     sim = Simulator(sim_cfg, P.clone(), device=device)
     if sort:
-        order = sim.sort_particles()
+        order = sim.sort_particles(sort)
         topo = Topology(fragment=topo.fragment[order.cpu()], band=topo.band[order.cpu()], normal=topo.normal,
                         point=topo.point)
     sim.latch(topo)
     sim.compute_stress(sim.stress, commit=True)
+    sim.fit_active_box(HORIZON)
     return sim
+
+
+HORIZON = 0.05  # s: covers the motion during every timed substep (≤ 1,000 substeps of 2e-5 s)
 
 
 def transfer_step(sim: Simulator, dt: float):
@@ -153,7 +158,7 @@ def phase_times(sim: Simulator, dt: float, steps: int, warmup: int) -> dict:
     return out
 
 
-def time_branches(cfg, P, topo, device: str, steps=200, warmup=20, trials=3, graph=True, sort=True) -> list[dict]:
+def time_branches(cfg, P, topo, device: str, steps=200, warmup=20, trials=3, graph=True, sort="interleaved") -> list[dict]:
     """Table 2 rows: median ms, relative to Shared, grid-buffer MiB, passes."""
     rows = []
     dt = cfg.sim.dt
@@ -175,13 +180,21 @@ def baseline_rows(cfg, P, topo, device, steps, warmup, trials, graph) -> list[di
     """The whole baseline substep (stress + transfer) under each optimization, and its phases."""
     rows = []
     dt = cfg.sim.dt
-    for label, sort, use_graph in (("as built", False, False), ("cell-sorted", True, False),
-                                   ("cell-sorted + CUDA graph", True, True)):
+    settings = [("as built", None, False, False), ("random order", "random", False, False),
+                ("cell order", "cell", False, False), ("interleaved cell order", "interleaved", False, False),
+                ("interleaved + active box", "interleaved", False, True),
+                ("interleaved + CUDA graph", "interleaved", True, False),
+                ("interleaved + active box + CUDA graph", "interleaved", True, True)]
+    for label, sort, use_graph, box in settings:
         if use_graph and not (graph and device.startswith("cuda")):
             continue
         sim = Simulator(_variant(cfg.sim, "baseline"), P.clone(), device=device)
-        if sort:
-            sim.sort_particles()
+        if sort == "random":
+            sim.particles.permute(torch.randperm(len(sim.particles), device=sim.particles.x.device))
+        elif sort:
+            sim.sort_particles(sort)
+        if box:
+            sim.fit_active_box(HORIZON)
 
         def step():
             sim.compute_stress(sim.stress, commit=True)
@@ -218,7 +231,7 @@ def markdown(result: dict) -> str:
         ph = r.get("phases")
         cells = [f"{ph[k]:.4f}" for k in ("stress", "p2g", "grid", "g2p")] if ph else ["—"] * 4
         lines.append(f"| {r['setting']} | {r['median_ms']:.4f} | " + " | ".join(cells) + " |")
-    lines += ["", "Table 2 (scope: grid reset, P2G, normalization, contact, G2P; cell-sorted"
+    lines += ["", f"Table 2 (scope: grid reset, P2G, normalization, contact, G2P; {result['sort']} order, active box"
               + (", CUDA graph" if result["graph"] else "") + "):", "",
               "| Branch | Passes (P2G/G2P/frag) | Median (ms) | Relative | Grid-buffer footprint (MiB) |",
               "|---|---|---|---|---|"]
@@ -230,20 +243,20 @@ def markdown(result: dict) -> str:
 
 
 def run_bench(cfg=None, variants=None, device="cuda:0", out_dir="runs/bench", particles=None, steps=200, warmup=20,
-              trials=3, graph=True) -> dict:
+              trials=3, graph=True, sort="interleaved") -> dict:
     """Entry point of `fracture-gs bench`: writes bench.json and bench.md into out_dir."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     scfg, P, topo = bench_state(particles, device)
     dev_name = torch.cuda.get_device_name(torch.device(device)) if device.startswith("cuda") else platform.processor() or "CPU"
-    result = {"particles": len(P), "grid": scfg.sim.grid_shape[0], "graph": graph and device.startswith("cuda"),
+    result = {"particles": len(P), "grid": scfg.sim.grid_shape[0], "graph": graph and device.startswith("cuda"), "sort": sort,
               "env": {"device": device, "device_name": dev_name, "date": datetime.date.today().isoformat(),
                       "torch": torch.__version__, "warp": wp.config.version, "command": " ".join(sys.argv)}}
     # a non-default stream: CUDA graph capture cannot record the legacy default stream
     stream = torch.cuda.Stream(torch.device(device)) if device.startswith("cuda") else None
     with torch.cuda.stream(stream) if stream is not None else _nullcontext():
         result["baseline"] = baseline_rows(scfg, P, topo, device, steps, warmup, trials, graph)
-        result["table2"] = time_branches(scfg, P, topo, device, steps, warmup, trials, graph=graph, sort=True)
+        result["table2"] = time_branches(scfg, P, topo, device, steps, warmup, trials, graph=graph, sort=sort)
     (out_dir / "bench.json").write_text(json.dumps(result, indent=2))
     (out_dir / "bench.md").write_text(markdown(result))
     print(markdown(result))
@@ -258,6 +271,7 @@ def main(argv=None):
     ap.add_argument("--warmup", type=int, default=20)
     ap.add_argument("--trials", type=int, default=3)
     ap.add_argument("--no-graph", action="store_true", help="time plain launches, no CUDA graph capture")
+    ap.add_argument("--sort", default="interleaved", choices=["interleaved", "cell"], help="particle order for Table 2")
     ap.add_argument("--out", default="runs/bench")
     ap.add_argument("--accuracy", action="store_true", help="run the speed-against-error sweeps instead (apps/accuracy.py)")
     ap.add_argument("--quick", action="store_true", help="with --accuracy: the short sweep")
@@ -269,7 +283,7 @@ def main(argv=None):
     if args.device.startswith("cuda") and not torch.cuda.is_available():
         sys.exit("bench: error: CUDA was requested but is not available here; use --device cpu")
     return run_bench(device=args.device, particles=args.particles, steps=args.steps, warmup=args.warmup, trials=args.trials,
-                     graph=not args.no_graph, out_dir=args.out)
+                     graph=not args.no_graph, out_dir=args.out, sort=args.sort)
 
 
 if __name__ == "__main__":

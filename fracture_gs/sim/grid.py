@@ -46,30 +46,32 @@ class Grid:
             raise ValueError(f"sim.grid_shape {self.shape} is too small; every axis needs at least 5 nodes")
         self.n_fields = n_fields
         full = (n_fields, *self.shape)
-        self.mass = torch.zeros(full, dtype=torch.float32, device=device)
-        self.momentum = torch.zeros((*full, 3), dtype=torch.float32, device=device)
+        # (p^k, m^k) packed per node so P2G scatters both with one 16-byte atomic; mass and
+        # momentum are views into it
+        self.mp = torch.zeros((*full, 4), dtype=torch.float32, device=device)
+        self.mass = self.mp[..., 3]
+        self.momentum = self.mp[..., :3]
         self.velocity = torch.zeros((*full, 3), dtype=torch.float32, device=device)
         self.band_mass = torch.zeros(full, dtype=torch.float32, device=device)
         self.contact_stats = torch.zeros(N_STATS, dtype=torch.float32, device=device)
         self.contact_stats[STAT_FIRST_T] = NEVER
         self.wp = dict(
-            mass=wp.from_torch(self.mass),
-            momentum=wp.from_torch(self.momentum, dtype=wp.vec3),
+            mp=wp.from_torch(self.mp, dtype=wp.vec4),
             velocity=wp.from_torch(self.velocity, dtype=wp.vec3),
             band_mass=wp.from_torch(self.band_mass),
             stats=wp.from_torch(self.contact_stats),
         )
 
-    def clear(self):
-        """Reset the accumulators (no allocation)."""
-        self.mass.zero_()
-        self.momentum.zero_()
-        self.band_mass.zero_()
+    def clear(self, n_fields: int | None = None, band: bool = True):
+        """Reset the accumulators of the first `n_fields` fields (no allocation)."""
+        self.mp[:n_fields].zero_()
+        if band:
+            self.band_mass[:n_fields].zero_()
 
     @property
     def nbytes(self) -> int:
         """Grid-buffer footprint (mass, momentum, velocity, band mass) in bytes."""
-        return sum(t.numel() * t.element_size() for t in (self.mass, self.momentum, self.velocity, self.band_mass))
+        return sum(t.numel() * t.element_size() for t in (self.mp, self.velocity, self.band_mass))
 
     def node_positions(self) -> torch.Tensor:  # [X, Y, Z, 3]
         axes = [torch.arange(s, device=self.mass.device, dtype=torch.float64) * self.dx + o for s, o in zip(self.shape, self.origin)]

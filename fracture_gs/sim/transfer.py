@@ -19,6 +19,24 @@ N_STATS = 9
 NEVER = 1e30  # STAT_FIRST_T before any contact
 
 
+_RED_V4 = r"""
+#if defined(__CUDA_ARCH__) && (__CUDA_ARCH__ >= 900)
+    wp::vec4* p = &wp::index(arr, i, j, k, l);
+    asm volatile("red.global.add.v4.f32 [%0], {%1, %2, %3, %4};"
+                 :: "l"(p), "f"(value[0]), "f"(value[1]), "f"(value[2]), "f"(value[3]) : "memory");
+#else
+    wp::atomic_add(arr, i, j, k, l, value);
+#endif
+"""
+
+
+@wp.func_native(_RED_V4)
+def atomic_add_vec4(arr: wp.array4d(dtype=wp.vec4), i: int, j: int, k: int, l: int, value: wp.vec4):
+    """arr[i,j,k,l] += value: one 16-byte vector reduction on Hopper (sm_90+), where P2G's
+    (momentum, mass) scatter is bound by atomic throughput; Warp's atomic_add elsewhere."""
+    ...
+
+
 @wp.func
 def stencil(xp: wp.vec3, origin: wp.vec3, inv_dx: float, shape: wp.vec3i):
     """Base node, weights w[a, axis] and their ξ-derivatives dw[a, axis] for a = 0, 1, 2.
@@ -73,8 +91,7 @@ def p2g(
     dx: float,
     inv_dx: float,
     shape: wp.vec3i,
-    grid_m: wp.array4d(dtype=float),  # [K, X, Y, Z]
-    grid_p: wp.array4d(dtype=wp.vec3),  # [K, X, Y, Z]
+    grid_mp: wp.array4d(dtype=wp.vec4),  # [K, X, Y, Z] (p^k, m^k) packed
     grid_mb: wp.array4d(dtype=float),  # [K, X, Y, Z]
 ):
     """m_i^k += w m_p;  p_i^k += w m_p (v_p + C_p(x_i − x_p)) − Δt V⁰ τ_p ∇w  (k = routed field)."""
@@ -98,8 +115,8 @@ def p2g(
                 bi = base[0] + i
                 bj = base[1] + j
                 bl = base[2] + l
-                wp.atomic_add(grid_m, k, bi, bj, bl, weight * m)
-                wp.atomic_add(grid_p, k, bi, bj, bl, weight * m * (vp + Cp * dpos) + force * grad)
+                mom = weight * m * (vp + Cp * dpos) + force * grad
+                atomic_add_vec4(grid_mp, k, bi, bj, bl, wp.vec4(mom[0], mom[1], mom[2], weight * m))
                 if in_band:
                     wp.atomic_add(grid_mb, k, bi, bj, bl, weight * m)
 
@@ -117,8 +134,8 @@ def contact_projection(v0: wp.vec3, v1: wp.vec3, m0: float, m1: float, n: wp.vec
 
 @wp.kernel
 def grid_update(
-    grid_m: wp.array4d(dtype=float),
-    grid_p: wp.array4d(dtype=wp.vec3),
+    box_origin: wp.vec3i,  # the launch covers the active box starting at this node
+    grid_mp: wp.array4d(dtype=wp.vec4),
     grid_mb: wp.array4d(dtype=float),
     grid_v: wp.array4d(dtype=wp.vec3),  # out
     n_fields: int,
@@ -147,17 +164,22 @@ def grid_update(
 ):
     """Per node: v^k = p^k/m^k + Δt g for each active field (m^k > ε_m), else 0; contact
     projection where both fields are active, band-supported and approaching; then boundaries."""
-    i, j, l = wp.tid()
-    m0 = grid_m[0, i, j, l]
+    ti, tj, tl = wp.tid()
+    i = ti + box_origin[0]
+    j = tj + box_origin[1]
+    l = tl + box_origin[2]
+    q0 = grid_mp[0, i, j, l]
+    m0 = q0[3]
     v0 = wp.vec3(0.0)
     if m0 > eps_m:
-        v0 = grid_p[0, i, j, l] / m0 + dt * gravity
+        v0 = wp.vec3(q0[0], q0[1], q0[2]) / m0 + dt * gravity
     m1 = float(0.0)
     v1 = wp.vec3(0.0)
     if n_fields > 1:
-        m1 = grid_m[1, i, j, l]
+        q1 = grid_mp[1, i, j, l]
+        m1 = q1[3]
         if m1 > eps_m:
-            v1 = grid_p[1, i, j, l] / m1 + dt * gravity
+            v1 = wp.vec3(q1[0], q1[1], q1[2]) / m1 + dt * gravity
         if gate != 0 and m0 > eps_m and m1 > eps_m and grid_mb[0, i, j, l] > eps_b and grid_mb[1, i, j, l] > eps_b:
             un = wp.dot(v1 - v0, normal)
             if un < 0.0:
