@@ -115,30 +115,54 @@ class Simulator:
         self._shape = wp.vec3i(*g.shape)
         self._gravity = wp.vec3(*[float(a) for a in self.cfg.gravity])
         self._streams = {}
+        self._reset_boxes()
+
+    def _reset_boxes(self) -> None:
+        """Grid work over the whole grid (until `fit_active_box`)."""
+        g = self.grid
         self.box = (0, 0, 0) + tuple(g.shape)  # active node box (lo, hi): where grid work happens
+        self.field_boxes = [self.box, self.box]  # per field (fragment-conditioned transfer)
         self._box_origin = wp.vec3i(0, 0, 0)
+        self._field_box_wp = [wp.vec3i(0, 0, 0), wp.vec3i(0, 0, 0), wp.vec3i(*g.shape), wp.vec3i(*g.shape)]
 
     def fit_active_box(self, horizon: float) -> None:
-        """Restrict per-substep grid work (reset, update) to the particles' bounding box plus the
-        stencil and the distance they can travel in `horizon` seconds ("no work on empty grid").
-        One host read; the whole grid is cleared when the box changes so no stale node survives."""
+        """Restrict per-substep grid work (reset, update) to where particles can be during the
+        next `horizon` seconds ("no work on empty grid"): the bounding box of the particles routed
+        to each field, plus the stencil and the distance they can travel. Under fragment-conditioned
+        transfer each field gets its own box, so the second field costs work only where fragment 1
+        is. One host read; the grid is cleared whenever a box changes so no stale node survives."""
         P, g = self.particles, self.grid
-        stats = torch.cat([P.x.min(0).values, P.x.max(0).values, P.v.norm(dim=1).max()[None]]).cpu()
+        fields = [P.fragment <= 0, P.fragment == 1] if self.multifield else [torch.ones_like(P.fragment, dtype=torch.bool)]
+        big = torch.tensor(3.0e38, device=P.x.device)
+        rows = [torch.where(m[:, None], P.x, big).min(0).values for m in fields]
+        rows += [torch.where(m[:, None], P.x, -big).max(0).values for m in fields]
+        stats = torch.cat(rows + [P.v.norm(dim=1).max()[None]]).cpu()
         if not bool(torch.isfinite(stats).all()):
             return  # the divergence check reports it
-        pad = 3 + math.ceil(float(stats[6]) * horizon / g.dx)
-        lo = [max(0, int(math.floor((float(stats[a]) - o) / g.dx)) - pad) for a, o in enumerate(g.origin)]
-        hi = [min(n, int(math.floor((float(stats[3 + a]) - o) / g.dx)) + 1 + pad) for a, (o, n) in enumerate(zip(g.origin, g.shape))]
-        box = tuple(lo) + tuple(hi)
-        if box != self.box:
+        pad = 3 + math.ceil(float(stats[-1]) * horizon / g.dx)
+        n = len(fields)
+        boxes = []
+        for k in range(n):
+            lo_w, hi_w = stats[3 * k:3 * k + 3], stats[3 * (n + k):3 * (n + k) + 3]
+            if float(lo_w[0]) > float(hi_w[0]):  # empty field
+                boxes.append((0, 0, 0, 0, 0, 0))
+                continue
+            lo = [max(0, int(math.floor((float(lo_w[a]) - o) / g.dx)) - pad) for a, o in enumerate(g.origin)]
+            hi = [min(s, int(math.floor((float(hi_w[a]) - o) / g.dx)) + 1 + pad) for a, (o, s) in enumerate(zip(g.origin, g.shape))]
+            boxes.append(tuple(lo) + tuple(hi))
+        boxes += [(0, 0, 0, 0, 0, 0)] * (2 - n)
+        live = [b for b in boxes if b[3] > b[0]]
+        union = tuple(min(b[a] for b in live) for a in range(3)) + tuple(max(b[a] for b in live) for a in range(3, 6))
+        if union != self.box or boxes != self.field_boxes:
             g.mp.zero_()
             g.band_mass.zero_()
             g.velocity.zero_()
-            self.box = box
-            self._box_origin = wp.vec3i(*lo)
+            self.box, self.field_boxes = union, boxes
+            self._box_origin = wp.vec3i(*union[:3])
+            self._field_box_wp = [wp.vec3i(*b[:3]) for b in boxes] + [wp.vec3i(*b[3:]) for b in boxes]
 
-    def _box_slices(self):
-        b = self.box
+    def _box_slices(self, k: int | None = None):
+        b = self.box if k is None else self.field_boxes[k]
         return (slice(b[0], b[3]), slice(b[1], b[4]), slice(b[2], b[5]))
 
     def _stream_scope(self):
@@ -210,10 +234,11 @@ class Simulator:
         multi = int(self.multifield if multifield is None else multifield)
         n_fields = 2 if multi else 1
         if target is None:
-            sx, sy, sz = self._box_slices()
-            g.mp[:n_fields, sx, sy, sz].zero_()
-            if multi:
-                g.band_mass[:n_fields, sx, sy, sz].zero_()
+            for k in range(n_fields):
+                sx, sy, sz = self._box_slices(k if multi else None)
+                g.mp[k, sx, sy, sz].zero_()
+                if multi:
+                    g.band_mass[k, sx, sy, sz].zero_()
         else:
             g.clear(n_fields, band=bool(multi))
         wp.launch(p2g, dim=len(self.particles), device=self.device,
@@ -226,7 +251,8 @@ class Simulator:
         g, multi = self.grid, int(self.multifield)
         b = self.box
         wp.launch(grid_update, dim=(b[3] - b[0], b[4] - b[1], b[5] - b[2]), device=self.device,
-                  inputs=[self._box_origin, g.wp["mp"], g.wp["band_mass"], g.wp["velocity"], self._fields(), self.eps_m,
+                  inputs=[self._box_origin, *self._field_box_wp, g.wp["mp"], g.wp["band_mass"], g.wp["velocity"],
+                          self._fields(), self.eps_m,
                           self.eps_b, multi, int(multi and self.cfg.variant == "full"), self._normal,
                           float(self.cfg.restitution), dt, self._gravity, self._origin, g.dx, self.time, self._shape,
                           int(self.cfg.wall_cells), *self.boundaries.arrays, g.wp["stats"]])
@@ -306,6 +332,7 @@ class Simulator:
         n = torch.tensor(topology.normal, dtype=torch.float64)
         self._normal = wp.vec3(*[float(a) for a in n / n.norm()])
         self.topology = topology
+        self._reset_boxes()  # the routing changed: the next advance() refits one box per field
         if self._diagnostics is not None:
             self._diagnostics.on_latch()
 

@@ -122,6 +122,11 @@ def p2g(
 
 
 @wp.func
+def inside(node: wp.vec3i, lo: wp.vec3i, hi: wp.vec3i):
+    return node[0] >= lo[0] and node[0] < hi[0] and node[1] >= lo[1] and node[1] < hi[1] and node[2] >= lo[2] and node[2] < hi[2]
+
+
+@wp.func
 def contact_projection(v0: wp.vec3, v1: wp.vec3, m0: float, m1: float, n: wp.vec3, e: float):
     """Eqs. impulse, contact_update: J_n = −(1+e)u_n / (1/m⁰ + 1/m¹) for approaching fields
     (u_n = (v¹ − v⁰)·n < 0); equal and opposite, so m⁰v⁰ + m¹v¹ is unchanged."""
@@ -135,6 +140,10 @@ def contact_projection(v0: wp.vec3, v1: wp.vec3, m0: float, m1: float, n: wp.vec
 @wp.kernel
 def grid_update(
     box_origin: wp.vec3i,  # the launch covers the active box starting at this node
+    lo0: wp.vec3i,  # field 0 is live only in [lo0, hi0), field 1 in [lo1, hi1)
+    lo1: wp.vec3i,
+    hi0: wp.vec3i,
+    hi1: wp.vec3i,
     grid_mp: wp.array4d(dtype=wp.vec4),
     grid_mb: wp.array4d(dtype=float),
     grid_v: wp.array4d(dtype=wp.vec3),  # out
@@ -168,14 +177,17 @@ def grid_update(
     i = ti + box_origin[0]
     j = tj + box_origin[1]
     l = tl + box_origin[2]
-    q0 = grid_mp[0, i, j, l]
-    m0 = q0[3]
+    node = wp.vec3i(i, j, l)
+    m0 = float(0.0)
     v0 = wp.vec3(0.0)
-    if m0 > eps_m:
-        v0 = wp.vec3(q0[0], q0[1], q0[2]) / m0 + dt * gravity
+    if inside(node, lo0, hi0):
+        q0 = grid_mp[0, i, j, l]
+        m0 = q0[3]
+        if m0 > eps_m:
+            v0 = wp.vec3(q0[0], q0[1], q0[2]) / m0 + dt * gravity
     m1 = float(0.0)
     v1 = wp.vec3(0.0)
-    if n_fields > 1:
+    if n_fields > 1 and inside(node, lo1, hi1):
         q1 = grid_mp[1, i, j, l]
         m1 = q1[3]
         if m1 > eps_m:
@@ -202,13 +214,13 @@ def grid_update(
                 wp.atomic_max(stats, STAT_DVT, wp.length(rel_t_after - rel_t_before))
                 v0 = w0
                 v1 = w1
-    node = wp.vec3i(i, j, l)
     xi = origin + wp.vec3(float(i), float(j), float(l)) * dx
     if m0 > eps_m:
         v0 = apply_boundaries(v0, node, xi, t, shape, wall_cells, plane_point, plane_normal, plane_mode, plane_mu,
                               box_lower, box_upper, box_velocity, box_time)
-    grid_v[0, i, j, l] = v0
-    if n_fields > 1:
+    if inside(node, lo0, hi0):
+        grid_v[0, i, j, l] = v0
+    if n_fields > 1 and inside(node, lo1, hi1):
         if m1 > eps_m:
             v1 = apply_boundaries(v1, node, xi, t, shape, wall_cells, plane_point, plane_normal, plane_mode, plane_mu,
                                   box_lower, box_upper, box_velocity, box_time)
