@@ -122,6 +122,7 @@ class Simulator:
         g = self.grid
         self.box = (0, 0, 0) + tuple(g.shape)  # active node box (lo, hi): where grid work happens
         self.field_boxes = [self.box, self.box]  # per field (fragment-conditioned transfer)
+        self.band_box = self.box  # where band mass can land
         self._box_origin = wp.vec3i(0, 0, 0)
         self._field_box_wp = [wp.vec3i(0, 0, 0), wp.vec3i(0, 0, 0), wp.vec3i(*g.shape), wp.vec3i(*g.shape)]
 
@@ -133,6 +134,8 @@ class Simulator:
         is. One host read; the grid is cleared whenever a box changes so no stale node survives."""
         P, g = self.particles, self.grid
         fields = [P.fragment <= 0, P.fragment == 1] if self.multifield else [torch.ones_like(P.fragment, dtype=torch.bool)]
+        if self.multifield:
+            fields.append(P.band != 0)  # band mass (Eq. band_mass) only ever lands around band particles
         big = torch.tensor(3.0e38, device=P.x.device)
         rows = [torch.where(m[:, None], P.x, big).min(0).values for m in fields]
         rows += [torch.where(m[:, None], P.x, -big).max(0).values for m in fields]
@@ -150,19 +153,20 @@ class Simulator:
             lo = [max(0, int(math.floor((float(lo_w[a]) - o) / g.dx)) - pad) for a, o in enumerate(g.origin)]
             hi = [min(s, int(math.floor((float(hi_w[a]) - o) / g.dx)) + 1 + pad) for a, (o, s) in enumerate(zip(g.origin, g.shape))]
             boxes.append(tuple(lo) + tuple(hi))
-        boxes += [(0, 0, 0, 0, 0, 0)] * (2 - n)
+        band_box = boxes.pop() if self.multifield else (0, 0, 0, 0, 0, 0)
+        boxes += [(0, 0, 0, 0, 0, 0)] * (2 - len(boxes))
         live = [b for b in boxes if b[3] > b[0]]
         union = tuple(min(b[a] for b in live) for a in range(3)) + tuple(max(b[a] for b in live) for a in range(3, 6))
-        if union != self.box or boxes != self.field_boxes:
+        if union != self.box or boxes != self.field_boxes or band_box != self.band_box:
             g.mp.zero_()
             g.band_mass.zero_()
             g.velocity.zero_()
-            self.box, self.field_boxes = union, boxes
+            self.box, self.field_boxes, self.band_box = union, boxes, band_box
             self._box_origin = wp.vec3i(*union[:3])
             self._field_box_wp = [wp.vec3i(*b[:3]) for b in boxes] + [wp.vec3i(*b[3:]) for b in boxes]
 
     def _box_slices(self, k: int | None = None):
-        b = self.box if k is None else self.field_boxes[k]
+        b = self.box if k is None else (self.band_box if k == "band" else self.field_boxes[k])
         return (slice(b[0], b[3]), slice(b[1], b[4]), slice(b[2], b[5]))
 
     def _stream_scope(self):
@@ -237,8 +241,9 @@ class Simulator:
             for k in range(n_fields):
                 sx, sy, sz = self._box_slices(k if multi else None)
                 g.mp[k, sx, sy, sz].zero_()
-                if multi:
-                    g.band_mass[k, sx, sy, sz].zero_()
+            if multi:
+                sx, sy, sz = self._box_slices("band")
+                g.band_mass[:, sx, sy, sz].zero_()
         else:
             g.clear(n_fields, band=bool(multi))
         wp.launch(p2g, dim=len(self.particles), device=self.device,
