@@ -46,36 +46,38 @@ def wall_velocity(v: wp.vec3, node: wp.vec3i, shape: wp.vec3i, cells: int):
     return out
 
 
+@wp.struct
+class Colliders:
+    """Every grid-side boundary operator's data (built once by `Boundaries`)."""
+
+    plane_point: wp.array(dtype=wp.vec3)
+    plane_normal: wp.array(dtype=wp.vec3)
+    plane_mode: wp.array(dtype=wp.int32)
+    plane_mu: wp.array(dtype=float)
+    box_lower: wp.array(dtype=wp.vec3)
+    box_upper: wp.array(dtype=wp.vec3)
+    box_velocity: wp.array(dtype=wp.vec3)
+    box_time: wp.array(dtype=wp.vec2)
+    shape: wp.vec3i
+    wall_cells: int
+
+
 @wp.func
-def apply_boundaries(
-    v: wp.vec3,
-    node: wp.vec3i,
-    xi: wp.vec3,
-    t: float,
-    shape: wp.vec3i,
-    wall_cells: int,
-    plane_point: wp.array(dtype=wp.vec3),
-    plane_normal: wp.array(dtype=wp.vec3),
-    plane_mode: wp.array(dtype=wp.int32),
-    plane_mu: wp.array(dtype=float),
-    box_lower: wp.array(dtype=wp.vec3),
-    box_upper: wp.array(dtype=wp.vec3),
-    box_velocity: wp.array(dtype=wp.vec3),
-    box_time: wp.array(dtype=wp.vec2),
-):
-    """All grid-side boundary operators for one node's field velocity, in a fixed order."""
+def apply_boundaries(v: wp.vec3, node: wp.vec3i, xi: wp.vec3, t: float, c: Colliders):
+    """All grid-side boundary operators for one node's field velocity, in a fixed order:
+    moving cuboids, plane colliders, domain walls."""
     out = v
-    for b in range(box_lower.shape[0]):
-        tw = box_time[b]
+    for b in range(c.box_lower.shape[0]):
+        tw = c.box_time[b]
         if t >= tw[0] and t <= tw[1]:
-            shift = box_velocity[b] * (t - tw[0])
-            lo = box_lower[b] + shift
-            hi = box_upper[b] + shift
+            shift = c.box_velocity[b] * (t - tw[0])
+            lo = c.box_lower[b] + shift
+            hi = c.box_upper[b] + shift
             if xi[0] >= lo[0] and xi[0] <= hi[0] and xi[1] >= lo[1] and xi[1] <= hi[1] and xi[2] >= lo[2] and xi[2] <= hi[2]:
-                out = box_velocity[b]
-    for b in range(plane_point.shape[0]):
-        out = plane_velocity(out, xi, plane_point[b], plane_normal[b], plane_mode[b], plane_mu[b])
-    return wall_velocity(out, node, shape, wall_cells)
+                out = c.box_velocity[b]
+    for b in range(c.plane_point.shape[0]):
+        out = plane_velocity(out, xi, c.plane_point[b], c.plane_normal[b], c.plane_mode[b], c.plane_mu[b])
+    return wall_velocity(out, node, c.shape, c.wall_cells)
 
 
 @wp.kernel
@@ -103,7 +105,7 @@ def _vec3(values, device) -> torch.Tensor:
 class Boundaries:
     """The config's boundary list as device arrays (allocated once) plus the particle regions."""
 
-    def __init__(self, items, device: str):
+    def __init__(self, items, device: str, shape=(1, 1, 1), wall_cells: int = 0):
         planes = [b for b in items if isinstance(b, PlaneBoundary)]
         boxes = [b for b in items if isinstance(b, CuboidBoundary)]
         self.regions = [b for b in items if isinstance(b, ParticleRegion)]
@@ -127,7 +129,11 @@ class Boundaries:
         )
         vec = {"plane_point": wp.vec3, "plane_normal": wp.vec3, "box_lower": wp.vec3, "box_upper": wp.vec3,
                "box_velocity": wp.vec3, "box_time": wp.vec2}
-        self.arrays = [wp.from_torch(t, dtype=vec.get(k)) if k in vec else wp.from_torch(t) for k, t in self.t.items()]
+        self.colliders = Colliders()
+        for k, t in self.t.items():
+            setattr(self.colliders, k, wp.from_torch(t, dtype=vec[k]) if k in vec else wp.from_torch(t))
+        self.colliders.shape = wp.vec3i(*shape)
+        self.colliders.wall_cells = int(wall_cells)
 
     def apply_regions(self, x_wp, v_wp, n: int, t: float, dt: float, device: str):
         """Timed particle regions active at time t (decided on the host: no device sync)."""

@@ -76,7 +76,7 @@ class Simulator:
         origin, dx, shape = fit_grid(cfg, self.particles.x)
         n_fields = 2 if cfg.variant in MULTIFIELD_VARIANTS else 1
         self.grid = Grid(origin, dx, shape, n_fields, self.device)
-        self.boundaries = Boundaries(cfg.boundaries, self.device)
+        self.boundaries = Boundaries(cfg.boundaries, self.device, shape, cfg.wall_cells)
         self.provider = provider
         self.topology: Optional[Topology] = None
         self.time = 0.0
@@ -254,13 +254,14 @@ class Simulator:
     def update_grid(self, dt: float) -> None:
         """Normalize + gravity per active field, contact projection (full), boundaries."""
         g, multi = self.grid, int(self.multifield)
+        self.boundaries.colliders.wall_cells = int(self.cfg.wall_cells)  # the config may change between calls
         b = self.box
         wp.launch(grid_update, dim=(b[3] - b[0], b[4] - b[1], b[5] - b[2]), device=self.device,
                   inputs=[self._box_origin, *self._field_box_wp, g.wp["mp"], g.wp["band_mass"], g.wp["velocity"],
                           self._fields(), self.eps_m,
                           self.eps_b, multi, int(multi and self.cfg.variant == "full"), self._normal,
-                          float(self.cfg.restitution), dt, self._gravity, self._origin, g.dx, self.time, self._shape,
-                          int(self.cfg.wall_cells), *self.boundaries.arrays, g.wp["stats"]])
+                          float(self.cfg.restitution), dt, self._gravity, self._origin, g.dx, self.time,
+                          self.boundaries.colliders, g.wp["stats"]])
 
     def g2p(self, dt: float, only_fragment: int = -1) -> None:
         """Gather v, C, F's update and x from each particle's own field (Eq. field_g2p)."""

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import warp as wp
 
-from .boundary import apply_boundaries
+from .boundary import Colliders, apply_boundaries
 
 # contact statistics accumulated by `grid_update` (indices into Grid.contact_stats)
 STAT_GATED, STAT_PROJECTED, STAT_DPX, STAT_DPY, STAT_DPZ, STAT_PNORM, STAT_UN_AFTER, STAT_DVT, STAT_FIRST_T = range(9)
@@ -66,6 +66,15 @@ def stencil(xp: wp.vec3, origin: wp.vec3, inv_dx: float, shape: wp.vec3i):
 
 
 @wp.func
+def node_terms(i: int, j: int, l: int, f: wp.vec3, w: wp.mat33, dw: wp.mat33, dx: float, inv_dx: float):
+    """Weight w_ip, gradient ∇w_ip and offset x_i − x_p of stencil node (i, j, l)."""
+    weight = w[i, 0] * w[j, 1] * w[l, 2]
+    grad = wp.vec3(dw[i, 0] * w[j, 1] * w[l, 2], w[i, 0] * dw[j, 1] * w[l, 2], w[i, 0] * w[j, 1] * dw[l, 2]) * inv_dx
+    dpos = (wp.vec3(float(i), float(j), float(l)) - f) * dx
+    return weight, grad, dpos
+
+
+@wp.func
 def field_of(fragment: int, multifield: int):
     """Routing: field o_p under fragment-conditioned transfer, else the shared field 0."""
     if multifield != 0 and fragment > 0:
@@ -109,9 +118,7 @@ def p2g(
     for i in range(3):
         for j in range(3):
             for l in range(3):
-                weight = w[i, 0] * w[j, 1] * w[l, 2]
-                grad = wp.vec3(dw[i, 0] * w[j, 1] * w[l, 2], w[i, 0] * dw[j, 1] * w[l, 2], w[i, 0] * w[j, 1] * dw[l, 2]) * inv_dx
-                dpos = (wp.vec3(float(i), float(j), float(l)) - f) * dx
+                weight, grad, dpos = node_terms(i, j, l, f, w, dw, dx, inv_dx)
                 bi = base[0] + i
                 bj = base[1] + j
                 bl = base[2] + l
@@ -159,16 +166,7 @@ def grid_update(
     origin: wp.vec3,
     dx: float,
     t: float,
-    shape: wp.vec3i,
-    wall_cells: int,
-    plane_point: wp.array(dtype=wp.vec3),
-    plane_normal: wp.array(dtype=wp.vec3),
-    plane_mode: wp.array(dtype=wp.int32),
-    plane_mu: wp.array(dtype=float),
-    box_lower: wp.array(dtype=wp.vec3),
-    box_upper: wp.array(dtype=wp.vec3),
-    box_velocity: wp.array(dtype=wp.vec3),
-    box_time: wp.array(dtype=wp.vec2),
+    colliders: Colliders,
     stats: wp.array(dtype=float),  # [N_STATS] contact statistics (accumulated)
 ):
     """Per node: v^k = p^k/m^k + Δt g for each active field (m^k > ε_m), else 0; contact
@@ -216,14 +214,12 @@ def grid_update(
                 v1 = w1
     xi = origin + wp.vec3(float(i), float(j), float(l)) * dx
     if m0 > eps_m:
-        v0 = apply_boundaries(v0, node, xi, t, shape, wall_cells, plane_point, plane_normal, plane_mode, plane_mu,
-                              box_lower, box_upper, box_velocity, box_time)
+        v0 = apply_boundaries(v0, node, xi, t, colliders)
     if inside(node, lo0, hi0):
         grid_v[0, i, j, l] = v0
     if n_fields > 1 and inside(node, lo1, hi1):
         if m1 > eps_m:
-            v1 = apply_boundaries(v1, node, xi, t, shape, wall_cells, plane_point, plane_normal, plane_mode, plane_mu,
-                                  box_lower, box_upper, box_velocity, box_time)
+            v1 = apply_boundaries(v1, node, xi, t, colliders)
         grid_v[1, i, j, l] = v1
 
 
@@ -260,9 +256,7 @@ def g2p(
     for i in range(3):
         for j in range(3):
             for l in range(3):
-                weight = w[i, 0] * w[j, 1] * w[l, 2]
-                grad = wp.vec3(dw[i, 0] * w[j, 1] * w[l, 2], w[i, 0] * dw[j, 1] * w[l, 2], w[i, 0] * w[j, 1] * dw[l, 2]) * inv_dx
-                dpos = (wp.vec3(float(i), float(j), float(l)) - f) * dx
+                weight, grad, dpos = node_terms(i, j, l, f, w, dw, dx, inv_dx)
                 vi = grid_v[k, base[0] + i, base[1] + j, base[2] + l]
                 vp = vp + weight * vi
                 B = B + weight * wp.outer(vi, dpos)
