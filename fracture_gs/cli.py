@@ -252,10 +252,11 @@ def cmd_render_sim(args: argparse.Namespace) -> int:
     if getattr(args, "particles", None):
         cfg.particles = args.particles
     print(f"render-sim: {cfg.name} ({cfg.scene}, preset {cfg.preset}), {cfg.frames} frames, variants {', '.join(cfg.variants)}, device {device} -> {out_dir}")
-    summary = run(cfg, list(cfg.variants), device, out_dir)
-    print((out_dir / "summary.md").read_text())
+    summary = run(cfg, list(cfg.variants), device, out_dir) or {}
+    table = out_dir / "summary.md"
+    print(table.read_text() if table.exists() else json.dumps(summary, indent=2, default=str))
     print(f"outputs in {out_dir}: comparison.mp4, one <variant>.mp4 each, frames/, metrics.jsonl, summary.json, topology.npz, config.toml")
-    failed = [f"{v['variant']} {v['status']}" for v in summary["variants"] if v["status"] != "ok"]
+    failed = [f"{v['variant']} {v['status']}" for v in summary.get("variants", []) if v.get("status", "ok") != "ok"]
     if failed:
         print(f"fracture-gs: error: {'; '.join(failed)}; every frame and metric written before that is in {out_dir}", file=sys.stderr)
         return 1

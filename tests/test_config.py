@@ -283,5 +283,5 @@ def test_validate_catches_programmatic_mistakes():
         validate(cfg, "mine")
     cfg = copy.deepcopy(load_config("bread"))
     cfg.sim.boundaries.append("floor")
-    with pytest.raises(ConfigError, match=r"sim.boundaries\[3\]"):
+    with pytest.raises(ConfigError, match=rf"sim.boundaries\[{len(cfg.sim.boundaries) - 1}\]"):
         validate(cfg)
