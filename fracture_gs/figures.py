@@ -80,7 +80,7 @@ QUICK = {
     "plane_drop": dict(particles=3000, dx=1.0 / 32),
     "recontact": dict(particles=4000, grid=((0.1875, 0.3125, 0.3125), (0.75, 0.6875, 0.6875))),
 }
-QUICK_RENDER = (192, 240)  # width, height of rendered panels in the quick preset
+QUICK_RENDER = (192, 240)  # width, height of panels in the quick preset (teaser and grid scenes: 320 px long side)
 PRESETS = ("quick", "paper")
 
 
@@ -828,7 +828,7 @@ def method_figure(data: dict, path, title: Optional[str] = None, dpi: int = 110)
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(7.0, 5.2), dpi=dpi)
+    fig, ax = plt.subplots(figsize=(8.0, 4.6), dpi=dpi)
     names = "xyz"
     a, b = data["axes"]
     nodes, cat = data["nodes"], data["category"]
@@ -869,9 +869,9 @@ def method_figure(data: dict, path, title: Optional[str] = None, dpi: int = 110)
     ax.set_title(title or f"{data['variant']}: slice {names[3 - a - b]} = {data['plane']:.3f} m, t = {data['time']:.3f} s "
                  f"(frame {data['frame']}), {data['n_projected']} projected nodes", fontsize=9)
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
-    fig.tight_layout()
+    fig.subplots_adjust(left=0.1, right=0.66, bottom=0.1, top=0.92)
     Path(path).parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, bbox_inches="tight")
+    fig.savefig(path)  # fixed size: figsize × dpi
     plt.close(fig)
 
 
@@ -1046,7 +1046,7 @@ def _scene_render_size(scene_cfg: SceneConfig, preset: str) -> tuple[int, int]:
     w, h = scene_cfg.render.width, scene_cfg.render.height
     if preset != "quick":
         return w, h
-    s = 240.0 / max(w, h)
+    s = 320.0 / max(w, h)
     return int(round(w * s / 2)) * 2, int(round(h * s / 2)) * 2
 
 

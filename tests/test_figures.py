@@ -1,0 +1,202 @@
+"""`fracture_gs.figures` and `apps/accuracy.py`: the table writers (Markdown, CSV, LaTeX), each
+figure function on tiny data (a PNG of the expected size), the method figure's slice from a real
+two-fragment simulation, and the accuracy cases against their known answers."""
+import csv
+import io
+import json
+import math
+import sys
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+import torch
+
+from fracture_gs import sim as S
+from fracture_gs.figures import (Column, Panel, Table, curves_figure, method_figure, method_slice, multiscene_figure,
+                                 prepare, teaser_figure, tex_escape)
+from fracture_gs.io.config import load_config
+
+ROOT = Path(__file__).resolve().parents[1]
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
+
+from apps import accuracy  # noqa: E402
+
+
+@pytest.fixture(scope="module", autouse=True)
+def one_thread():
+    n = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(n)
+
+
+def two_panel_table():
+    cols = [Column("scene", "Scene", "Scene", "text"), Column("mix", "E_mix mean/max", r"$E$ mean/max", "meanmax"),
+            Column("open", "Opening/Δx", r"Opening/$\Delta x$", "num"), Column("sep", "Sep.", "Sep.", "bool"),
+            Column("n", "Latch", "Latch", "int")]
+    rows = [{"scene": "Bread_1 & co", "mix": (5.156e-7, 7.637e-6), "open": 10.0091, "sep": True, "n": 10},
+            {"scene": "Ficus", "mix": (0.0, 0.0), "open": -0.0182, "sep": False, "n": None}]
+    cols_b = [Column("method", "Method", "Method", "text"), Column("t", "t_c", "$t_c$", "time_pair"),
+              Column("pen", "Pen./Δx", "Pen.", "sci")]
+    rows_b = [{"method": "Full", "t": (0.276, None), "pen": 0.026}]
+    return Table("table9_test", "Table 9: test", [Panel(cols, rows), Panel(cols_b, rows_b, "Panel B: contact")],
+                 "A caption with 50% of σ_R and $x^2$.", "tab:test", "fracture-gs figures", {(0, 0, "open"): True})
+
+
+def test_table_markdown():
+    md = two_panel_table().markdown()
+    lines = md.splitlines()
+    assert lines[0] == "### Table 9: test"
+    assert "| Scene | E_mix mean/max | Opening/Δx | Sep. | Latch |" in lines
+    assert "| Bread_1 & co | 5.156e-07/7.637e-06 | **10.009** | Yes | 10 |" in lines
+    assert "| Ficus | 0/0 | -0.018 | No | — |" in lines
+    assert "*Panel B: contact*" in lines and "| Full | 0.276/— | 2.600e-02 |" in lines
+    assert md.rstrip().endswith("Command: `fracture-gs figures`")
+
+
+def test_table_csv_is_raw_and_per_panel(tmp_path):
+    paths = two_panel_table().write(tmp_path)
+    names = sorted(p.name for p in paths)
+    assert names == ["table9_test.md", "table9_test.tex", "table9_test_A.csv", "table9_test_B.csv"]
+    rows = list(csv.DictReader(io.StringIO((tmp_path / "table9_test_A.csv").read_text())))
+    assert list(rows[0]) == ["scene", "mix_mean", "mix_max", "open", "sep", "n"]
+    assert float(rows[0]["mix_mean"]) == 5.156e-7 and float(rows[0]["open"]) == 10.0091  # full precision
+    assert rows[0]["sep"] == "yes" and rows[1]["n"] == ""
+    b = list(csv.DictReader(io.StringIO((tmp_path / "table9_test_B.csv").read_text())))
+    assert b == [{"method": "Full", "t_0": "0.276", "t_1": "", "pen": "0.026"}]
+    one = Table("t", "T", [Panel([Column("a", "a", "a", "num")], [{"a": 1.5}])], "c")
+    assert set(one.csv_texts()) == {""}
+
+
+def test_table_latex():
+    tex = two_panel_table().latex()
+    assert tex.startswith("\\begin{table*}[t]") and tex.rstrip().endswith("\\end{table*}")
+    assert "\\begin{tabular}{llccc}" in tex and "\\toprule" in tex and "\\bottomrule" in tex
+    assert "$5.156{\\times}10^{-7}/7.637{\\times}10^{-6}$" in tex
+    assert "Bread\\_1 \\& co" in tex and "$\\mathbf{10.009}$" in tex
+    assert "\\multicolumn{5}{l}{\\textit{Panel B: contact}}" in tex
+    assert "50\\% of $\\sigma$\\_R and $x^2$" in tex  # specials escaped, math kept
+    assert "\\label{tab:test}" in tex
+    body = tex.split("\\toprule")[1].split("\\bottomrule")[0]
+    for line in body.strip().splitlines():
+        if line.endswith("\\\\") and not line.startswith("\\multicolumn"):
+            assert line.count("&") - line.count("\\&") == 4, line  # every row has the panel's full column count
+    assert tex.count("{") == tex.count("}")
+
+
+def test_tex_escape():
+    assert tex_escape("a_b & 5% #1") == "a\\_b \\& 5\\% \\#1"
+    assert tex_escape("Δx ≤ 1", math_ok=False) == "$\\Delta$x $\\leq$ 1"
+    assert tex_escape("$a_b$ c_d", math_ok=True) == "$a_b$ c\\_d"
+
+
+def panel(h, w, value):
+    img = np.full((h, w, 3), 255, np.uint8)
+    img[h // 4:3 * h // 4, w // 4:3 * w // 4] = value
+    return img
+
+
+def test_teaser_and_multiscene_png(tmp_path):
+    frames = [3, 6, 9]
+    panels = {v: {f: panel(48, 64, 40 * i + f) for f in frames} for i, v in enumerate(("baseline", "full"))}
+    regions = {3: (32.0, 24.0, 6.0), 6: (32.0, 24.0, 6.0), 9: None}
+    img = teaser_figure(panels, frames, 0.04, tmp_path / "teaser.png", regions)
+    png = cv2.imread(str(tmp_path / "teaser.png"))
+    assert png.shape == img.shape
+    bar = 16  # compose's label bar for 64-px-wide cells
+    assert png.shape[0] == bar + 4 + 2 * 48 + 4  # column labels, two rows of panels
+    assert png.shape[1] >= 3 * 64 + 2 * 4
+    assert not np.array_equal(img, teaser_figure(panels, frames, 0.04, tmp_path / "plain.png"))  # insets drawn
+
+    scenes = {"ficus": {v: panel(60, 48, 90) for v in ("baseline", "stress_zero", "full")},
+              "bread": {v: panel(36, 48, 150) for v in ("baseline", "stress_zero", "full")}}
+    img = multiscene_figure(scenes, tmp_path / "grid.png", {"ficus": (24.0, 30.0, 5.0)}, times={"ficus": "(t = 1 s)"})
+    png = cv2.imread(str(tmp_path / "grid.png"))
+    assert png.shape == img.shape and png.shape[0] == 16 + 4 + 2 * 60 + 4
+    assert (tmp_path / "grid.png").stat().st_size < 1 << 20
+
+
+def test_curves_png(tmp_path):
+    t = np.linspace(0.1, 0.9, 20)
+    series = {s: {v: {"t": t, "opening": t * k, "cf": 1e-5 + 0 * t, "real": (0 * t if v == "full" else 1e-5 + 0 * t),
+                      "latch_t": 0.1} for k, v in enumerate(("baseline", "stress_zero", "full"))} for s in ("ficus", "bread")}
+    curves_figure(series, tmp_path / "curves.png", dpi=50)
+    assert cv2.imread(str(tmp_path / "curves.png")).shape == (2 * 140, 450, 3)  # figsize (9, 2.8·rows) × dpi
+
+
+def two_blocks(variant="full"):
+    """Two blocks 2Δx apart closing at 1 m/s: their fields share support nodes at once."""
+    dx = 1 / 16
+    xa, vol = accuracy.lattice((0.25, 0.375, 0.375), (0.4375, 0.625, 0.625), dx / 2)
+    xb, _ = accuracy.lattice((0.5625, 0.375, 0.375), (0.75, 0.625, 0.625), dx / 2)
+    x = torch.cat([xa, xb])
+    v = torch.cat([torch.tensor([0.5, 0.0, 0.0]).expand(len(xa), 3), torch.tensor([-0.5, 0.0, 0.0]).expand(len(xb), 3)])
+    n = len(x)
+    P = S.Particles(x=x.float(), v=v.float(), mass=torch.full((n,), 1000 * vol), volume=torch.full((n,), vol), E=1e4, nu=0.3)
+    sim = S.Simulator(S.SimConfig(dx=dx, grid_shape=(16, 16, 16), gravity=(0, 0, 0), variant=variant, dt=1e-3), P)
+    sim.latch(S.Topology.from_plane(sim.particles.x, (0.5, 0.5, 0.5), (1.0, 0.0, 0.0), 2 * dx))
+    for _ in range(5):
+        sim.substep()
+    return sim
+
+
+def test_method_slice_and_figure(tmp_path):
+    sim = two_blocks()
+    d = method_slice(sim)
+    assert d is not None and d["axes"] == (0, 1)
+    cats = set(d["category"].tolist())
+    assert {1, 2, 4} <= cats, f"fragment-only nodes and contact-projected nodes expected, got {cats}"
+    assert d["n_projected"] > 0
+    imp = d["impulse"][d["category"] == 4]
+    assert (imp[:, 0] > 0).all(), "the impulse on field 1 (the +x fragment) pushes it back along +n"
+    assert np.abs(d["impulse"][d["category"] < 4]).max() == 0
+    assert set(np.unique(d["fragment"]).tolist()) == {0, 1} and len(d["px"]) == len(d["fragment"])
+    method_figure(d, tmp_path / "method.png", dpi=50)
+    assert cv2.imread(str(tmp_path / "method.png")).shape == (230, 400, 3)  # figsize (8, 4.6) × 50 dpi
+    assert method_slice(two_blocks("stress_zero")) is None  # a single-field variant has no field sets
+    json.dumps({k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in d.items()})  # cacheable
+
+
+def test_quick_preset_keeps_the_protocol_frames():
+    """The quick ficus is compressed 4× in time: same frames, loading 4× faster, switching 4× earlier."""
+    base = load_config("exp_table3_ficus")
+    q = prepare(base, "quick")
+    grip = base.sim.boundaries[-1]
+    qgrip = q.cfg.sim.boundaries[-1]
+    assert q.cfg.frames == base.frames and q.cfg.frame_dt == pytest.approx(base.frame_dt / 4)
+    assert qgrip.velocity == pytest.approx(tuple(4 * v for v in grip.velocity))
+    assert qgrip.end == pytest.approx(grip.end / 4)
+    assert q.cfg.sim.dx == 1 / 32 and q.cfg.sim.dt == pytest.approx(2 * base.sim.dt)
+    b = prepare(load_config("exp_table3_bread"), "quick")
+    assert b.cfg.frame_dt == 0.01 and b.cfg.frames == 90 and b.cfg.particles == 4000
+    p = prepare(load_config("exp_table3_bread"), "paper")
+    assert p.cfg.sim.dx == 1 / 128 and p.cfg.sim.grid_shape == (128, 128, 128) and p.cfg.particles is None
+
+
+def test_accuracy_helpers(tmp_path):
+    t = np.linspace(0, 0.3, 301)
+    assert accuracy.period_from_zero_crossings(t, np.cos(2 * np.pi * t / 0.08)) == pytest.approx(0.08, rel=1e-4)
+    assert accuracy.pareto_front([(1, 1e-2), (2, 1e-3), (3, 5e-3), (0.5, 1e-1)]) == [3, 0, 1]
+    r = [accuracy.Result("bar", "dx", 1 / 16, 1e-3, 0.4, 64, 81, 0.02, 0.02, "rel. period error", {}, "x"),
+         accuracy.Result("bar", "dt", 1 / 32, 5e-4, 0.2, 512, 161, 0.1, 0.005, "rel. period error", {}, "y")]
+    accuracy.accuracy_table(r, "caption").write(tmp_path)
+    rows = list(csv.DictReader(io.StringIO((tmp_path / "accuracy.csv").read_text())))
+    assert [x["pareto"] for x in rows] == ["yes", "yes"] and rows[0]["dx"] == "1/16"
+    accuracy.pareto_figure(r, tmp_path / "p.png", dpi=50)
+    assert cv2.imread(str(tmp_path / "p.png")).shape[:2] == (190, 215)  # figsize (4.3 per case, 3.8) × dpi
+
+
+def test_accuracy_cases_against_known_answers():
+    """The bar's first period against 2L/c within 3 % at Δx = 1/16 (0.5 % at 1/32); the spinning
+    cube's energy within 0.2 % over a revolution with its angular momentum kept; no
+    interpenetration under the contact projection."""
+    bar = accuracy.bar_case(1 / 16, 0.4, "cpu")
+    assert bar.error < 0.03 and bar.extra["exact"] == pytest.approx(0.1)
+    assert accuracy.bar_case(1 / 32, 0.4, "cpu").error < 0.006
+    spin = accuracy.spin_case(1 / 16, 0.8, "cpu")
+    assert spin.error < 2e-3 and spin.extra["angular_momentum_drift"] < 1e-4
+    rc = accuracy.recontact_case(1 / 32, 0.8, "cpu")
+    assert rc.extra["penetration_dx"] < 0.1 and rc.extra["first_contact_time"] is not None
