@@ -398,14 +398,26 @@ def run_accuracy(device: str = "cpu", out_dir="runs/accuracy", quick: bool = Fal
                f"kinetic + elastic energy of a free spinning cube over {SPIN['T']} s; recontact = max interpenetration [m] of "
                f"two fragments under FractureFields' contact projection (exact answer 0). Device: {name}; "
                f"{datetime.date.today().isoformat()}; {'quick' if quick else 'full'} sweep, {total:.0f} s in all.")
-    table = accuracy_table(results, caption, command)
-    table.write(out)
-    pareto_figure(results, out / "accuracy_pareto.png", title=f"speed vs error on {name}")
     payload = {"device": device, "device_name": name, "date": datetime.date.today().isoformat(), "quick": quick,
-               "command": command, "total_s": total, "rows": [r.row() for r in results]}
+               "command": command, "caption": caption, "total_s": total, "results": [r.__dict__ for r in results]}
     (out / "accuracy.json").write_text(json.dumps(payload, indent=2, default=float))
+    write_outputs(payload, out)
     return {"out_dir": str(out), "device": device, "total_s": round(total, 1),
             "files": ["accuracy.md", "accuracy.csv", "accuracy.tex", "accuracy_pareto.png", "accuracy.json"]}
+
+
+def write_outputs(payload: dict, out) -> None:
+    """Table (MD/CSV/TEX) and Pareto PNG from an accuracy.json payload (the PNG is skipped where
+    matplotlib is missing, e.g. on a bare GPU image: rerun `--from-json` elsewhere)."""
+    out = Path(out)
+    results = [Result(**r) for r in payload["results"]]
+    accuracy_table(results, payload["caption"], payload["command"]).write(out)
+    try:
+        import matplotlib  # noqa: F401
+    except ImportError:
+        print("matplotlib is not installed: accuracy_pareto.png skipped (run --from-json where it is)")
+        return
+    pareto_figure(results, out / "accuracy_pareto.png", title=f"speed vs error on {payload['device_name']}")
 
 
 def main(argv=None):
@@ -414,7 +426,12 @@ def main(argv=None):
     ap.add_argument("--out", default="runs/accuracy")
     ap.add_argument("--quick", action="store_true", help="the short sweep (CPU: a few minutes)")
     ap.add_argument("--cases", help=f"comma-separated subset of {', '.join(CASES)}")
+    ap.add_argument("--from-json", metavar="FILE", help="only redraw the table and plot from a saved accuracy.json into --out")
     args = ap.parse_args(argv)
+    if args.from_json:
+        write_outputs(json.loads(Path(args.from_json).read_text()), args.out)
+        print((Path(args.out) / "accuracy.md").read_text())
+        return {"out_dir": args.out}
     res = run_accuracy(args.device, args.out, quick=args.quick, cases=args.cases.split(",") if args.cases else None)
     print((Path(res["out_dir"]) / "accuracy.md").read_text())
     return res
