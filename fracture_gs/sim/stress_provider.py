@@ -20,15 +20,21 @@ from ..config import TopologyConfig
 from .topology import Topology
 
 
+EIGH_CHUNK = 32768  # batched CUDA eigh (cusolver) fails for batches of ≥ 65,536 in torch 2.11 + CUDA 13
+
+
 def principal_stress(tau: torch.Tensor, F: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
     """Largest principal Cauchy stress and its unit direction, per particle.
 
     σ = sym(τ) / det F (Cauchy from Kirchhoff); eigh on float64 (ascending eigenvalues, so the
-    last pair is the largest). Vectorized over particles, stays on the tensors' device."""
+    last pair is the largest). Vectorized over particles in chunks of EIGH_CHUNK, on the tensors'
+    device."""
     J = torch.linalg.det(F.double())  # [N]
     tau = tau.double()
     sigma = 0.5 * (tau + tau.transpose(1, 2)) / J[:, None, None]  # [N,3,3]
-    values, vectors = torch.linalg.eigh(sigma)  # [N,3] ascending, [N,3,3] columns
+    parts = [torch.linalg.eigh(s) for s in sigma.split(EIGH_CHUNK)]  # ascending, columns
+    values = torch.cat([v for v, _ in parts])
+    vectors = torch.cat([e for _, e in parts])
     return values[:, -1], vectors[:, :, -1]  # [N], [N,3]
 
 
