@@ -25,3 +25,12 @@ def seed():
     torch.manual_seed(s)
     np.random.seed(s)
     return s
+
+
+@pytest.fixture(scope="module")
+def one_thread():
+    """One intra-op torch thread: many tiny tensor ops are far slower with contended threads."""
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(before)

@@ -11,13 +11,7 @@ from fracture_gs.io import GaussianSet, PlyError, load_ply, save_ply
 REST = {0: 0, 1: 9, 2: 24, 3: 45}
 
 
-@pytest.fixture(autouse=True, scope="module")
-def _one_thread():
-    """Tiny tensors: one intra-op thread avoids contention on a busy 2-core machine."""
-    before = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(before)
+pytestmark = pytest.mark.usefixtures("one_thread")
 
 
 def fresh_seed() -> int:

@@ -82,6 +82,14 @@ def field_of(fragment: int, multifield: int):
     return 0
 
 
+@wp.func
+def routed_field(o: int, only_fragment: int, multifield: int):
+    """Field the particle writes to and reads from, or −1 when a per-fragment pass skips it."""
+    if only_fragment >= 0 and o != only_fragment:
+        return -1
+    return field_of(o, multifield)
+
+
 @wp.kernel
 def p2g(
     x: wp.array(dtype=wp.vec3),  # [N]
@@ -105,10 +113,9 @@ def p2g(
 ):
     """m_i^k += w m_p;  p_i^k += w m_p (v_p + C_p(x_i − x_p)) − Δt V⁰ τ_p ∇w  (k = routed field)."""
     p = wp.tid()
-    o = fragment[p]
-    if only_fragment >= 0 and o != only_fragment:
+    k = routed_field(fragment[p], only_fragment, multifield)
+    if k < 0:
         return
-    k = field_of(o, multifield)
     base, f, w, dw = stencil(x[p], origin, inv_dx, shape)
     m = mass[p]
     vp = v[p]
@@ -245,10 +252,9 @@ def g2p(
     """Eqs. field_g2p, field_apic, field_deformation from field o_p only (no fallback):
     v = Σ w v_i; C = 4/Δx² Σ w v_i (x_i − x_p)ᵀ; F ← (I + Δt Σ v_i ∇wᵀ) F; x ← x + Δt v."""
     p = wp.tid()
-    o = fragment[p]
-    if only_fragment >= 0 and o != only_fragment:
+    k = routed_field(fragment[p], only_fragment, multifield)
+    if k < 0:
         return
-    k = field_of(o, multifield)
     base, f, w, dw = stencil(x[p], origin, inv_dx, shape)
     vp = wp.vec3(0.0)
     B = wp.mat33(0.0)
