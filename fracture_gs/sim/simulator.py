@@ -95,6 +95,7 @@ class Simulator:
         self.wave_speed = float(torch.sqrt((lam + 2 * mu) / rho).max())
         self._normal = wp.vec3(0.0, 0.0, 0.0)
         self._diagnostics = None
+        self.record_contact = True  # contact statistics for the diagnostics (off when timing)
         self._bind()
 
     # ---- set-up -------------------------------------------------------------------------------
@@ -261,7 +262,7 @@ class Simulator:
                           self._fields(), self.eps_m,
                           self.eps_b, multi, int(multi and self.cfg.variant == "full"), self._normal,
                           float(self.cfg.restitution), dt, self._gravity, self._origin, g.dx, self.time,
-                          self.boundaries.colliders, g.wp["stats"]])
+                          self.boundaries.colliders, int(self.record_contact), g.wp["stats"]])
 
     def g2p(self, dt: float, only_fragment: int = -1) -> None:
         """Gather v, C, F's update and x from each particle's own field (Eq. field_g2p)."""

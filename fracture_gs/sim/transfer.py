@@ -151,6 +151,27 @@ def contact_projection(v0: wp.vec3, v1: wp.vec3, m0: float, m1: float, n: wp.vec
     return v0 - (J / m0) * n, v1 + (J / m1) * n
 
 
+@wp.func
+def record_contact(stats: wp.array(dtype=float), t: float, v0: wp.vec3, v1: wp.vec3, w0: wp.vec3, w1: wp.vec3,
+                   m0: float, m1: float, normal: wp.vec3, project: int):
+    """Contact diagnostics of one gated node: count, first time, node momentum change, residual
+    approach speed and change of tangential relative velocity."""
+    wp.atomic_add(stats, STAT_GATED, 1.0)
+    wp.atomic_min(stats, STAT_FIRST_T, t)
+    if project != 0:
+        wp.atomic_add(stats, STAT_PROJECTED, 1.0)
+    before = m0 * v0 + m1 * v1
+    dp = (m0 * w0 + m1 * w1) - before
+    wp.atomic_add(stats, STAT_DPX, dp[0])
+    wp.atomic_add(stats, STAT_DPY, dp[1])
+    wp.atomic_add(stats, STAT_DPZ, dp[2])
+    wp.atomic_add(stats, STAT_PNORM, wp.length(before))
+    wp.atomic_max(stats, STAT_UN_AFTER, wp.max(0.0, -wp.dot(w1 - w0, normal)))
+    rel_t_before = (v1 - v0) - wp.dot(v1 - v0, normal) * normal
+    rel_t_after = (w1 - w0) - wp.dot(w1 - w0, normal) * normal
+    wp.atomic_max(stats, STAT_DVT, wp.length(rel_t_after - rel_t_before))
+
+
 @wp.kernel
 def grid_update(
     box_origin: wp.vec3i,  # the launch covers the active box starting at this node
@@ -174,6 +195,7 @@ def grid_update(
     dx: float,
     t: float,
     colliders: Colliders,
+    record: int,  # accumulate the contact statistics (diagnostics; off when timing the transfer)
     stats: wp.array(dtype=float),  # [N_STATS] contact statistics (accumulated)
 ):
     """Per node: v^k = p^k/m^k + Δt g for each active field (m^k > ε_m), else 0; contact
@@ -200,23 +222,12 @@ def grid_update(
         if gate != 0 and m0 > eps_m and m1 > eps_m and grid_mb[0, i, j, l] > eps_b and grid_mb[1, i, j, l] > eps_b:
             un = wp.dot(v1 - v0, normal)
             if un < 0.0:
-                wp.atomic_add(stats, STAT_GATED, 1.0)
-                wp.atomic_min(stats, STAT_FIRST_T, t)
-                before = m0 * v0 + m1 * v1
                 w0 = v0
                 w1 = v1
                 if project != 0:
                     w0, w1 = contact_projection(v0, v1, m0, m1, normal, restitution)
-                    wp.atomic_add(stats, STAT_PROJECTED, 1.0)
-                dp = (m0 * w0 + m1 * w1) - before
-                wp.atomic_add(stats, STAT_DPX, dp[0])
-                wp.atomic_add(stats, STAT_DPY, dp[1])
-                wp.atomic_add(stats, STAT_DPZ, dp[2])
-                wp.atomic_add(stats, STAT_PNORM, wp.length(before))
-                wp.atomic_max(stats, STAT_UN_AFTER, wp.max(0.0, -wp.dot(w1 - w0, normal)))
-                rel_t_before = (v1 - v0) - wp.dot(v1 - v0, normal) * normal
-                rel_t_after = (w1 - w0) - wp.dot(w1 - w0, normal) * normal
-                wp.atomic_max(stats, STAT_DVT, wp.length(rel_t_after - rel_t_before))
+                if record != 0:
+                    record_contact(stats, t, v0, v1, w0, w1, m0, m1, normal, project)
                 v0 = w0
                 v1 = w1
     xi = origin + wp.vec3(float(i), float(j), float(l)) * dx
