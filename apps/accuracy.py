@@ -45,7 +45,6 @@ import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Optional
 
 import numpy as np
 import torch
@@ -137,7 +136,7 @@ def bar_case(dx: float, cfl: float, device: str, sweep: str = "dx") -> Result:
         sim.substep(dt)
         if i % sample == 0:
             ts.append(i * dt)
-            qs.append((w * sim.particles.v[:, 0].double()).sum())
+            qs.append((w * sim.particles.v[:, 0].double()).sum() / denom)
     qs = [qs[0]] + torch.stack(qs[1:]).cpu().tolist()
     _sync(device)
     wall = time.perf_counter() - t0

@@ -14,7 +14,7 @@ import pytest
 import torch
 
 from fracture_gs import sim as S
-from fracture_gs.figures import (Column, Panel, Table, curves_figure, method_figure, method_slice, multiscene_figure,
+from fracture_gs.figures import (QUICK, Column, Panel, Table, curves_figure, method_figure, method_slice, multiscene_figure,
                                  prepare, teaser_figure, tex_escape)
 from fracture_gs.io.config import load_config
 
@@ -25,12 +25,7 @@ if str(ROOT) not in sys.path:
 from apps import accuracy  # noqa: E402
 
 
-@pytest.fixture(scope="module", autouse=True)
-def one_thread():
-    n = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(n)
+pytestmark = pytest.mark.usefixtures("one_thread")  # tests/conftest.py: one torch thread
 
 
 def two_panel_table():
@@ -161,13 +156,15 @@ def test_method_slice_and_figure(tmp_path):
 
 
 def test_quick_preset_keeps_the_protocol_frames():
-    """The quick ficus is compressed 4× in time: same frames, loading 4× faster, switching 4× earlier."""
+    """The quick ficus is compressed 4× in time: same frames, loading 4× faster (times the
+    calibrated load scale), switching 4× earlier."""
     base = load_config("exp_table3_ficus")
     q = prepare(base, "quick")
     grip = base.sim.boundaries[-1]
     qgrip = q.cfg.sim.boundaries[-1]
+    k = 4 * QUICK["ficus"]["load_scale"]
     assert q.cfg.frames == base.frames and q.cfg.frame_dt == pytest.approx(base.frame_dt / 4)
-    assert qgrip.velocity == pytest.approx(tuple(4 * v for v in grip.velocity))
+    assert qgrip.velocity == pytest.approx(tuple(k * v for v in grip.velocity))
     assert qgrip.end == pytest.approx(grip.end / 4)
     assert q.cfg.sim.dx == 1 / 32 and q.cfg.sim.dt == pytest.approx(2 * base.sim.dt)
     b = prepare(load_config("exp_table3_bread"), "quick")

@@ -25,14 +25,7 @@ from fracture_gs.figures import ablation_stats, prepare, run_experiment, transfe
 from fracture_gs.io.config import load_config
 
 
-@pytest.fixture(scope="module", autouse=True)
-def one_thread():
-    """Warp's CPU kernels are single-threaded; torch's OpenMP threads only slow the small tensor
-    ops on a busy machine (restored afterwards)."""
-    n = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(n)
+pytestmark = pytest.mark.usefixtures("one_thread")  # tests/conftest.py: one torch thread
 
 
 @pytest.fixture(scope="module")
