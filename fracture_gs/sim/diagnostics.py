@@ -83,6 +83,20 @@ def penetration(x, fragment, band, n, radius: float, chunk: int = 2048) -> float
     return float(worst)
 
 
+def identity_crossing(x, fragment, band, n) -> int:
+    """Particles on the other fragment's side of the separating plane: normal n_Π, placed midway
+    between the facing band fronts (max s over fragment 0's band, min s over fragment 1's) as
+    they move. While the fronts have not passed each other no particle crosses; a fixed plane
+    would count particles of a fragment that merely moved past where the interface used to be."""
+    s = x @ n
+    front0 = s[(fragment == 0) & (band != 0)]
+    front1 = s[(fragment == 1) & (band != 0)]
+    if front0.numel() == 0 or front1.numel() == 0:
+        return 0
+    mid = 0.5 * (front0.max() + front1.min())
+    return int(((fragment == 0) & (s > mid)).sum() + ((fragment == 1) & (s < mid)).sum())
+
+
 def stringing(F, band):
     """Mean over band particles of ln(s_max / s_min) of F's singular values."""
     sel = band != 0
@@ -196,8 +210,7 @@ class Diagnostics:
             self.reapproach = max(self.reapproach, (self.open_max - opening) / self.open_max)
         x = P.x.double()
         pen = penetration(x, P.fragment, P.band, self.n, 2.0 * dx) / dx
-        s = (x - self.point) @ self.n  # side of the latched plane Π
-        crossing = int(((P.fragment == 0) & (s > 0)).sum() + ((P.fragment == 1) & (s < 0)).sum())
+        crossing = identity_crossing(x, P.fragment, P.band, self.n)
         return {"opening": opening, "reapproach": self.reapproach, "stringing": stringing(P.F, P.band),
                 "separated": opening > 0.1, "penetration": pen, "identity_crossing": crossing}
 
