@@ -700,10 +700,10 @@ def table4(exp_a: Optional[ExperimentRun], exp_b: Optional[ExperimentRun], comma
     caption = ("Post-fracture interaction. Panel A: fragment–scene response under gravity; †the global residual is "
                "gravity-compensated but includes the external plane impulse (a scene-level diagnostic). Panel B: "
                "fragment–fragment re-contact without gravity. Task Success requires max penetration/Δx < 0.1 and no "
-               "identity crossing (a particle on the other side of the latched plane Π, which stays fixed in space: a "
-               "falling or rotating body crosses it without any interpenetration, and in Panel B the fragments' contact "
-               "surface need not settle on the kinematic contact plane, so read the crossing count beside the "
-               "penetration). Panel-specific diagnostics must not be compared across panels. " + _notes(used))
+               "identity crossing (a particle on the other fragment's side of the separating plane: normal n_Π, "
+               "midway between the two fragments' facing band fronts as they move; in Panel A the bar tumbles, so its "
+               "band fronts along the fixed n_Π can pass each other without interpenetration). Panel-specific "
+               "diagnostics must not be compared across panels. " + _notes(used))
     return Table("table4_interaction", "Table 4: post-fracture interaction", panels, caption, "tab:scene_interaction", command)
 
 
