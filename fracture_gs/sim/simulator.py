@@ -21,7 +21,7 @@ from .constitutive import compute_stress, lame
 from .grid import Grid, fit_grid
 from .particles import Particles, SimulationError
 from .topology import Topology
-from .transfer import g2p, grid_update, p2g
+from .transfer import clear_fields, g2p, grid_update, p2g
 
 MULTIFIELD_VARIANTS = ("local_multifield", "full")
 RELEASE_VARIANTS = ("stress_zero", "global_fragment_pass", "local_multifield", "full")
@@ -166,10 +166,6 @@ class Simulator:
             self._box_origin = wp.vec3i(*union[:3])
             self._field_box_wp = [wp.vec3i(*b[:3]) for b in boxes] + [wp.vec3i(*b[3:]) for b in boxes]
 
-    def _box_slices(self, k: int | None = None):
-        b = self.box if k is None else (self.band_box if k == "band" else self.field_boxes[k])
-        return (slice(b[0], b[3]), slice(b[1], b[4]), slice(b[2], b[5]))
-
     def _stream_scope(self):
         """Launch Warp on torch's current stream (DESIGN.md "Performance rules")."""
         if not self.device.startswith("cuda"):
@@ -239,12 +235,11 @@ class Simulator:
         multi = int(self.multifield if multifield is None else multifield)
         n_fields = 2 if multi else 1
         if target is None:
-            for k in range(n_fields):
-                sx, sy, sz = self._box_slices(k if multi else None)
-                g.mp[k, sx, sy, sz].zero_()
-            if multi:
-                sx, sy, sz = self._box_slices("band")
-                g.band_mass[:, sx, sy, sz].zero_()
+            b, f, bb = self.box, self.field_boxes, self.band_box
+            lo0, hi0 = (f[0][:3], f[0][3:]) if multi else (b[:3], b[3:])
+            wp.launch(clear_fields, dim=(b[3] - b[0], b[4] - b[1], b[5] - b[2]), device=self.device,
+                      inputs=[self._box_origin, wp.vec3i(*lo0), wp.vec3i(*f[1][:3]), wp.vec3i(*bb[:3]), wp.vec3i(*hi0),
+                              wp.vec3i(*f[1][3:]), wp.vec3i(*bb[3:]), n_fields, g.wp["mp"], g.wp["band_mass"]])
         else:
             g.clear(n_fields, band=bool(multi))
         wp.launch(p2g, dim=len(self.particles), device=self.device,

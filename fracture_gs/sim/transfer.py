@@ -140,6 +140,33 @@ def inside(node: wp.vec3i, lo: wp.vec3i, hi: wp.vec3i):
     return node[0] >= lo[0] and node[0] < hi[0] and node[1] >= lo[1] and node[1] < hi[1] and node[2] >= lo[2] and node[2] < hi[2]
 
 
+@wp.kernel
+def clear_fields(
+    box_origin: wp.vec3i,  # launch over the union box starting here
+    lo0: wp.vec3i,
+    lo1: wp.vec3i,
+    lob: wp.vec3i,
+    hi0: wp.vec3i,
+    hi1: wp.vec3i,
+    hib: wp.vec3i,
+    n_fields: int,
+    grid_mp: wp.array4d(dtype=wp.vec4),
+    grid_mb: wp.array4d(dtype=float),
+):
+    """Reset each field's accumulators inside its own box, and band mass inside the band box, in
+    one launch (three strided memsets otherwise)."""
+    ti, tj, tl = wp.tid()
+    node = wp.vec3i(ti + box_origin[0], tj + box_origin[1], tl + box_origin[2])
+    if inside(node, lo0, hi0):
+        grid_mp[0, node[0], node[1], node[2]] = wp.vec4(0.0)
+    if n_fields > 1:
+        if inside(node, lo1, hi1):
+            grid_mp[1, node[0], node[1], node[2]] = wp.vec4(0.0)
+        if inside(node, lob, hib):
+            grid_mb[0, node[0], node[1], node[2]] = 0.0
+            grid_mb[1, node[0], node[1], node[2]] = 0.0
+
+
 @wp.func
 def contact_projection(v0: wp.vec3, v1: wp.vec3, m0: float, m1: float, n: wp.vec3, e: float):
     """Eqs. impulse, contact_update: J_n = −(1+e)u_n / (1/m⁰ + 1/m¹) for approaching fields
