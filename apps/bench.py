@@ -165,7 +165,7 @@ def time_branches(cfg, P, topo, device: str, steps=200, warmup=20, trials=3, gra
     dt = cfg.sim.dt
     for label, variant, passes in BRANCHES:
         sim = make_sim(cfg, P, topo, variant, device, sort)
-        ms = time_fn(sim, lambda: transfer_step(sim, dt), steps, warmup, trials, graph)
+        ms = time_fn(sim, lambda s=sim: transfer_step(s, dt), steps, warmup, trials, graph)
         rows.append({"branch": label, "variant": variant, "passes": passes, "median_ms": statistics.median(ms),
                      "trials_ms": ms, "grid_mib": sim.grid.nbytes / 2**20})
         del sim

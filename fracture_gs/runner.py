@@ -7,7 +7,6 @@ Ctrl-C or a divergence keeps every frame and metric already written.
 from __future__ import annotations
 
 import json
-import math
 import time
 from pathlib import Path
 from typing import Optional
@@ -25,9 +24,6 @@ from .render.camera import from_config
 from .render.gaussians import exposed_interior_colors, sh_colors
 from .render.splat import render
 from .sim import SimulationDiverged, Topology
-
-SUMMARY_KEYS = ("opening", "reapproach", "stringing", "separated", "penetration", "identity_crossing", "first_contact_time",
-                "cp_momentum_residual", "rel_normal_velocity_after", "max_delta_vt")
 
 
 class Painter:

@@ -25,7 +25,6 @@ The math, identical to gsplat 1.5.3 (`ProjectionEWA3DGSFused.cu`, `RasterizeToPi
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Optional
 

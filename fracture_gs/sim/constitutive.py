@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 
+import torch
 import warp as wp
 
 MATERIAL_IDS = {"fixed_corotated": 0, "neo_hookean": 1, "stvk_hencky_vm": 2, "drucker_prager": 3}
@@ -21,8 +22,11 @@ def lame(E, nu):
 
 
 def dp_alpha(friction_angle_deg):
-    """Drucker–Prager cone slope α = √(2/3)·2 sin φ / (3 − sin φ)."""
-    s = math.sin(math.radians(friction_angle_deg))
+    """Drucker–Prager cone slope α = √(2/3)·2 sin φ / (3 − sin φ) (floats and tensors)."""
+    if torch.is_tensor(friction_angle_deg):
+        s = torch.sin(torch.deg2rad(friction_angle_deg))
+    else:
+        s = math.sin(math.radians(friction_angle_deg))
     return math.sqrt(2.0 / 3.0) * 2.0 * s / (3.0 - s)
 
 

@@ -138,7 +138,6 @@ class Diagnostics:
         self.pairs = interface_pairs(P.x, P.fragment, P.band, topo.pair_radius * sim.grid.dx)
         self.n = torch.tensor(topo.normal, dtype=torch.float64, device=P.x.device)
         self.latch_substeps = sim.substeps
-        self.point = torch.tensor(topo.point, dtype=torch.float64, device=P.x.device)
         self.opening0 = self._raw_opening()
         self.open_max = 0.0
         g = sim.grid

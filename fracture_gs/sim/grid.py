@@ -72,7 +72,3 @@ class Grid:
     def nbytes(self) -> int:
         """Grid-buffer footprint (mass, momentum, velocity, band mass) in bytes."""
         return sum(t.numel() * t.element_size() for t in (self.mp, self.velocity, self.band_mass))
-
-    def node_positions(self) -> torch.Tensor:  # [X, Y, Z, 3]
-        axes = [torch.arange(s, device=self.mass.device, dtype=torch.float64) * self.dx + o for s, o in zip(self.shape, self.origin)]
-        return torch.stack(torch.meshgrid(*axes, indexing="ij"), dim=-1)

@@ -43,7 +43,7 @@ class Particles:
         material="fixed_corotated",  # name, or [N] int ids (MATERIAL_IDS)
         yield_stress=1e4,  # scalar or [N] [Pa]
         hardening=0.0,  # scalar or [N]
-        friction_angle=30.0,  # degrees, scalar (Drucker–Prager)
+        friction_angle=30.0,  # degrees, scalar or [N] (Drucker–Prager)
         sigma_R=float("inf"),  # scalar or [N] fracture strength [Pa]
         interior: Optional[torch.Tensor] = None,  # [N] bool
     ):
@@ -64,7 +64,7 @@ class Particles:
         self.material = self._material_ids(material, n, dev)
         self.yield_stress = _per_particle(yield_stress, n, "yield_stress", dev)
         self.hardening = _per_particle(hardening, n, "hardening", dev)
-        self.alpha = _per_particle(dp_alpha(float(friction_angle)), n, "alpha", dev)
+        self.alpha = dp_alpha(_per_particle(friction_angle, n, "friction_angle", dev)).contiguous()
         self.sigma_R = _per_particle(sigma_R, n, "sigma_R", dev)
         self.fragment = torch.full((n,), -1, dtype=torch.int32, device=dev)
         self.band = torch.zeros(n, dtype=torch.int32, device=dev)
@@ -155,9 +155,7 @@ class Particles:
         volume = dx**3 / counts[inverse].to(torch.float32)
         params = material_arrays(cfg.material, cfg.material_map, gs.labels.to(x.device), len(gs))
         v = torch.tensor(cfg.initial_velocity, dtype=torch.float32, device=x.device).expand_as(x)
-        p = Particles(x=x, v=v, mass=params.pop("density") * volume, volume=volume, interior=gs.interior, **params)
-        p.alpha = params_alpha(cfg.material, cfg.material_map, gs.labels.to(x.device), len(gs))
-        return p
+        return Particles(x=x, v=v, mass=params.pop("density") * volume, volume=volume, interior=gs.interior, **params)
 
 
 def _by_label(default: MaterialConfig, table, labels, n, field):
@@ -177,14 +175,7 @@ def _by_label(default: MaterialConfig, table, labels, n, field):
 
 def material_arrays(default: MaterialConfig, table, labels, n) -> dict:
     """Per-particle material parameters from a default and a label → parameters table."""
-    fields = ("E", "nu", "density", "yield_stress", "hardening", "sigma_R")
+    fields = ("E", "nu", "density", "yield_stress", "hardening", "sigma_R", "friction_angle")
     out = {f: _by_label(default, table, labels, n, f) for f in fields}
     out["material"] = _by_label(default, table, labels, n, "model")
     return out
-
-
-def params_alpha(default: MaterialConfig, table, labels, n) -> torch.Tensor:
-    """Per-particle Drucker–Prager α from per-label friction angles."""
-    angle = _by_label(default, table, labels, n, "friction_angle")
-    s = torch.sin(torch.deg2rad(angle))
-    return (torch.sqrt(torch.tensor(2.0 / 3.0)) * 2.0 * s / (3.0 - s)).contiguous()

@@ -6,11 +6,7 @@ from __future__ import annotations
 
 import torch
 
-from .constitutive import SIGMA_MIN
-
-
-def lame(E, nu):
-    return E / (2 * (1 + nu)), E * nu / ((1 + nu) * (1 - 2 * nu))
+from .constitutive import SIGMA_MIN, lame
 
 
 def _svd(F):

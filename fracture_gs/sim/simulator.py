@@ -127,12 +127,13 @@ class Simulator:
         self._box_origin = wp.vec3i(0, 0, 0)
         self._field_box_wp = [wp.vec3i(0, 0, 0), wp.vec3i(0, 0, 0), wp.vec3i(*g.shape), wp.vec3i(*g.shape)]
 
-    def fit_active_box(self, horizon: float) -> None:
+    def fit_active_box(self, horizon: float) -> float:
         """Restrict per-substep grid work (reset, update) to where particles can be during the
         next `horizon` seconds ("no work on empty grid"): the bounding box of the particles routed
         to each field, plus the stencil and the distance they can travel. Under fragment-conditioned
         transfer each field gets its own box, so the second field costs work only where fragment 1
-        is. One host read; the grid is cleared whenever a box changes so no stale node survives."""
+        is. One host read, which also returns max |v| for the CFL step; the grid is cleared whenever a
+        box changes so no stale node survives."""
         P, g = self.particles, self.grid
         fields = [P.fragment <= 0, P.fragment == 1] if self.multifield else [torch.ones_like(P.fragment, dtype=torch.bool)]
         if self.multifield:
@@ -141,9 +142,10 @@ class Simulator:
         rows = [torch.where(m[:, None], P.x, big).min(0).values for m in fields]
         rows += [torch.where(m[:, None], P.x, -big).max(0).values for m in fields]
         stats = torch.cat(rows + [P.v.norm(dim=1).max()[None]]).cpu()
+        vmax = float(stats[-1])
         if not bool(torch.isfinite(stats).all()):
-            return  # the divergence check reports it
-        pad = 3 + math.ceil(float(stats[-1]) * horizon / g.dx)
+            return vmax  # the divergence check reports it
+        pad = 3 + math.ceil(vmax * horizon / g.dx)
         n = len(fields)
         boxes = []
         for k in range(n):
@@ -165,6 +167,7 @@ class Simulator:
             self.box, self.field_boxes, self.band_box = union, boxes, band_box
             self._box_origin = wp.vec3i(*union[:3])
             self._field_box_wp = [wp.vec3i(*b[:3]) for b in boxes] + [wp.vec3i(*b[3:]) for b in boxes]
+        return vmax
 
     def _stream_scope(self):
         """Launch Warp on torch's current stream (DESIGN.md "Performance rules")."""
@@ -268,11 +271,13 @@ class Simulator:
                           w["clamped"]])
 
     # ---- frames -------------------------------------------------------------------------------
-    def frame_substeps(self, frame_dt: float) -> tuple[int, float]:
-        """(n, Δt) with n·Δt = frame_dt exactly and Δt ≤ cfg.dt (and the CFL bound if adaptive)."""
+    def frame_substeps(self, frame_dt: float, vmax: Optional[float] = None) -> tuple[int, float]:
+        """(n, Δt) with n·Δt = frame_dt exactly and Δt ≤ cfg.dt (and the CFL bound if adaptive;
+        `vmax`, the largest particle speed, is read from the device when not given)."""
         dt = self.cfg.dt
         if self.cfg.adaptive_dt:
-            vmax = float(self.particles.v.norm(dim=1).max())  # one sync per frame
+            if vmax is None:
+                vmax = float(self.particles.v.norm(dim=1).max())
             if math.isfinite(vmax):
                 dt = min(dt, self.cfl_dt(vmax))
         n = max(1, math.ceil(frame_dt / dt - 1e-9))
@@ -284,8 +289,8 @@ class Simulator:
         """Simulate one frame: n substeps, then the divergence check and the event provider."""
         if self.substeps == 0:
             self._poll_provider()  # an oracle may latch before the first substep
-        n, dt = self.frame_substeps(frame_dt)
-        self.fit_active_box(frame_dt)
+        vmax = self.fit_active_box(frame_dt)  # the frame's one host read also gives max |v|
+        n, dt = self.frame_substeps(frame_dt, vmax)
         self.dt = dt
         start = self.time
         for _ in range(n):
