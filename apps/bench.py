@@ -7,8 +7,10 @@
 Scope of Table 2 (as in the paper): grid reset, P2G, normalization (+ contact), G2P; stress,
 probing, diagnostics and rendering excluded. All branches run on the same latched particle state
 (the built-in ficus at the paper's 171,553 particles in a 128³ grid, Δx = 1/128). On CUDA each
-timing is a median of CUDA-event intervals over ≥ 200 substeps after warm-up, per trial; on the
-CPU, wall-clock medians (marked as CPU).
+trial is a median of CUDA-event intervals over ≥ 200 substeps after warm-up; each branch is built
+on fresh device memory several times (`--placements`) and trials run round-robin over all builds,
+so neither where the allocator put a branch's grid nor clock drift decides the comparison. A
+per-kernel breakdown (CUDA profiler) comes with it. On the CPU: wall-clock medians (marked as CPU).
 """
 from __future__ import annotations
 
@@ -117,25 +119,11 @@ def capture(sim: Simulator, fn):
 
 def time_fn(sim: Simulator, fn, steps: int, warmup: int, trials: int, graph: bool) -> list[float]:
     """Per-trial median milliseconds of `fn` (one substep each)."""
-    timer = Timer(sim.device)
     for _ in range(warmup):
         with sim._stream_scope():
             fn()
-    g = capture(sim, fn) if graph and timer.cuda else None
-    medians = []
-    for _ in range(trials):
-        marks = [timer.mark()]
-        for _ in range(steps):
-            if g is not None:
-                with sim._stream_scope():
-                    wp.capture_launch(g)
-            else:
-                with sim._stream_scope():
-                    fn()
-            marks.append(timer.mark())
-        timer.sync()
-        medians.append(statistics.median(timer.ms(a, b) for a, b in zip(marks, marks[1:])))
-    return medians
+    g = capture(sim, fn) if graph and sim.device.startswith("cuda") else None
+    return [_median_step(sim, fn, g, steps) for _ in range(trials)]
 
 
 def phase_times(sim: Simulator, dt: float, steps: int, warmup: int) -> dict:
@@ -159,22 +147,88 @@ def phase_times(sim: Simulator, dt: float, steps: int, warmup: int) -> dict:
     return out
 
 
-def time_branches(cfg, P, topo, device: str, steps=200, warmup=20, trials=3, graph=True, sort="interleaved") -> list[dict]:
-    """Table 2 rows: median ms, relative to Shared, grid-buffer MiB, passes."""
-    rows = []
+KERNEL_PHASES = {"clear_fields": "reset", "p2g": "p2g", "grid_update": "grid", "g2p": "g2p"}
+
+
+def kernel_times(sim: Simulator, dt: float, steps: int = 50) -> dict | None:
+    """Device microseconds per substep of each transfer kernel (reset, P2G, grid, G2P), from the
+    CUDA profiler (CUPTI sees Warp's launches too); None on the CPU, where it cannot see them."""
+    if not sim.device.startswith("cuda"):
+        return None
+    from torch.profiler import ProfilerActivity, profile
+
+    with sim._stream_scope():
+        for _ in range(5):
+            transfer_step(sim, dt)
+    torch.cuda.synchronize()
+    with profile(activities=[ProfilerActivity.CUDA]) as prof:
+        with sim._stream_scope():
+            for _ in range(steps):
+                transfer_step(sim, dt)
+        torch.cuda.synchronize()
+    us = dict.fromkeys(KERNEL_PHASES.values(), 0.0)
+    for ev in prof.events():
+        name = ev.name.split("_cuda_kernel")[0].rsplit("_", 1)[0]  # Warp names kernels <name>_<hash>_cuda_kernel_forward
+        if ev.device_type.name == "CUDA" and name in KERNEL_PHASES:
+            us[KERNEL_PHASES[name]] += ev.device_time / steps  # profiler times are in µs
+    return us
+
+
+def time_branches(cfg, P, topo, device: str, steps=200, warmup=20, trials=3, graph=True, sort="interleaved",
+                  placements: int = 1, seed: int = 0) -> list[dict]:
+    """Table 2 rows: median ms, relative to Shared, grid-buffer MiB, passes, kernel µs.
+
+    Each branch is built `placements` times, every build on fresh device memory shifted by a
+    random pad: on the H200 one allocation of the same branch and state ran 0.0945–0.1047 ms
+    (P2G's atomics resolve in L2, whose slices the address picks), more than the branches differ.
+    Every trial then times all builds round-robin, so clock drift hits all branches alike. A
+    branch's time is the median over builds × trials."""
     dt = cfg.sim.dt
+    cuda = device.startswith("cuda")
+    rng = torch.Generator().manual_seed(seed)
+    builds, keep = [], []
+    for rep in range(placements):
+        for label, variant, passes in BRANCHES:
+            if cuda:  # shift where the next build's buffers land
+                keep.append(torch.empty(int(torch.randint(1, 64, (), generator=rng)) << 20, dtype=torch.uint8, device=device))
+            sim = make_sim(cfg, P, topo, variant, device, sort)
+            fn = (lambda s=sim: transfer_step(s, dt))
+            for _ in range(warmup):
+                with sim._stream_scope():
+                    fn()
+            g = capture(sim, fn) if graph and cuda else None
+            builds.append({"label": label, "variant": variant, "passes": passes, "sim": sim, "fn": fn, "graph": g,
+                           "kernels": kernel_times(sim, dt) if rep == 0 else None})
+    samples = {label: [] for label, _, _ in BRANCHES}
+    for _ in range(trials):
+        for b in builds:
+            samples[b["label"]].append(_median_step(b["sim"], b["fn"], b["graph"], steps))
+    rows = []
     for label, variant, passes in BRANCHES:
-        sim = make_sim(cfg, P, topo, variant, device, sort)
-        ms = time_fn(sim, lambda s=sim: transfer_step(s, dt), steps, warmup, trials, graph)
+        first = next(b for b in builds if b["label"] == label)
+        ms = samples[label]
         rows.append({"branch": label, "variant": variant, "passes": passes, "median_ms": statistics.median(ms),
-                     "trials_ms": ms, "grid_mib": sim.grid.nbytes / 2**20})
-        del sim
-        if device.startswith("cuda"):
-            torch.cuda.empty_cache()
+                     "min_ms": min(ms), "max_ms": max(ms), "samples_ms": ms, "placements": placements,
+                     "grid_mib": first["sim"].grid.nbytes / 2**20, "kernels_us": first["kernels"]})
+    del builds, keep
+    if cuda:
+        torch.cuda.empty_cache()
     base = rows[0]["median_ms"]
     for r in rows:
         r["relative"] = r["median_ms"] / base
     return rows
+
+
+def _median_step(sim: Simulator, fn, graph, steps: int) -> float:
+    """Median milliseconds of one substep over `steps` (graph replays where captured)."""
+    timer = Timer(sim.device)
+    marks = [timer.mark()]
+    for _ in range(steps):
+        with sim._stream_scope():
+            wp.capture_launch(graph) if graph is not None else fn()
+        marks.append(timer.mark())
+    timer.sync()
+    return statistics.median(timer.ms(a, b) for a, b in zip(marks, marks[1:]))
 
 
 def baseline_rows(cfg, P, topo, device, steps, warmup, trials, graph) -> list[dict]:
@@ -233,31 +287,41 @@ def markdown(result: dict) -> str:
         cells = [f"{ph[k]:.4f}" for k in ("stress", "p2g", "grid", "g2p")] if ph else ["—"] * 4
         lines.append(f"| {r['setting']} | {r['median_ms']:.4f} | " + " | ".join(cells) + " |")
     lines += ["", f"Table 2 (scope: grid reset, P2G, normalization, contact, G2P; {result['sort']} order, active box"
-              + (", CUDA graph" if result["graph"] else "") + "):", "",
-              "| Branch | Passes (P2G/G2P/frag) | Median (ms) | Relative | Grid-buffer footprint (MiB) |",
-              "|---|---|---|---|---|"]
+              + (", CUDA graph" if result["graph"] else "") + f"; median over {result['placements']} build(s) × "
+              f"{result['trials']} trial(s), each a median of {result['steps']} substeps):", "",
+              "| Branch | Passes (P2G/G2P/frag) | Median (ms) | Relative | Range (ms) | Grid-buffer footprint (MiB) "
+              "| reset µs | P2G µs | grid µs | G2P µs |", "|---|---|---|---|---|---|---|---|---|---|"]
     for r in result["table2"]:
-        lines.append(f"| {r['branch']} | {r['passes']} | {r['median_ms']:.4f} | {r['relative']:.3f} | {r['grid_mib']:.1f} |")
+        k = r.get("kernels_us")
+        cells = [f"{k[p]:.1f}" for p in ("reset", "p2g", "grid", "g2p")] if k else ["—"] * 4
+        lines.append(f"| {r['branch']} | {r['passes']} | {r['median_ms']:.4f} | {r['relative']:.3f} | "
+                     f"{r['min_ms']:.4f}–{r['max_ms']:.4f} | {r['grid_mib']:.1f} | " + " | ".join(cells) + " |")
+    if result["table2"][0].get("kernels_us"):
+        lines += ["", "Kernel columns: device µs per substep from the CUDA profiler on the first build, plain launches."]
     if not env["device"].startswith("cuda"):
         lines += ["", "(CPU: Warp runs kernels single-threaded here; wall-clock medians, not comparable with GPU rows.)"]
     return "\n".join(lines) + "\n"
 
 
 def run_bench(cfg=None, variants=None, device="cuda:0", out_dir="runs/bench", particles=None, steps=200, warmup=20,
-              trials=3, graph=True, sort="interleaved") -> dict:
+              trials=3, graph=True, sort="interleaved", placements=None) -> dict:
     """Entry point of `fracture-gs bench`: writes bench.json and bench.md into out_dir."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     scfg, P, topo = bench_state(particles, device)
     dev_name = torch.cuda.get_device_name(torch.device(device)) if device.startswith("cuda") else platform.processor() or "CPU"
+    if placements is None:
+        placements = 5 if device.startswith("cuda") else 1
     result = {"particles": len(P), "grid": scfg.sim.grid_shape[0], "graph": graph and device.startswith("cuda"), "sort": sort,
+              "placements": placements, "trials": trials, "steps": steps,
               "env": {"device": device, "device_name": dev_name, "date": datetime.date.today().isoformat(),
                       "torch": torch.__version__, "warp": wp.config.version, "command": " ".join(sys.argv)}}
     # a non-default stream: CUDA graph capture cannot record the legacy default stream
     stream = torch.cuda.Stream(torch.device(device)) if device.startswith("cuda") else None
     with torch.cuda.stream(stream) if stream is not None else _nullcontext():
         result["baseline"] = baseline_rows(scfg, P, topo, device, steps, warmup, trials, graph)
-        result["table2"] = time_branches(scfg, P, topo, device, steps, warmup, trials, graph=graph, sort=sort)
+        result["table2"] = time_branches(scfg, P, topo, device, steps, warmup, trials, graph=graph, sort=sort,
+                                         placements=placements)
     (out_dir / "bench.json").write_text(json.dumps(result, indent=2))
     (out_dir / "bench.md").write_text(markdown(result))
     print(markdown(result))
@@ -272,6 +336,8 @@ def main(argv=None):
     ap.add_argument("--warmup", type=int, default=20)
     ap.add_argument("--trials", type=int, default=3)
     ap.add_argument("--no-graph", action="store_true", help="time plain launches, no CUDA graph capture")
+    ap.add_argument("--placements", type=int, default=None,
+                    help="fresh-memory builds per Table 2 branch (default: 5 on CUDA, 1 on the CPU)")
     ap.add_argument("--sort", default="interleaved", choices=["interleaved", "cell"], help="particle order for Table 2")
     ap.add_argument("--out", default="runs/bench")
     ap.add_argument("--accuracy", action="store_true", help="run the speed-against-error sweeps instead (apps/accuracy.py)")
@@ -284,7 +350,8 @@ def main(argv=None):
     if args.device.startswith("cuda") and not torch.cuda.is_available():
         sys.exit("bench: error: CUDA was requested but is not available here; use --device cpu")
     return run_bench(device=args.device, particles=args.particles, steps=args.steps, warmup=args.warmup, trials=args.trials,
-                     graph=not args.no_graph, out_dir=args.out, sort=args.sort)
+                     graph=not args.no_graph, out_dir=args.out, sort=args.sort,
+                     placements=args.placements)
 
 
 if __name__ == "__main__":

@@ -598,9 +598,11 @@ def table2(device: str, preset: str, command: str = "") -> Table:
     stream = torch.cuda.Stream(torch.device(device)) if cuda else None
     ctx = torch.cuda.stream(stream) if stream is not None else _null()
     with ctx:
-        rows = bench.time_branches(cfg, P, topo, device, steps=steps, warmup=warmup, trials=trials, graph=cuda)
+        rows = bench.time_branches(cfg, P, topo, device, steps=steps, warmup=warmup, trials=trials, graph=cuda,
+                                   placements=5 if cuda else 1)
     name = torch.cuda.get_device_name(torch.device(device)) if cuda else (platform.processor() or "CPU")
-    where = (f"{name}, CUDA events, medians over {steps} substeps × {trials} trials after {warmup} warm-up" if cuda else
+    where = (f"{name}, CUDA events; per branch the median over 5 fresh-memory builds × {trials} trials (round-robin), "
+             f"each a median of {steps} substeps after {warmup} warm-up" if cuda else
              f"CPU ({name}; Warp runs kernels single-threaded here): wall-clock medians over {steps} substeps, "
              f"not comparable with GPU timings")
     caption = (f"Transfer efficiency on the ficus at {len(P)} particles, grid {cfg.sim.grid_shape[0]}³ (Δx = 1/{round(1 / cfg.sim.dx)}). "

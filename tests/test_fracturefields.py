@@ -28,19 +28,31 @@ def split_state(seed, device, variant, plane_x=0.5, band_all=False, boundaries=(
     return sim, topo
 
 
-def test_two_field_transfer_matches_reference(device, seed):
+@pytest.mark.parametrize("fitted", [False, True])
+def test_two_field_transfer_matches_reference(device, seed, fitted):
     """Fragment-conditioned P2G (mass, momentum, band mass), normalization + contact projection and
-    field-aware G2P equal their float64 references."""
+    field-aware G2P equal their float64 references (dense fields), also when the second field is
+    stored only on the shared box S = B⁰ ∩ B¹ and fragment 1 uses slot 0 elsewhere."""
     sim, topo = split_state(seed, device, "full")
     sim.latch(topo)
     P, g, dt = sim.particles, sim.grid, 1e-3
     sim.cfg.wall_cells = 0
+    if fitted:
+        full_bytes = g.nbytes
+        sim.fit_active_box(1e-3)
+        assert S.grid.box_volume(g.support) < 0.7 * S.grid.box_volume(sim.field_boxes[1]), "slot 1 must shrink to S"
+        assert g.nbytes < 0.75 * full_bytes
     sim.compute_stress(sim.stress, commit=True)
     x0, F0, field = P.x.cpu().clone(), P.F.cpu().clone(), P.fragment.cpu().long()
     gm, gp, gb = ref.p2g(x0, P.v.cpu(), P.C.cpu(), P.mass.cpu(), P.volume.cpu(), sim.stress.cpu(), field, 2, g.shape,
                          g.origin, g.dx, dt, band=P.band.cpu())
     sim.p2g(dt)
-    for name, ours, theirs in (("mass", g.mass, gm), ("momentum", g.momentum, gp), ("band mass", g.band_mass, gb)):
+    on_s = torch.zeros(g.shape, dtype=torch.bool)
+    b = g.support
+    on_s[b[0]:b[3], b[1]:b[4], b[2]:b[5]] = True
+    gb_read = gb * on_s  # band mass is kept (and read) only on S
+    assert float(gb_read.sum()) > 0
+    for name, ours, theirs in (("mass", g.mass, gm), ("momentum", g.momentum, gp), ("band mass", g.band_mass, gb_read)):
         assert rel_err(ours.cpu(), theirs) <= 1e-5, f"two-field P2G {name} (seed {seed})"
     sim.update_grid(dt)
     gv = ref.grid_update(gm, gp, gb, sim.eps_m, sim.eps_b, dt, sim.cfg.gravity, normal=topo.normal, project=True)
@@ -111,9 +123,11 @@ def test_contact_projection_properties(device, seed):
     sim = S.Simulator(cfg, particles(x, vol), device=device)
     sim.latch(S.Topology.from_plane(sim.particles.x, (0.5, 0.5, 0.5), tuple(n.tolist()), 0.0))
     g = sim.grid
-    g.mass.copy_(m.to(device))
-    g.momentum.copy_((m[..., None] * v).to(device))
-    g.band_mass.copy_(m.to(device))
+    g.ensure()
+    assert g.support == (0, 0, 0, 8, 8, 8), "unfitted, slot 1 covers the whole grid"
+    for slot, k in ((g.mp, 0), (g.mp1, 1)):  # (p, m) packed per node
+        slot.copy_(torch.cat([m[k, ..., None] * v[k], m[k, ..., None]], -1).to(device))
+    g.mb.copy_(m.to(device))
     sim.update_grid(1e-3)
     w = g.velocity.double().cpu()
     v, m, n = v.double(), m.double(), n.double()
@@ -197,6 +211,30 @@ def test_recontact_full_vs_local_multifield(device):
     assert free[-1]["rel_normal_velocity_after"] == pytest.approx(0.6, rel=0.2)
 
 
+def test_escaping_particles_redo_the_frame(seed):
+    """A push that starts mid-frame carries particles past the boxes fitted at the frame's start;
+    G2P counts them, `advance` rolls the frame back and redoes it with more slack, and the frame
+    ends exactly (CPU, bitwise) as on boxes that cover the whole grid."""
+    x, vol = block((0.3, 0.3, 0.3), (0.6, 0.6, 0.6), 1 / 48)
+    push = S.ParticleRegion(kind="velocity", lower=(0.45, 0.0, 0.0), upper=(1.0, 1.0, 1.0), velocity=(3.0, 0.0, 0.0),
+                            start=0.02, end=1.0)
+    runs = []
+    for slack in (0, 10**4):
+        sim = S.Simulator(config(32, variant="full", dt=1e-3, boundaries=[push]), particles(x, vol, E=1e4))
+        sim.latch(S.Topology.from_plane(sim.particles.x, (0.45, 0.5, 0.5), (1.0, 0.0, 0.0), 0.05))
+        sim.box_slack = slack
+        sim.advance(1 / 24)
+        runs.append(sim)
+    redone, whole = runs
+    assert redone.frame_redos >= 1 and redone.box_slack > 0, "the escape must be detected"
+    assert whole.frame_redos == 0
+    assert (redone.time, redone.substeps, redone.frame) == (whole.time, whole.substeps, whole.frame)
+    for k in ("x", "v", "C", "F"):
+        assert torch.equal(getattr(redone.particles, k), getattr(whole.particles, k)), f"{k} (seed {seed})"
+    travel = float(redone.particles.x[:, 0].max() - x[:, 0].max())
+    assert travel > 1 / 32, "the push must carry particles past the box's one spare cell"
+
+
 @pytest.mark.parametrize("variant", ["baseline", "full"])
 def test_active_box_skips_only_empty_nodes(seed, variant):
     """Restricting grid work to each field's box (plus stencil and travel) gives exactly the
@@ -214,3 +252,21 @@ def test_active_box_skips_only_empty_nodes(seed, variant):
         runs.append(sim.particles)
     for k in ("x", "v", "C", "F"):
         assert torch.equal(getattr(runs[0], k), getattr(runs[1], k)), f"{k} (seed {seed})"
+
+
+def test_table2_bench_times_every_build_of_every_branch():
+    """apps/bench.py's Table 2: every branch is built `placements` times and each build is timed
+    in every trial (round-robin), on the same latched state; FractureFields' second field costs
+    memory only on the shared box."""
+    from apps.bench import BRANCHES, bench_state, time_branches
+
+    cfg, P, topo = bench_state(3000, "cpu", n=32)
+    rows = time_branches(cfg, P, topo, "cpu", steps=2, warmup=1, trials=2, graph=False, placements=2)
+    assert [r["branch"] for r in rows] == [b[0] for b in BRANCHES]
+    for r in rows:
+        assert len(r["samples_ms"]) == 2 * 2 and all(t > 0 for t in r["samples_ms"])
+        assert r["min_ms"] <= r["median_ms"] <= r["max_ms"]
+    assert rows[0]["relative"] == 1.0
+    by = {r["variant"]: r for r in rows}
+    assert by["stress_zero"]["grid_mib"] < by["full"]["grid_mib"] < 1.5 * by["stress_zero"]["grid_mib"]
+    assert by["full"]["kernels_us"] is None, "the CUDA profiler cannot see CPU kernels"

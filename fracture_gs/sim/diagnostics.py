@@ -142,6 +142,8 @@ class Diagnostics:
         self.open_max = 0.0
         g = sim.grid
         self.shadow = Grid(g.origin, g.dx, g.shape, 2, sim.device)
+        full = (0, 0, 0) + tuple(g.shape)
+        self.shadow.set_boxes(full, full)  # both fields dense: the counterfactual needs every node
         self.shadow_stress = torch.zeros_like(sim.stress)
         self.shadow_stress_wp = wp.from_torch(self.shadow_stress, dtype=wp.mat33)
         counts = topo.counts()

@@ -1,4 +1,13 @@
-"""`Grid`: dense nodal fields m^k, p^k, v^k, m^k_band (k = 0, or k ∈ {0, 1} after a multi-field latch)."""
+"""`Grid`: nodal fields m^k, p^k, v^k, m^k_band (k = 0, or k ∈ {0, 1} after a multi-field latch).
+
+Storage follows "second fields only where fragments share support" (DESIGN.md, Performance
+rules). Slot 0 is dense over the grid. Fragment 1's field lives in slot 1 only on the shared box
+S = B⁰ ∩ B¹ of the two fields' boxes (each fragment's particles plus stencil and travel). Outside
+S at most one fragment can reach a node, so its field sits in slot 0 there, with the same
+normalization, gravity and boundaries; contact and band mass matter only inside S. The logical
+fields `mass`, `momentum`, `velocity` and `band_mass` ([K, X, Y, Z, …]) are rebuilt from the
+slots for diagnostics and tests.
+"""
 from __future__ import annotations
 
 import math
@@ -8,6 +17,8 @@ import warp as wp
 
 from ..config import SimConfig
 from .transfer import N_STATS, NEVER, STAT_FIRST_T
+
+EMPTY_BOX = (0, 0, 0, 0, 0, 0)
 
 
 def fit_grid(cfg: SimConfig, x: torch.Tensor) -> tuple[tuple, float, tuple]:
@@ -32,11 +43,22 @@ def fit_grid(cfg: SimConfig, x: torch.Tensor) -> tuple[tuple, float, tuple]:
     return origin, dx, shape
 
 
-class Grid:
-    """Dense per-field node buffers as torch tensors with Warp views made once.
+def box_intersection(a: tuple, b: tuple) -> tuple:
+    """Intersection of two node boxes (lo, hi), or EMPTY_BOX."""
+    box = tuple(max(a[i], b[i]) for i in range(3)) + tuple(min(a[i], b[i]) for i in range(3, 6))
+    return box if all(box[i + 3] > box[i] for i in range(3)) else EMPTY_BOX
 
-    `mass[k]`, `momentum[k]`, `velocity[k]`, `band_mass[k]` are field k at every node; the second
-    field is allocated only for the fragment-conditioned variants."""
+
+def box_volume(box: tuple) -> int:
+    return max(0, box[3] - box[0]) * max(0, box[4] - box[1]) * max(0, box[5] - box[2])
+
+
+class Grid:
+    """Slot 0 dense, slot 1 on the shared box; torch tensors with Warp views.
+
+    `mp` [X, Y, Z, 4] packs (p, m) so P2G scatters both with one 16-byte atomic; `vel` [X, Y, Z, 3].
+    With two fields: `mp1` [Sx, Sy, Sz, 4], `vel1` [Sx, Sy, Sz, 3] and `mb` [2, Sx, Sy, Sz] (band
+    mass of both fields, only read inside S) on the shared box `support`."""
 
     def __init__(self, origin, dx: float, shape, n_fields: int, device: str):
         self.origin = tuple(float(o) for o in origin)
@@ -45,30 +67,110 @@ class Grid:
         if min(self.shape) < 5:
             raise ValueError(f"sim.grid_shape {self.shape} is too small; every axis needs at least 5 nodes")
         self.n_fields = n_fields
-        full = (n_fields, *self.shape)
-        # (p^k, m^k) packed per node so P2G scatters both with one 16-byte atomic; mass and
-        # momentum are views into it
-        self.mp = torch.zeros((*full, 4), dtype=torch.float32, device=device)
-        self.mass = self.mp[..., 3]
-        self.momentum = self.mp[..., :3]
-        self.velocity = torch.zeros((*full, 3), dtype=torch.float32, device=device)
-        self.band_mass = torch.zeros(full, dtype=torch.float32, device=device)
+        self.device = device
+        self.mp = torch.zeros((*self.shape, 4), dtype=torch.float32, device=device)
+        self.vel = torch.zeros((*self.shape, 3), dtype=torch.float32, device=device)
         self.contact_stats = torch.zeros(N_STATS, dtype=torch.float32, device=device)
         self.contact_stats[STAT_FIRST_T] = NEVER
-        self.wp = dict(
-            mp=wp.from_torch(self.mp, dtype=wp.vec4),
-            velocity=wp.from_torch(self.velocity, dtype=wp.vec3),
-            band_mass=wp.from_torch(self.band_mass),
-            stats=wp.from_torch(self.contact_stats),
-        )
+        self.wp = dict(mp=wp.from_torch(self.mp, dtype=wp.vec4), vel=wp.from_torch(self.vel, dtype=wp.vec3),
+                       stats=wp.from_torch(self.contact_stats))
+        self._capacity = -1
+        self.set_boxes((0, 0, 0) + self.shape, EMPTY_BOX)
 
-    def clear(self, n_fields: int | None = None, band: bool = True):
-        """Reset the accumulators of the first `n_fields` fields (no allocation)."""
-        self.mp[:n_fields].zero_()
-        if band:
-            self.band_mass[:n_fields].zero_()
+    # ---- the shared box -------------------------------------------------------------------------
+    def set_boxes(self, box0: tuple, box1: tuple) -> None:
+        """Field boxes B⁰, B¹ (node ranges the fields can occupy); slot 1 moves to S = B⁰ ∩ B¹,
+        allocated and zeroed when a kernel first needs it (`ensure`), so a box that is replaced
+        before any launch costs nothing. The caller clears slot 0."""
+        self.boxes = (tuple(box0), tuple(box1))
+        self.support = box_intersection(box0, box1) if self.n_fields > 1 else EMPTY_BOX
+        self.wp_support = (wp.vec3i(*self.support[:3]), wp.vec3i(*self.support[3:]))
+        self._stale = True
+
+    def ensure(self) -> None:
+        """Slot 1 sized to S: its buffers grow when S does and shrink when S falls under a quarter
+        of them (only ever between frames: boxes change there)."""
+        if not self._stale:
+            return
+        self._stale = False
+        dims = tuple(max(1, self.support[i + 3] - self.support[i]) for i in range(3))
+        n = dims[0] * dims[1] * dims[2]
+        if n > self._capacity or 4 * n < self._capacity:
+            self._capacity = n
+            self._mp1 = torch.empty((n, 4), dtype=torch.float32, device=self.device)
+            self._vel1 = torch.empty((n, 3), dtype=torch.float32, device=self.device)
+            self._mb = torch.empty((2, n), dtype=torch.float32, device=self.device)
+        self.mp1 = self._mp1[:n].view(*dims, 4)
+        self.vel1 = self._vel1[:n].view(*dims, 3)
+        self.mb = self._mb[:, :n].view(2, *dims)
+        for t in (self.mp1, self.vel1, self.mb):
+            t.zero_()
+        self.wp.update(mp1=wp.from_torch(self.mp1, dtype=wp.vec4), vel1=wp.from_torch(self.vel1, dtype=wp.vec3),
+                       mb=wp.from_torch(self.mb))
+
+    def clear(self) -> None:
+        """Reset every accumulator (no allocation)."""
+        self.ensure()
+        self.mp.zero_()
+        self.mp1.zero_()
+        self.mb.zero_()
+
+    def zero(self) -> None:
+        """Reset accumulators and velocities (after a box change no stale node may survive)."""
+        self.clear()
+        self.vel.zero_()
+        self.vel1.zero_()
+
+    # ---- logical fields [K, X, Y, Z, …] (diagnostics and tests) ---------------------------------
+    def _expand(self, slot0: torch.Tensor, slot1: torch.Tensor) -> torch.Tensor:
+        """Field k at every node: field 0 is slot 0 inside B⁰; field 1 is slot 1 on S and slot 0
+        on B¹ \\ B⁰."""
+        if self.n_fields == 1:
+            return slot0[None]
+        out = torch.zeros((2, *slot0.shape), dtype=slot0.dtype, device=slot0.device)
+        in0, in1 = self._mask(self.boxes[0]), self._mask(self.boxes[1])
+        shape = in0.shape + (1,) * (slot0.dim() - 3)
+        out[0] = slot0 * in0.view(shape)
+        out[1] = slot0 * (in1 & ~in0).view(shape)
+        s = self.support
+        if box_volume(s) > 0:
+            out[1, s[0]:s[3], s[1]:s[4], s[2]:s[5]] += slot1
+        return out
+
+    def _mask(self, box: tuple) -> torch.Tensor:
+        m = torch.zeros(self.shape, dtype=torch.bool, device=self.mp.device)
+        m[box[0]:box[3], box[1]:box[4], box[2]:box[5]] = True
+        return m
+
+    @property
+    def mass(self) -> torch.Tensor:  # [K, X, Y, Z]
+        self.ensure()
+        return self._expand(self.mp[..., 3], self.mp1[..., 3])
+
+    @property
+    def momentum(self) -> torch.Tensor:  # [K, X, Y, Z, 3]
+        self.ensure()
+        return self._expand(self.mp[..., :3], self.mp1[..., :3])
+
+    @property
+    def velocity(self) -> torch.Tensor:  # [K, X, Y, Z, 3]
+        self.ensure()
+        return self._expand(self.vel, self.vel1)
+
+    @property
+    def band_mass(self) -> torch.Tensor:  # [K, X, Y, Z], zero outside S (read only there)
+        if self.n_fields == 1:
+            return torch.zeros((1, *self.shape), dtype=torch.float32, device=self.mp.device)
+        self.ensure()
+        out = torch.zeros((2, *self.shape), dtype=torch.float32, device=self.mp.device)
+        s = self.support
+        if box_volume(s) > 0:
+            out[:, s[0]:s[3], s[1]:s[4], s[2]:s[5]] = self.mb
+        return out
 
     @property
     def nbytes(self) -> int:
-        """Grid-buffer footprint (mass, momentum, velocity, band mass) in bytes."""
-        return sum(t.numel() * t.element_size() for t in (self.mp, self.velocity, self.band_mass))
+        """Grid-buffer footprint (slot 0, slot 1 and band mass as allocated) in bytes."""
+        self.ensure()
+        slots = (self.mp, self.vel) + ((self._mp1, self._vel1, self._mb) if self.n_fields > 1 else ())
+        return sum(t.numel() * t.element_size() for t in slots)

@@ -85,7 +85,9 @@ class Simulator:
         self.dt = float(cfg.dt)
         n = len(self.particles)
         self.stress = torch.zeros(n, 3, 3, dtype=torch.float32, device=self.device)
-        self.clamped = torch.zeros(1, dtype=torch.int32, device=self.device)
+        self.counts = torch.zeros(2, dtype=torch.int32, device=self.device)  # clamped to the walls, escaped a box
+        self.box_slack = 0  # extra cells on every active box; grows when a frame had to be redone
+        self.frame_redos = 0
         P = self.particles
         self.node_mass = float(P.mass.sum() / P.volume.sum()) * dx**3  # typical occupied-node mass ρ̄Δx³
         self.eps_m = cfg.eps_mass * self.node_mass
@@ -95,6 +97,7 @@ class Simulator:
         self.wave_speed = float(torch.sqrt((lam + 2 * mu) / rho).max())
         self._normal = wp.vec3(0.0, 0.0, 0.0)
         self._diagnostics = None
+        self._saved = None  # frame-start state for a redo (`advance`)
         self.record_contact = True  # contact statistics for the diagnostics (off when timing)
         self._bind()
 
@@ -107,7 +110,7 @@ class Simulator:
         self.wp.update({k: wp.from_torch(getattr(P, k)) for k in ("mass", "volume", "E", "nu", "material", "yield_stress",
                                                                    "hardening", "alpha", "fragment", "band")})
         self.wp["stress"] = wp.from_torch(self.stress, dtype=wp.mat33)
-        self.wp["clamped"] = wp.from_torch(self.clamped)
+        self.wp["counts"] = wp.from_torch(self.counts)
         g = self.grid
         lo = [o + (self.cfg.wall_cells - 1) * g.dx for o in g.origin]
         hi = [o + (s - self.cfg.wall_cells) * g.dx for o, s in zip(g.origin, g.shape)]
@@ -121,23 +124,23 @@ class Simulator:
     def _reset_boxes(self) -> None:
         """Grid work over the whole grid (until `fit_active_box`)."""
         g = self.grid
-        self.box = (0, 0, 0) + tuple(g.shape)  # active node box (lo, hi): where grid work happens
-        self.field_boxes = [self.box, self.box]  # per field (fragment-conditioned transfer)
-        self.band_box = self.box  # where band mass can land
+        full = (0, 0, 0) + tuple(g.shape)
+        self.box = full  # active node box (lo, hi): where grid work happens
+        self.field_boxes = [full, full]
+        g.set_boxes(full, full if self.multifield else (0, 0, 0, 0, 0, 0))
         self._box_origin = wp.vec3i(0, 0, 0)
-        self._field_box_wp = [wp.vec3i(0, 0, 0), wp.vec3i(0, 0, 0), wp.vec3i(*g.shape), wp.vec3i(*g.shape)]
+        self._field_box_wp = [wp.vec3i(*c) for c in (full[:3], full[3:])] * 2
 
     def fit_active_box(self, horizon: float) -> float:
-        """Restrict per-substep grid work (reset, update) to where particles can be during the
-        next `horizon` seconds ("no work on empty grid"): the bounding box of the particles routed
-        to each field, plus the stencil and the distance they can travel. Under fragment-conditioned
-        transfer each field gets its own box, so the second field costs work only where fragment 1
-        is. One host read, which also returns max |v| for the CFL step; the grid is cleared whenever a
-        box changes so no stale node survives."""
+        """Restrict per-substep grid work to where particles can be during the next `horizon`
+        seconds ("no work on empty grid"): per field, the bounding box of its particles plus the
+        stencil, the distance they can travel (current speed and gravity) and `box_slack`. Slot 0
+        covers their union, slot 1 only the boxes' intersection ("second fields only where
+        fragments share support"). G2P counts any particle whose next stencil leaves its box, and
+        `advance` redoes such a frame with more slack. One host read, which also returns max |v|
+        for the CFL step; the grid is cleared whenever a box changes so no stale node survives."""
         P, g = self.particles, self.grid
         fields = [P.fragment <= 0, P.fragment == 1] if self.multifield else [torch.ones_like(P.fragment, dtype=torch.bool)]
-        if self.multifield:
-            fields.append(P.band != 0)  # band mass (Eq. band_mass) only ever lands around band particles
         big = torch.tensor(3.0e38, device=P.x.device)
         rows = [torch.where(m[:, None], P.x, big).min(0).values for m in fields]
         rows += [torch.where(m[:, None], P.x, -big).max(0).values for m in fields]
@@ -145,7 +148,8 @@ class Simulator:
         vmax = float(stats[-1])
         if not bool(torch.isfinite(stats).all()):
             return vmax  # the divergence check reports it
-        pad = 3 + math.ceil(vmax * horizon / g.dx)
+        travel = vmax * horizon + 0.5 * math.hypot(*self.cfg.gravity) * horizon**2
+        pad = 3 + math.ceil(travel / g.dx) + self.box_slack
         n = len(fields)
         boxes = []
         for k in range(n):
@@ -156,17 +160,15 @@ class Simulator:
             lo = [max(0, int(math.floor((float(lo_w[a]) - o) / g.dx)) - pad) for a, o in enumerate(g.origin)]
             hi = [min(s, int(math.floor((float(hi_w[a]) - o) / g.dx)) + 1 + pad) for a, (o, s) in enumerate(zip(g.origin, g.shape))]
             boxes.append(tuple(lo) + tuple(hi))
-        band_box = boxes.pop() if self.multifield else (0, 0, 0, 0, 0, 0)
-        boxes += [(0, 0, 0, 0, 0, 0)] * (2 - len(boxes))
         live = [b for b in boxes if b[3] > b[0]]
         union = tuple(min(b[a] for b in live) for a in range(3)) + tuple(max(b[a] for b in live) for a in range(3, 6))
-        if union != self.box or boxes != self.field_boxes or band_box != self.band_box:
-            g.mp.zero_()
-            g.band_mass.zero_()
-            g.velocity.zero_()
-            self.box, self.field_boxes, self.band_box = union, boxes, band_box
+        boxes = boxes if self.multifield else [union, union]
+        if union != self.box or boxes != self.field_boxes:
+            self.box, self.field_boxes = union, boxes
+            g.set_boxes(boxes[0], boxes[1] if self.multifield else (0, 0, 0, 0, 0, 0))
+            g.zero()
             self._box_origin = wp.vec3i(*union[:3])
-            self._field_box_wp = [wp.vec3i(*b[:3]) for b in boxes] + [wp.vec3i(*b[3:]) for b in boxes]
+            self._field_box_wp = [wp.vec3i(*c) for b in boxes for c in (b[:3], b[3:])]
         return vmax
 
     def _stream_scope(self):
@@ -226,9 +228,6 @@ class Simulator:
         self.update_grid(dt)
         self.g2p(dt, only_fragment)
 
-    def _fields(self) -> int:
-        return 2 if self.multifield else 1
-
     def p2g(self, dt: float, only_fragment: int = -1, target=None, multifield=None, stress=None) -> None:
         """Reset the active fields and scatter particles into them (Eq. multifield_p2g).
 
@@ -236,39 +235,38 @@ class Simulator:
         routing and the stress; the diagnostics use them for the per-fragment shadow transfer."""
         g, w = target or self.grid, self.wp
         multi = int(self.multifield if multifield is None else multifield)
-        n_fields = 2 if multi else 1
+        g.ensure()
         if target is None:
-            b, f, bb = self.box, self.field_boxes, self.band_box
-            lo0, hi0 = (f[0][:3], f[0][3:]) if multi else (b[:3], b[3:])
+            b = self.box
             wp.launch(clear_fields, dim=(b[3] - b[0], b[4] - b[1], b[5] - b[2]), device=self.device,
-                      inputs=[self._box_origin, wp.vec3i(*lo0), wp.vec3i(*f[1][:3]), wp.vec3i(*bb[:3]), wp.vec3i(*hi0),
-                              wp.vec3i(*f[1][3:]), wp.vec3i(*bb[3:]), n_fields, g.wp["mp"], g.wp["band_mass"]])
+                      inputs=[self._box_origin, *g.wp_support, g.wp["mp"], g.wp["mp1"], g.wp["mb"]])
         else:
-            g.clear(n_fields, band=bool(multi))
+            g.clear()
         wp.launch(p2g, dim=len(self.particles), device=self.device,
                   inputs=[w["x"], w["v"], w["C"], w["mass"], w["volume"], w["stress"] if stress is None else stress,
-                          w["fragment"], w["band"], multi, only_fragment, multi, dt, self._origin, g.dx, 1.0 / g.dx, self._shape,
-                          g.wp["mp"], g.wp["band_mass"]])
+                          w["fragment"], w["band"], multi, only_fragment, dt, self._origin, g.dx, 1.0 / g.dx, self._shape,
+                          *g.wp_support, g.wp["mp"], g.wp["mp1"], g.wp["mb"]])
 
     def update_grid(self, dt: float) -> None:
         """Normalize + gravity per active field, contact projection (full), boundaries."""
         g, multi = self.grid, int(self.multifield)
+        g.ensure()
         self.boundaries.colliders.wall_cells = int(self.cfg.wall_cells)  # the config may change between calls
         b = self.box
         wp.launch(grid_update, dim=(b[3] - b[0], b[4] - b[1], b[5] - b[2]), device=self.device,
-                  inputs=[self._box_origin, *self._field_box_wp, g.wp["mp"], g.wp["band_mass"], g.wp["velocity"],
-                          self._fields(), self.eps_m,
-                          self.eps_b, multi, int(multi and self.cfg.variant == "full"), self._normal,
+                  inputs=[self._box_origin, *g.wp_support, g.wp["mp"], g.wp["mp1"], g.wp["mb"], g.wp["vel"], g.wp["vel1"],
+                          self.eps_m, self.eps_b, multi, int(multi and self.cfg.variant == "full"), self._normal,
                           float(self.cfg.restitution), dt, self._gravity, self._origin, g.dx, self.time,
                           self.boundaries.colliders, int(self.record_contact), g.wp["stats"]])
 
     def g2p(self, dt: float, only_fragment: int = -1) -> None:
         """Gather v, C, F's update and x from each particle's own field (Eq. field_g2p)."""
         g, w = self.grid, self.wp
+        g.ensure()
         wp.launch(g2p, dim=len(self.particles), device=self.device,
                   inputs=[w["x"], w["v"], w["C"], w["F"], w["fragment"], int(self.multifield), only_fragment, dt,
-                          self._origin, g.dx, 1.0 / g.dx, self._shape, g.wp["velocity"], self._lower, self._upper,
-                          w["clamped"]])
+                          self._origin, g.dx, 1.0 / g.dx, self._shape, *g.wp_support, g.wp["vel"], g.wp["vel1"],
+                          self._lower, self._upper, *self._field_box_wp, w["counts"]])
 
     # ---- frames -------------------------------------------------------------------------------
     def frame_substeps(self, frame_dt: float, vmax: Optional[float] = None) -> tuple[int, float]:
@@ -286,22 +284,62 @@ class Simulator:
         return n, frame_dt / n
 
     def advance(self, frame_dt: float) -> int:
-        """Simulate one frame: n substeps, then the divergence check and the event provider."""
+        """Simulate one frame: n substeps, then the divergence check and the event provider.
+
+        The frame runs on active boxes fitted at its start. If a particle's next stencil left its
+        box (G2P counts it, read with the divergence check), the frame is rolled back and redone
+        with more box slack; a third try runs on the whole grid, where nothing can escape."""
         if self.substeps == 0:
             self._poll_provider()  # an oracle may latch before the first substep
-        vmax = self.fit_active_box(frame_dt)  # the frame's one host read also gives max |v|
-        n, dt = self.frame_substeps(frame_dt, vmax)
-        self.dt = dt
-        start = self.time
-        for _ in range(n):
-            self.substep(dt)
+        start, substeps0 = self.time, self.substeps
+        self._save_state()
+        for attempt in range(3):
+            if attempt < 2:
+                vmax = self.fit_active_box(frame_dt)  # the frame's one host read also gives max |v|
+            else:
+                self._reset_boxes()
+                vmax = None
+            n, dt = self.frame_substeps(frame_dt, vmax)
+            self.dt = dt
+            self.counts[1] = 0
+            for _ in range(n):
+                self.substep(dt)
+            bad, escaped = self._frame_check(dt)
+            if escaped == 0 or attempt == 2:
+                break
+            self._restore_state()
+            self.time, self.substeps = start, substeps0
+            self.box_slack = 2 * self.box_slack + 2
+            self.frame_redos += 1
         self.time = start + frame_dt  # end exactly on the frame time (no drift from summing Δt)
         self.frame += 1
-        self.check_divergence(dt)
+        if bad:
+            self._raise_diverged(dt, bad)
         self._poll_provider()
         if self._diagnostics is not None:
             self._diagnostics.on_frame()
         return n
+
+    MUTABLE = ("x", "v", "C", "F", "yield_stress")  # what a substep writes into the particles
+
+    def _save_state(self) -> None:
+        """Copy what a frame can change into buffers made once (device copies, no sync)."""
+        P = self.particles
+        if self._saved is None:
+            self._saved = {k: torch.empty_like(getattr(P, k)) for k in self.MUTABLE}
+            self._saved["stats"] = torch.empty_like(self.grid.contact_stats)
+            self._saved["counts"] = torch.empty_like(self.counts)
+        for k in self.MUTABLE:
+            self._saved[k].copy_(getattr(P, k))
+        self._saved["stats"].copy_(self.grid.contact_stats)
+        self._saved["counts"].copy_(self.counts)
+
+    def _restore_state(self) -> None:
+        P = self.particles
+        for k in self.MUTABLE:
+            getattr(P, k).copy_(self._saved[k])
+        self.grid.contact_stats.copy_(self._saved["stats"])
+        self.counts.copy_(self._saved["counts"])
 
     def _poll_provider(self) -> None:
         """Ask the event provider for a topology; the first one returned is latched, once."""
@@ -310,20 +348,31 @@ class Simulator:
             if topology is not None:
                 self.latch(topology)
 
-    def check_divergence(self, dt: float) -> None:
-        """Raise `SimulationDiverged` if any particle is non-finite or faster than Δx/Δt."""
+    def _bad_particles(self, dt: float) -> torch.Tensor:
+        """Particles that are non-finite or faster than Δx/Δt (a device count)."""
         P = self.particles
         speed = P.v.norm(dim=1)
         bad = ~torch.isfinite(speed) | ~torch.isfinite(P.x).all(dim=1) | (speed > self.grid.dx / dt)
-        count = int(bad.sum())
-        if count == 0:
-            return
+        return bad.sum()
+
+    def _frame_check(self, dt: float) -> tuple[int, int]:
+        """(diverged particles, box escapes) of the frame, in one host read."""
+        bad, escaped = torch.stack([self._bad_particles(dt), self.counts[1].long()]).tolist()
+        return int(bad), int(escaped)
+
+    def check_divergence(self, dt: float) -> None:
+        """Raise `SimulationDiverged` if any particle is non-finite or faster than Δx/Δt."""
+        count = int(self._bad_particles(dt))
+        if count:
+            self._raise_diverged(dt, count)
+
+    def _raise_diverged(self, dt: float, count: int) -> None:
         bound = self.cfl_dt()
         cause = (f"Δt = {dt:.3g}s is over the CFL bound {bound:.3g}s for this stiffness (wave speed {self.wave_speed:.3g} m/s)"
                  if dt > bound else "an extreme deformation or boundary velocity")
         raise SimulationDiverged(
-            f"simulation diverged at frame {self.frame} (t = {self.time:.4g}s): {count} of {len(P)} particles have a non-finite "
-            f"or exploding velocity; likely cause: {cause}. Lower sim.dt or set sim.adaptive_dt = true.",
+            f"simulation diverged at frame {self.frame} (t = {self.time:.4g}s): {count} of {len(self.particles)} particles have a "
+            f"non-finite or exploding velocity; likely cause: {cause}. Lower sim.dt or set sim.adaptive_dt = true.",
             frame=self.frame, count=count)
 
     # ---- topology -----------------------------------------------------------------------------
@@ -345,7 +394,7 @@ class Simulator:
 
     def clamped_count(self) -> int:
         """Particles clamped to the domain walls so far (host read)."""
-        return int(self.clamped.item())
+        return int(self.counts[0].item())
 
     def diagnostics(self) -> dict:
         """Metrics of DESIGN.md "Diagnostics" for the current state (see `diagnostics.py`)."""

@@ -4,8 +4,9 @@ boundaries) and G2P — shared, fragment-conditioned (FractureFields) and per-fr
 Quadratic B-spline weights with ξ = (x − origin)/Δx, base = ⌊ξ − 0.5⌋, f = ξ − base:
 w = (½(1.5−f)², 0.75−(f−1)², ½(f−0.5)²), ∇w from dw = (f−1.5, −2(f−1), f−0.5)/Δx.
 Routing (Eqs. multifield_p2g, field_g2p): with `multifield` a particle writes to and reads from
-field k = o_p only; otherwise every particle uses field 0. The float64 torch twins are in
-`fracture_gs.sim.reference`.
+field k = o_p only; otherwise every particle uses field 0. Storage (see `grid.py`): field 1 sits in
+slot 1 on the shared box S and in slot 0 elsewhere, where no fragment-0 particle reaches. The
+float64 torch twins (dense fields) are in `fracture_gs.sim.reference`.
 """
 from __future__ import annotations
 
@@ -21,29 +22,26 @@ NEVER = 1e30  # STAT_FIRST_T before any contact
 
 _RED_V4 = r"""
 #if defined(__CUDA_ARCH__) && (__CUDA_ARCH__ >= 900)
-    wp::vec4* p = &wp::index(arr, i, j, k, l);
+    wp::vec4* p = &wp::index(arr, i, j, k);
     asm volatile("red.global.add.v4.f32 [%0], {%1, %2, %3, %4};"
                  :: "l"(p), "f"(value[0]), "f"(value[1]), "f"(value[2]), "f"(value[3]) : "memory");
 #else
-    wp::atomic_add(arr, i, j, k, l, value);
+    wp::atomic_add(arr, i, j, k, value);
 #endif
 """
 
 
 @wp.func_native(_RED_V4)
-def atomic_add_vec4(arr: wp.array4d(dtype=wp.vec4), i: int, j: int, k: int, l: int, value: wp.vec4):
+def atomic_add_vec4(arr: wp.array3d(dtype=wp.vec4), i: int, j: int, k: int, value: wp.vec4):
     """arr[i,j,k,l] += value: one 16-byte vector reduction on Hopper (sm_90+), where P2G's
     (momentum, mass) scatter is bound by atomic throughput; Warp's atomic_add elsewhere."""
     ...
 
 
 @wp.func
-def stencil(xp: wp.vec3, origin: wp.vec3, inv_dx: float, shape: wp.vec3i):
-    """Base node, weights w[a, axis] and their ξ-derivatives dw[a, axis] for a = 0, 1, 2.
-
-    The base is clamped into the grid so a stray (or non-finite) particle never indexes outside
-    it; the domain walls keep real particles well inside."""
-    xi = (xp - origin) * inv_dx
+def stencil_base(xi: wp.vec3, shape: wp.vec3i):
+    """Lowest stencil node ⌊ξ − 0.5⌋, clamped into the grid so a stray (or non-finite) particle
+    never indexes outside it; the domain walls keep real particles well inside."""
     base = wp.vec3i(0, 0, 0)
     for a in range(3):
         b = wp.floor(xi[a] - 0.5)
@@ -52,6 +50,14 @@ def stencil(xp: wp.vec3, origin: wp.vec3, inv_dx: float, shape: wp.vec3i):
         if b > float(shape[a] - 3):
             b = float(shape[a] - 3)
         base[a] = int(b)
+    return base
+
+
+@wp.func
+def stencil(xp: wp.vec3, origin: wp.vec3, inv_dx: float, shape: wp.vec3i):
+    """Base node, weights w[a, axis] and their ξ-derivatives dw[a, axis] for a = 0, 1, 2."""
+    xi = (xp - origin) * inv_dx
+    base = stencil_base(xi, shape)
     f = xi - wp.vec3(float(base[0]), float(base[1]), float(base[2]))
     w = wp.mat33(0.0)
     dw = wp.mat33(0.0)
@@ -90,6 +96,11 @@ def routed_field(o: int, only_fragment: int, multifield: int):
     return field_of(o, multifield)
 
 
+@wp.func
+def inside(node: wp.vec3i, lo: wp.vec3i, hi: wp.vec3i):
+    return node[0] >= lo[0] and node[0] < hi[0] and node[1] >= lo[1] and node[1] < hi[1] and node[2] >= lo[2] and node[2] < hi[2]
+
+
 @wp.kernel
 def p2g(
     x: wp.array(dtype=wp.vec3),  # [N]
@@ -102,16 +113,19 @@ def p2g(
     band: wp.array(dtype=wp.int32),  # [N] γ_p
     multifield: int,
     only_fragment: int,  # ≥ 0: skip every particle of another fragment (global fragment pass)
-    with_band: int,  # accumulate band mass (Eq. band_mass)
     dt: float,
     origin: wp.vec3,
     dx: float,
     inv_dx: float,
     shape: wp.vec3i,
-    grid_mp: wp.array4d(dtype=wp.vec4),  # [K, X, Y, Z] (p^k, m^k) packed
-    grid_mb: wp.array4d(dtype=float),  # [K, X, Y, Z]
+    s_lo: wp.vec3i,  # shared box S = [s_lo, s_hi) of slot 1 (empty: one field)
+    s_hi: wp.vec3i,
+    grid_mp: wp.array3d(dtype=wp.vec4),  # [X, Y, Z] slot 0 (p, m) packed
+    grid_mp1: wp.array3d(dtype=wp.vec4),  # [Sx, Sy, Sz] slot 1 on S
+    grid_mb: wp.array4d(dtype=float),  # [2, Sx, Sy, Sz] band mass on S
 ):
-    """m_i^k += w m_p;  p_i^k += w m_p (v_p + C_p(x_i − x_p)) − Δt V⁰ τ_p ∇w  (k = routed field)."""
+    """m_i^k += w m_p;  p_i^k += w m_p (v_p + C_p(x_i − x_p)) − Δt V⁰ τ_p ∇w  (k = routed field);
+    band particles add w m_p to m_band,i^k on S (Eq. band_mass), the only place it is read."""
     p = wp.tid()
     k = routed_field(fragment[p], only_fragment, multifield)
     if k < 0:
@@ -121,50 +135,52 @@ def p2g(
     vp = v[p]
     Cp = C[p]
     force = -dt * volume[p] * stress[p]
-    in_band = with_band != 0 and band[p] != 0
+    in_band = band[p] != 0
     for i in range(3):
         for j in range(3):
             for l in range(3):
                 weight, grad, dpos = node_terms(i, j, l, f, w, dw, dx, inv_dx)
-                bi = base[0] + i
-                bj = base[1] + j
-                bl = base[2] + l
+                node = wp.vec3i(base[0] + i, base[1] + j, base[2] + l)
                 mom = weight * m * (vp + Cp * dpos) + force * grad
-                atomic_add_vec4(grid_mp, k, bi, bj, bl, wp.vec4(mom[0], mom[1], mom[2], weight * m))
-                if in_band:
-                    wp.atomic_add(grid_mb, k, bi, bj, bl, weight * m)
-
-
-@wp.func
-def inside(node: wp.vec3i, lo: wp.vec3i, hi: wp.vec3i):
-    return node[0] >= lo[0] and node[0] < hi[0] and node[1] >= lo[1] and node[1] < hi[1] and node[2] >= lo[2] and node[2] < hi[2]
+                q = wp.vec4(mom[0], mom[1], mom[2], weight * m)
+                if inside(node, s_lo, s_hi):
+                    s = node - s_lo
+                    if k == 1:
+                        atomic_add_vec4(grid_mp1, s[0], s[1], s[2], q)
+                    else:
+                        atomic_add_vec4(grid_mp, node[0], node[1], node[2], q)
+                    if in_band:
+                        wp.atomic_add(grid_mb, k, s[0], s[1], s[2], weight * m)
+                else:
+                    atomic_add_vec4(grid_mp, node[0], node[1], node[2], q)
 
 
 @wp.kernel
 def clear_fields(
-    box_origin: wp.vec3i,  # launch over the union box starting here
-    lo0: wp.vec3i,
-    lo1: wp.vec3i,
-    lob: wp.vec3i,
-    hi0: wp.vec3i,
-    hi1: wp.vec3i,
-    hib: wp.vec3i,
-    n_fields: int,
-    grid_mp: wp.array4d(dtype=wp.vec4),
+    box_origin: wp.vec3i,  # launch over the active box starting here
+    s_lo: wp.vec3i,
+    s_hi: wp.vec3i,
+    grid_mp: wp.array3d(dtype=wp.vec4),
+    grid_mp1: wp.array3d(dtype=wp.vec4),
     grid_mb: wp.array4d(dtype=float),
 ):
-    """Reset each field's accumulators inside its own box, and band mass inside the band box, in
-    one launch (three strided memsets otherwise)."""
+    """Reset slot 0 over the active box and slot 1 and band mass on S, in one launch."""
     ti, tj, tl = wp.tid()
     node = wp.vec3i(ti + box_origin[0], tj + box_origin[1], tl + box_origin[2])
-    if inside(node, lo0, hi0):
-        grid_mp[0, node[0], node[1], node[2]] = wp.vec4(0.0)
-    if n_fields > 1:
-        if inside(node, lo1, hi1):
-            grid_mp[1, node[0], node[1], node[2]] = wp.vec4(0.0)
-        if inside(node, lob, hib):
-            grid_mb[0, node[0], node[1], node[2]] = 0.0
-            grid_mb[1, node[0], node[1], node[2]] = 0.0
+    grid_mp[node[0], node[1], node[2]] = wp.vec4(0.0)
+    if inside(node, s_lo, s_hi):
+        s = node - s_lo
+        grid_mp1[s[0], s[1], s[2]] = wp.vec4(0.0)
+        grid_mb[0, s[0], s[1], s[2]] = 0.0
+        grid_mb[1, s[0], s[1], s[2]] = 0.0
+
+
+@wp.func
+def normalized(q: wp.vec4, eps_m: float, dt: float, gravity: wp.vec3):
+    """v = p/m + Δt g for an active field (m > ε_m), else 0."""
+    if q[3] > eps_m:
+        return wp.vec3(q[0], q[1], q[2]) / q[3] + dt * gravity
+    return wp.vec3(0.0)
 
 
 @wp.func
@@ -202,14 +218,13 @@ def record_contact(stats: wp.array(dtype=float), t: float, v0: wp.vec3, v1: wp.v
 @wp.kernel
 def grid_update(
     box_origin: wp.vec3i,  # the launch covers the active box starting at this node
-    lo0: wp.vec3i,  # field 0 is live only in [lo0, hi0), field 1 in [lo1, hi1)
-    lo1: wp.vec3i,
-    hi0: wp.vec3i,
-    hi1: wp.vec3i,
-    grid_mp: wp.array4d(dtype=wp.vec4),
+    s_lo: wp.vec3i,  # shared box S of slot 1 (empty: one field)
+    s_hi: wp.vec3i,
+    grid_mp: wp.array3d(dtype=wp.vec4),
+    grid_mp1: wp.array3d(dtype=wp.vec4),
     grid_mb: wp.array4d(dtype=float),
-    grid_v: wp.array4d(dtype=wp.vec3),  # out
-    n_fields: int,
+    grid_v: wp.array3d(dtype=wp.vec3),  # out, slot 0
+    grid_v1: wp.array3d(dtype=wp.vec3),  # out, slot 1
     eps_m: float,  # absolute ε_m
     eps_b: float,  # absolute ε_band
     gate: int,  # evaluate the contact gate (multi-field after the latch)
@@ -225,47 +240,36 @@ def grid_update(
     record: int,  # accumulate the contact statistics (diagnostics; off when timing the transfer)
     stats: wp.array(dtype=float),  # [N_STATS] contact statistics (accumulated)
 ):
-    """Per node: v^k = p^k/m^k + Δt g for each active field (m^k > ε_m), else 0; contact
+    """Per node and field: v^k = p^k/m^k + Δt g where m^k > ε_m, else 0; on S, the contact
     projection where both fields are active, band-supported and approaching; then boundaries."""
     ti, tj, tl = wp.tid()
-    i = ti + box_origin[0]
-    j = tj + box_origin[1]
-    l = tl + box_origin[2]
-    node = wp.vec3i(i, j, l)
-    m0 = float(0.0)
-    v0 = wp.vec3(0.0)
-    if inside(node, lo0, hi0):
-        q0 = grid_mp[0, i, j, l]
+    node = wp.vec3i(ti + box_origin[0], tj + box_origin[1], tl + box_origin[2])
+    q0 = grid_mp[node[0], node[1], node[2]]
+    v0 = normalized(q0, eps_m, dt, gravity)
+    xi = origin + wp.vec3(float(node[0]), float(node[1]), float(node[2])) * dx
+    if inside(node, s_lo, s_hi):
+        s = node - s_lo
+        q1 = grid_mp1[s[0], s[1], s[2]]
+        v1 = normalized(q1, eps_m, dt, gravity)
         m0 = q0[3]
-        if m0 > eps_m:
-            v0 = wp.vec3(q0[0], q0[1], q0[2]) / m0 + dt * gravity
-    m1 = float(0.0)
-    v1 = wp.vec3(0.0)
-    if n_fields > 1 and inside(node, lo1, hi1):
-        q1 = grid_mp[1, i, j, l]
         m1 = q1[3]
-        if m1 > eps_m:
-            v1 = wp.vec3(q1[0], q1[1], q1[2]) / m1 + dt * gravity
-        if gate != 0 and m0 > eps_m and m1 > eps_m and grid_mb[0, i, j, l] > eps_b and grid_mb[1, i, j, l] > eps_b:
-            un = wp.dot(v1 - v0, normal)
-            if un < 0.0:
-                w0 = v0
-                w1 = v1
-                if project != 0:
-                    w0, w1 = contact_projection(v0, v1, m0, m1, normal, restitution)
-                if record != 0:
-                    record_contact(stats, t, v0, v1, w0, w1, m0, m1, normal, project)
-                v0 = w0
-                v1 = w1
-    xi = origin + wp.vec3(float(i), float(j), float(l)) * dx
-    if m0 > eps_m:
-        v0 = apply_boundaries(v0, node, xi, t, colliders)
-    if inside(node, lo0, hi0):
-        grid_v[0, i, j, l] = v0
-    if n_fields > 1 and inside(node, lo1, hi1):
+        if gate != 0 and m0 > eps_m and m1 > eps_m:
+            if grid_mb[0, s[0], s[1], s[2]] > eps_b and grid_mb[1, s[0], s[1], s[2]] > eps_b:
+                if wp.dot(v1 - v0, normal) < 0.0:
+                    w0 = v0
+                    w1 = v1
+                    if project != 0:
+                        w0, w1 = contact_projection(v0, v1, m0, m1, normal, restitution)
+                    if record != 0:
+                        record_contact(stats, t, v0, v1, w0, w1, m0, m1, normal, project)
+                    v0 = w0
+                    v1 = w1
         if m1 > eps_m:
             v1 = apply_boundaries(v1, node, xi, t, colliders)
-        grid_v[1, i, j, l] = v1
+        grid_v1[s[0], s[1], s[2]] = v1
+    if q0[3] > eps_m:
+        v0 = apply_boundaries(v0, node, xi, t, colliders)
+    grid_v[node[0], node[1], node[2]] = v0
 
 
 @wp.kernel
@@ -282,10 +286,17 @@ def g2p(
     dx: float,
     inv_dx: float,
     shape: wp.vec3i,
-    grid_v: wp.array4d(dtype=wp.vec3),
+    s_lo: wp.vec3i,
+    s_hi: wp.vec3i,
+    grid_v: wp.array3d(dtype=wp.vec3),
+    grid_v1: wp.array3d(dtype=wp.vec3),
     lower: wp.vec3,  # particles are clamped into [lower, upper] and counted
     upper: wp.vec3,
-    clamped: wp.array(dtype=wp.int32),  # [1] running count
+    lo0: wp.vec3i,  # box of field 0 (of the single field) ...
+    hi0: wp.vec3i,
+    lo1: wp.vec3i,  # ... and of field 1: the next P2G stencil must stay inside its field's box
+    hi1: wp.vec3i,
+    counts: wp.array(dtype=wp.int32),  # [2] running counts: clamped, escaped its box
 ):
     """Eqs. field_g2p, field_apic, field_deformation from field o_p only (no fallback):
     v = Σ w v_i; C = 4/Δx² Σ w v_i (x_i − x_p)ᵀ; F ← (I + Δt Σ v_i ∇wᵀ) F; x ← x + Δt v."""
@@ -301,7 +312,13 @@ def g2p(
         for j in range(3):
             for l in range(3):
                 weight, grad, dpos = node_terms(i, j, l, f, w, dw, dx, inv_dx)
-                vi = grid_v[k, base[0] + i, base[1] + j, base[2] + l]
+                node = wp.vec3i(base[0] + i, base[1] + j, base[2] + l)
+                vi = wp.vec3(0.0)
+                if k == 1 and inside(node, s_lo, s_hi):
+                    s = node - s_lo
+                    vi = grid_v1[s[0], s[1], s[2]]
+                else:
+                    vi = grid_v[node[0], node[1], node[2]]
                 vp = vp + weight * vi
                 B = B + weight * wp.outer(vi, dpos)
                 gradv = gradv + wp.outer(vi, grad)
@@ -311,5 +328,13 @@ def g2p(
     xn = x[p] + dt * vp
     xc = wp.vec3(wp.clamp(xn[0], lower[0], upper[0]), wp.clamp(xn[1], lower[1], upper[1]), wp.clamp(xn[2], lower[2], upper[2]))
     if xc[0] != xn[0] or xc[1] != xn[1] or xc[2] != xn[2]:
-        wp.atomic_add(clamped, 0, 1)
+        wp.atomic_add(counts, 0, 1)
     x[p] = xc
+    lo = lo0
+    hi = hi0
+    if k == 1:
+        lo = lo1
+        hi = hi1
+    nb = stencil_base((xc - origin) * inv_dx, shape)
+    if not (inside(nb, lo, hi) and inside(nb + wp.vec3i(2, 2, 2), lo, hi)):
+        wp.atomic_add(counts, 1, 1)
