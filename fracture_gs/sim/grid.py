@@ -54,11 +54,12 @@ def box_volume(box: tuple) -> int:
 
 
 class Grid:
-    """Slot 0 dense, slot 1 on the shared box; torch tensors with Warp views.
+    """Both slots in one buffer per quantity, so a kernel reaches either with one index
+    (`transfer.slot_index`): nodes [0, X·Y·Z) are slot 0 (dense), the next |S| are slot 1 on S.
 
-    `mp` [X, Y, Z, 4] packs (p, m) so P2G scatters both with one 16-byte atomic; `vel` [X, Y, Z, 3].
-    With two fields: `mp1` [Sx, Sy, Sz, 4], `vel1` [Sx, Sy, Sz, 3] and `mb` [2, Sx, Sy, Sz] (band
-    mass of both fields, only read inside S) on the shared box `support`."""
+    `mp` [X, Y, Z, 4] packs (p, m) so P2G scatters both with one 16-byte atomic, `vel` [X, Y, Z, 3];
+    with two fields, `mp1` [Sx, Sy, Sz, 4], `vel1` [Sx, Sy, Sz, 3] and `mb` [2, Sx, Sy, Sz] (band
+    mass of both fields, read only on S) live on the shared box `support`."""
 
     def __init__(self, origin, dx: float, shape, n_fields: int, device: str):
         self.origin = tuple(float(o) for o in origin)
@@ -68,45 +69,46 @@ class Grid:
             raise ValueError(f"sim.grid_shape {self.shape} is too small; every axis needs at least 5 nodes")
         self.n_fields = n_fields
         self.device = device
-        self.mp = torch.zeros((*self.shape, 4), dtype=torch.float32, device=device)
-        self.vel = torch.zeros((*self.shape, 3), dtype=torch.float32, device=device)
         self.contact_stats = torch.zeros(N_STATS, dtype=torch.float32, device=device)
         self.contact_stats[STAT_FIRST_T] = NEVER
-        self.wp = dict(mp=wp.from_torch(self.mp, dtype=wp.vec4), vel=wp.from_torch(self.vel, dtype=wp.vec3),
-                       stats=wp.from_torch(self.contact_stats))
+        self.wp = dict(stats=wp.from_torch(self.contact_stats))
         self._capacity = -1
         self.set_boxes((0, 0, 0) + self.shape, EMPTY_BOX)
+        self.ensure()
 
     # ---- the shared box -------------------------------------------------------------------------
     def set_boxes(self, box0: tuple, box1: tuple) -> None:
         """Field boxes B⁰, B¹ (node ranges the fields can occupy); slot 1 moves to S = B⁰ ∩ B¹,
-        allocated and zeroed when a kernel first needs it (`ensure`), so a box that is replaced
-        before any launch costs nothing. The caller clears slot 0."""
+        sized when a kernel first needs it (`ensure`), so a box replaced before any launch costs
+        nothing. Slot 1 starts zeroed; the caller clears slot 0 where it matters."""
         self.boxes = (tuple(box0), tuple(box1))
         self.support = box_intersection(box0, box1) if self.n_fields > 1 else EMPTY_BOX
         self.wp_support = (wp.vec3i(*self.support[:3]), wp.vec3i(*self.support[3:]))
         self._stale = True
 
     def ensure(self) -> None:
-        """Slot 1 sized to S: its buffers grow when S does and shrink when S falls under a quarter
-        of them (only ever between frames: boxes change there)."""
+        """Buffers for slot 0 and slot 1 on S: reallocated (zeroed) when S outgrows them or falls
+        under a quarter of them, which happens only between frames (boxes change there)."""
         if not self._stale:
             return
         self._stale = False
-        dims = tuple(max(1, self.support[i + 3] - self.support[i]) for i in range(3))
+        n0 = self.shape[0] * self.shape[1] * self.shape[2]
+        dims = tuple(max(0, self.support[i + 3] - self.support[i]) for i in range(3))
         n = dims[0] * dims[1] * dims[2]
         if n > self._capacity or 4 * n < self._capacity:
             self._capacity = n
-            self._mp1 = torch.empty((n, 4), dtype=torch.float32, device=self.device)
-            self._vel1 = torch.empty((n, 3), dtype=torch.float32, device=self.device)
-            self._mb = torch.empty((2, n), dtype=torch.float32, device=self.device)
-        self.mp1 = self._mp1[:n].view(*dims, 4)
-        self.vel1 = self._vel1[:n].view(*dims, 3)
-        self.mb = self._mb[:, :n].view(2, *dims)
+            self._mp = torch.zeros((n0 + n, 4), dtype=torch.float32, device=self.device)
+            self._vel = torch.zeros((n0 + n, 3), dtype=torch.float32, device=self.device)
+            self._mb = torch.zeros(max(1, 2 * n), dtype=torch.float32, device=self.device)
+        self.mp = self._mp[:n0].view(*self.shape, 4)
+        self.vel = self._vel[:n0].view(*self.shape, 3)
+        self.mp1 = self._mp[n0:n0 + n].view(*dims, 4)
+        self.vel1 = self._vel[n0:n0 + n].view(*dims, 3)
+        self.mb = self._mb[:2 * n].view(2, *dims)
         for t in (self.mp1, self.vel1, self.mb):
             t.zero_()
-        self.wp.update(mp1=wp.from_torch(self.mp1, dtype=wp.vec4), vel1=wp.from_torch(self.vel1, dtype=wp.vec3),
-                       mb=wp.from_torch(self.mb))
+        self.wp.update(mp=wp.from_torch(self._mp[:n0 + n], dtype=wp.vec4), vel=wp.from_torch(self._vel[:n0 + n], dtype=wp.vec3),
+                       mb=wp.from_torch(self._mb[:max(1, 2 * n)]))
 
     def clear(self) -> None:
         """Reset every accumulator (no allocation)."""
@@ -172,5 +174,4 @@ class Grid:
     def nbytes(self) -> int:
         """Grid-buffer footprint (slot 0, slot 1 and band mass as allocated) in bytes."""
         self.ensure()
-        slots = (self.mp, self.vel) + ((self._mp1, self._vel1, self._mb) if self.n_fields > 1 else ())
-        return sum(t.numel() * t.element_size() for t in slots)
+        return sum(t.numel() * t.element_size() for t in (self._mp, self._vel, self._mb))

@@ -110,7 +110,8 @@ class Simulator:
         self.wp.update({k: wp.from_torch(getattr(P, k)) for k in ("mass", "volume", "E", "nu", "material", "yield_stress",
                                                                    "hardening", "alpha", "fragment", "band")})
         self.wp["stress"] = wp.from_torch(self.stress, dtype=wp.mat33)
-        self.wp["counts"] = wp.from_torch(self.counts)
+        self.wp["clamped"] = wp.from_torch(self.counts[0:1])
+        self.wp["escaped"] = wp.from_torch(self.counts[1:2])
         g = self.grid
         lo = [o + (self.cfg.wall_cells - 1) * g.dx for o in g.origin]
         hi = [o + (s - self.cfg.wall_cells) * g.dx for o, s in zip(g.origin, g.shape)]
@@ -239,13 +240,14 @@ class Simulator:
         if target is None:
             b = self.box
             wp.launch(clear_fields, dim=(b[3] - b[0], b[4] - b[1], b[5] - b[2]), device=self.device,
-                      inputs=[self._box_origin, *g.wp_support, g.wp["mp"], g.wp["mp1"], g.wp["mb"]])
+                      inputs=[self._box_origin, self._shape, *g.wp_support, g.wp["mp"], g.wp["mb"]])
         else:
             g.clear()
+        boxes = self._field_box_wp if target is None else [wp.vec3i(0, 0, 0), self._shape] * 2
         wp.launch(p2g, dim=len(self.particles), device=self.device,
                   inputs=[w["x"], w["v"], w["C"], w["mass"], w["volume"], w["stress"] if stress is None else stress,
                           w["fragment"], w["band"], multi, only_fragment, dt, self._origin, g.dx, 1.0 / g.dx, self._shape,
-                          *g.wp_support, g.wp["mp"], g.wp["mp1"], g.wp["mb"]])
+                          *g.wp_support, *boxes, g.wp["mp"], g.wp["mb"], w["escaped"]])
 
     def update_grid(self, dt: float) -> None:
         """Normalize + gravity per active field, contact projection (full), boundaries."""
@@ -254,8 +256,7 @@ class Simulator:
         self.boundaries.colliders.wall_cells = int(self.cfg.wall_cells)  # the config may change between calls
         b = self.box
         wp.launch(grid_update, dim=(b[3] - b[0], b[4] - b[1], b[5] - b[2]), device=self.device,
-                  inputs=[self._box_origin, *g.wp_support, g.wp["mp"], g.wp["mp1"], g.wp["mb"], g.wp["vel"], g.wp["vel1"],
-                          self.eps_m, self.eps_b, multi, int(multi and self.cfg.variant == "full"), self._normal,
+                  inputs=[self._box_origin, self._shape, *g.wp_support, g.wp["mp"], g.wp["mb"], g.wp["vel"], self.eps_m, self.eps_b, multi, int(multi and self.cfg.variant == "full"), self._normal,
                           float(self.cfg.restitution), dt, self._gravity, self._origin, g.dx, self.time,
                           self.boundaries.colliders, int(self.record_contact), g.wp["stats"]])
 
@@ -265,8 +266,8 @@ class Simulator:
         g.ensure()
         wp.launch(g2p, dim=len(self.particles), device=self.device,
                   inputs=[w["x"], w["v"], w["C"], w["F"], w["fragment"], int(self.multifield), only_fragment, dt,
-                          self._origin, g.dx, 1.0 / g.dx, self._shape, *g.wp_support, g.wp["vel"], g.wp["vel1"],
-                          self._lower, self._upper, *self._field_box_wp, w["counts"]])
+                          self._origin, g.dx, 1.0 / g.dx, self._shape, *g.wp_support, g.wp["vel"],
+                          self._lower, self._upper, w["clamped"]])
 
     # ---- frames -------------------------------------------------------------------------------
     def frame_substeps(self, frame_dt: float, vmax: Optional[float] = None) -> tuple[int, float]:

@@ -22,17 +22,17 @@ NEVER = 1e30  # STAT_FIRST_T before any contact
 
 _RED_V4 = r"""
 #if defined(__CUDA_ARCH__) && (__CUDA_ARCH__ >= 900)
-    wp::vec4* p = &wp::index(arr, i, j, k);
+    wp::vec4* p = &wp::index(arr, i);
     asm volatile("red.global.add.v4.f32 [%0], {%1, %2, %3, %4};"
                  :: "l"(p), "f"(value[0]), "f"(value[1]), "f"(value[2]), "f"(value[3]) : "memory");
 #else
-    wp::atomic_add(arr, i, j, k, value);
+    wp::atomic_add(arr, i, value);
 #endif
 """
 
 
 @wp.func_native(_RED_V4)
-def atomic_add_vec4(arr: wp.array3d(dtype=wp.vec4), i: int, j: int, k: int, value: wp.vec4):
+def atomic_add_vec4(arr: wp.array(dtype=wp.vec4), i: int, value: wp.vec4):
     """arr[i,j,k,l] += value: one 16-byte vector reduction on Hopper (sm_90+), where P2G's
     (momentum, mass) scatter is bound by atomic throughput; Warp's atomic_add elsewhere."""
     ...
@@ -101,6 +101,21 @@ def inside(node: wp.vec3i, lo: wp.vec3i, hi: wp.vec3i):
     return node[0] >= lo[0] and node[0] < hi[0] and node[1] >= lo[1] and node[1] < hi[1] and node[2] >= lo[2] and node[2] < hi[2]
 
 
+@wp.func
+def flat(node: wp.vec3i, lo: wp.vec3i, dims: wp.vec3i):
+    d = node - lo
+    return (d[0] * dims[1] + d[1]) * dims[2] + d[2]
+
+
+@wp.func
+def slot_index(node: wp.vec3i, k: int, shape: wp.vec3i, s_lo: wp.vec3i, s_hi: wp.vec3i):
+    """Storage index of field k at `node` (layout in `grid.py`): slot 1, after slot 0's X·Y·Z
+    nodes, for field 1 on S; slot 0 otherwise. Branch-free, so one load or atomic serves both."""
+    on_s = k == 1 and inside(node, s_lo, s_hi)
+    i1 = shape[0] * shape[1] * shape[2] + flat(node, s_lo, s_hi - s_lo)
+    return wp.where(on_s, i1, flat(node, wp.vec3i(0, 0, 0), shape))
+
+
 @wp.kernel
 def p2g(
     x: wp.array(dtype=wp.vec3),  # [N]
@@ -120,9 +135,13 @@ def p2g(
     shape: wp.vec3i,
     s_lo: wp.vec3i,  # shared box S = [s_lo, s_hi) of slot 1 (empty: one field)
     s_hi: wp.vec3i,
-    grid_mp: wp.array3d(dtype=wp.vec4),  # [X, Y, Z] slot 0 (p, m) packed
-    grid_mp1: wp.array3d(dtype=wp.vec4),  # [Sx, Sy, Sz] slot 1 on S
-    grid_mb: wp.array4d(dtype=float),  # [2, Sx, Sy, Sz] band mass on S
+    lo0: wp.vec3i,  # box of field 0 (or of the single field) ...
+    hi0: wp.vec3i,
+    lo1: wp.vec3i,  # ... and of field 1; a stencil outside its field's box is counted
+    hi1: wp.vec3i,
+    grid_mp: wp.array(dtype=wp.vec4),  # [X·Y·Z + |S|] (p, m) packed: slot 0, then slot 1
+    grid_mb: wp.array(dtype=float),  # [2·|S|] band mass of fields 0 and 1 on S
+    escaped: wp.array(dtype=wp.int32),  # [1] running count of stencils outside their box
 ):
     """m_i^k += w m_p;  p_i^k += w m_p (v_p + C_p(x_i − x_p)) − Δt V⁰ τ_p ∇w  (k = routed field);
     band particles add w m_p to m_band,i^k on S (Eq. band_mass), the only place it is read."""
@@ -131,48 +150,47 @@ def p2g(
     if k < 0:
         return
     base, f, w, dw = stencil(x[p], origin, inv_dx, shape)
+    lo = wp.where(k == 1, lo1, lo0)
+    hi = wp.where(k == 1, hi1, hi0)
+    if not (inside(base, lo, hi) and inside(base + wp.vec3i(2, 2, 2), lo, hi)):
+        wp.atomic_add(escaped, 0, 1)  # the grid update will not see it: `advance` redoes the frame
     m = mass[p]
     vp = v[p]
     Cp = C[p]
     force = -dt * volume[p] * stress[p]
     in_band = band[p] != 0
+    s_dims = s_hi - s_lo
+    band_offset = k * s_dims[0] * s_dims[1] * s_dims[2]
     for i in range(3):
         for j in range(3):
             for l in range(3):
                 weight, grad, dpos = node_terms(i, j, l, f, w, dw, dx, inv_dx)
                 node = wp.vec3i(base[0] + i, base[1] + j, base[2] + l)
                 mom = weight * m * (vp + Cp * dpos) + force * grad
-                q = wp.vec4(mom[0], mom[1], mom[2], weight * m)
-                if inside(node, s_lo, s_hi):
-                    s = node - s_lo
-                    if k == 1:
-                        atomic_add_vec4(grid_mp1, s[0], s[1], s[2], q)
-                    else:
-                        atomic_add_vec4(grid_mp, node[0], node[1], node[2], q)
-                    if in_band:
-                        wp.atomic_add(grid_mb, k, s[0], s[1], s[2], weight * m)
-                else:
-                    atomic_add_vec4(grid_mp, node[0], node[1], node[2], q)
+                atomic_add_vec4(grid_mp, slot_index(node, k, shape, s_lo, s_hi), wp.vec4(mom[0], mom[1], mom[2], weight * m))
+                if in_band and inside(node, s_lo, s_hi):
+                    wp.atomic_add(grid_mb, band_offset + flat(node, s_lo, s_dims), weight * m)
 
 
 @wp.kernel
 def clear_fields(
     box_origin: wp.vec3i,  # launch over the active box starting here
+    shape: wp.vec3i,
     s_lo: wp.vec3i,
     s_hi: wp.vec3i,
-    grid_mp: wp.array3d(dtype=wp.vec4),
-    grid_mp1: wp.array3d(dtype=wp.vec4),
-    grid_mb: wp.array4d(dtype=float),
+    grid_mp: wp.array(dtype=wp.vec4),
+    grid_mb: wp.array(dtype=float),
 ):
     """Reset slot 0 over the active box and slot 1 and band mass on S, in one launch."""
     ti, tj, tl = wp.tid()
     node = wp.vec3i(ti + box_origin[0], tj + box_origin[1], tl + box_origin[2])
-    grid_mp[node[0], node[1], node[2]] = wp.vec4(0.0)
+    grid_mp[slot_index(node, 0, shape, s_lo, s_hi)] = wp.vec4(0.0)
     if inside(node, s_lo, s_hi):
-        s = node - s_lo
-        grid_mp1[s[0], s[1], s[2]] = wp.vec4(0.0)
-        grid_mb[0, s[0], s[1], s[2]] = 0.0
-        grid_mb[1, s[0], s[1], s[2]] = 0.0
+        grid_mp[slot_index(node, 1, shape, s_lo, s_hi)] = wp.vec4(0.0)
+        s_dims = s_hi - s_lo
+        s = flat(node, s_lo, s_dims)
+        grid_mb[s] = 0.0
+        grid_mb[s_dims[0] * s_dims[1] * s_dims[2] + s] = 0.0
 
 
 @wp.func
@@ -218,13 +236,12 @@ def record_contact(stats: wp.array(dtype=float), t: float, v0: wp.vec3, v1: wp.v
 @wp.kernel
 def grid_update(
     box_origin: wp.vec3i,  # the launch covers the active box starting at this node
+    shape: wp.vec3i,
     s_lo: wp.vec3i,  # shared box S of slot 1 (empty: one field)
     s_hi: wp.vec3i,
-    grid_mp: wp.array3d(dtype=wp.vec4),
-    grid_mp1: wp.array3d(dtype=wp.vec4),
-    grid_mb: wp.array4d(dtype=float),
-    grid_v: wp.array3d(dtype=wp.vec3),  # out, slot 0
-    grid_v1: wp.array3d(dtype=wp.vec3),  # out, slot 1
+    grid_mp: wp.array(dtype=wp.vec4),  # [X·Y·Z + |S|]
+    grid_mb: wp.array(dtype=float),  # [2·|S|]
+    grid_v: wp.array(dtype=wp.vec3),  # out [X·Y·Z + |S|]
     eps_m: float,  # absolute ε_m
     eps_b: float,  # absolute ε_band
     gate: int,  # evaluate the contact gate (multi-field after the latch)
@@ -244,17 +261,20 @@ def grid_update(
     projection where both fields are active, band-supported and approaching; then boundaries."""
     ti, tj, tl = wp.tid()
     node = wp.vec3i(ti + box_origin[0], tj + box_origin[1], tl + box_origin[2])
-    q0 = grid_mp[node[0], node[1], node[2]]
+    i0 = slot_index(node, 0, shape, s_lo, s_hi)
+    q0 = grid_mp[i0]
     v0 = normalized(q0, eps_m, dt, gravity)
     xi = origin + wp.vec3(float(node[0]), float(node[1]), float(node[2])) * dx
     if inside(node, s_lo, s_hi):
-        s = node - s_lo
-        q1 = grid_mp1[s[0], s[1], s[2]]
+        i1 = slot_index(node, 1, shape, s_lo, s_hi)
+        q1 = grid_mp[i1]
         v1 = normalized(q1, eps_m, dt, gravity)
         m0 = q0[3]
         m1 = q1[3]
         if gate != 0 and m0 > eps_m and m1 > eps_m:
-            if grid_mb[0, s[0], s[1], s[2]] > eps_b and grid_mb[1, s[0], s[1], s[2]] > eps_b:
+            s_dims = s_hi - s_lo
+            s = flat(node, s_lo, s_dims)
+            if grid_mb[s] > eps_b and grid_mb[s_dims[0] * s_dims[1] * s_dims[2] + s] > eps_b:
                 if wp.dot(v1 - v0, normal) < 0.0:
                     w0 = v0
                     w1 = v1
@@ -266,10 +286,10 @@ def grid_update(
                     v1 = w1
         if m1 > eps_m:
             v1 = apply_boundaries(v1, node, xi, t, colliders)
-        grid_v1[s[0], s[1], s[2]] = v1
+        grid_v[i1] = v1
     if q0[3] > eps_m:
         v0 = apply_boundaries(v0, node, xi, t, colliders)
-    grid_v[node[0], node[1], node[2]] = v0
+    grid_v[i0] = v0
 
 
 @wp.kernel
@@ -288,15 +308,10 @@ def g2p(
     shape: wp.vec3i,
     s_lo: wp.vec3i,
     s_hi: wp.vec3i,
-    grid_v: wp.array3d(dtype=wp.vec3),
-    grid_v1: wp.array3d(dtype=wp.vec3),
+    grid_v: wp.array(dtype=wp.vec3),  # [X·Y·Z + |S|]
     lower: wp.vec3,  # particles are clamped into [lower, upper] and counted
     upper: wp.vec3,
-    lo0: wp.vec3i,  # box of field 0 (of the single field) ...
-    hi0: wp.vec3i,
-    lo1: wp.vec3i,  # ... and of field 1: the next P2G stencil must stay inside its field's box
-    hi1: wp.vec3i,
-    counts: wp.array(dtype=wp.int32),  # [2] running counts: clamped, escaped its box
+    clamped: wp.array(dtype=wp.int32),  # [1] running count
 ):
     """Eqs. field_g2p, field_apic, field_deformation from field o_p only (no fallback):
     v = Σ w v_i; C = 4/Δx² Σ w v_i (x_i − x_p)ᵀ; F ← (I + Δt Σ v_i ∇wᵀ) F; x ← x + Δt v."""
@@ -312,13 +327,7 @@ def g2p(
         for j in range(3):
             for l in range(3):
                 weight, grad, dpos = node_terms(i, j, l, f, w, dw, dx, inv_dx)
-                node = wp.vec3i(base[0] + i, base[1] + j, base[2] + l)
-                vi = wp.vec3(0.0)
-                if k == 1 and inside(node, s_lo, s_hi):
-                    s = node - s_lo
-                    vi = grid_v1[s[0], s[1], s[2]]
-                else:
-                    vi = grid_v[node[0], node[1], node[2]]
+                vi = grid_v[slot_index(wp.vec3i(base[0] + i, base[1] + j, base[2] + l), k, shape, s_lo, s_hi)]
                 vp = vp + weight * vi
                 B = B + weight * wp.outer(vi, dpos)
                 gradv = gradv + wp.outer(vi, grad)
@@ -328,13 +337,5 @@ def g2p(
     xn = x[p] + dt * vp
     xc = wp.vec3(wp.clamp(xn[0], lower[0], upper[0]), wp.clamp(xn[1], lower[1], upper[1]), wp.clamp(xn[2], lower[2], upper[2]))
     if xc[0] != xn[0] or xc[1] != xn[1] or xc[2] != xn[2]:
-        wp.atomic_add(counts, 0, 1)
+        wp.atomic_add(clamped, 0, 1)
     x[p] = xc
-    lo = lo0
-    hi = hi0
-    if k == 1:
-        lo = lo1
-        hi = hi1
-    nb = stencil_base((xc - origin) * inv_dx, shape)
-    if not (inside(nb, lo, hi) and inside(nb + wp.vec3i(2, 2, 2), lo, hi)):
-        wp.atomic_add(counts, 1, 1)
