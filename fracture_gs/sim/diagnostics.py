@@ -173,7 +173,7 @@ class Diagnostics:
         P = sim.particles
         mom = (P.mass.double()[:, None] * P.v.double()).sum(0)
         row = {"frame": sim.frame, "time": sim.time, "substeps": sim.substeps, "dt": sim.dt, "latched": sim.latched,
-               "clamped": sim.clamped_count(), "momentum": mom.tolist(),
+               "clamped": sim.clamped_count(), "frame_redos": sim.frame_redos, "momentum": mom.tolist(),
                "kinetic_energy": float(0.5 * (P.mass.double() * (P.v.double() ** 2).sum(1)).sum())}
         if sim.latched:
             if self.latch_info is None:
