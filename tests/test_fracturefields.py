@@ -213,7 +213,7 @@ def test_recontact_full_vs_local_multifield(device):
 
 def test_escaping_particles_redo_the_frame(seed):
     """A push that starts mid-frame carries particles past the boxes fitted at the frame's start;
-    G2P counts them, `advance` rolls the frame back and redoes it with more slack, and the frame
+    P2G counts them, `advance` rolls the frame back and redoes it with more slack, and the frame
     ends exactly (CPU, bitwise) as on boxes that cover the whole grid."""
     x, vol = block((0.3, 0.3, 0.3), (0.6, 0.6, 0.6), 1 / 48)
     push = S.ParticleRegion(kind="velocity", lower=(0.45, 0.0, 0.0), upper=(1.0, 1.0, 1.0), velocity=(3.0, 0.0, 0.0),

@@ -137,7 +137,7 @@ class Simulator:
         seconds ("no work on empty grid"): per field, the bounding box of its particles plus the
         stencil, the distance they can travel (current speed and gravity) and `box_slack`. Slot 0
         covers their union, slot 1 only the boxes' intersection ("second fields only where
-        fragments share support"). G2P counts any particle whose next stencil leaves its box, and
+        fragments share support"). P2G counts any particle whose stencil has left its box, and
         `advance` redoes such a frame with more slack. One host read, which also returns max |v|
         for the CFL step; the grid is cleared whenever a box changes so no stale node survives."""
         P, g = self.particles, self.grid
@@ -256,8 +256,8 @@ class Simulator:
         self.boundaries.colliders.wall_cells = int(self.cfg.wall_cells)  # the config may change between calls
         b = self.box
         wp.launch(grid_update, dim=(b[3] - b[0], b[4] - b[1], b[5] - b[2]), device=self.device,
-                  inputs=[self._box_origin, self._shape, *g.wp_support, g.wp["mp"], g.wp["mb"], g.wp["vel"], self.eps_m, self.eps_b, multi, int(multi and self.cfg.variant == "full"), self._normal,
-                          float(self.cfg.restitution), dt, self._gravity, self._origin, g.dx, self.time,
+                  inputs=[self._box_origin, self._shape, *g.wp_support, g.wp["mp"], g.wp["mb"], g.wp["vel"], self.eps_m,
+                          self.eps_b, multi, int(multi and self.cfg.variant == "full"), self._normal, float(self.cfg.restitution), dt, self._gravity, self._origin, g.dx, self.time,
                           self.boundaries.colliders, int(self.record_contact), g.wp["stats"]])
 
     def g2p(self, dt: float, only_fragment: int = -1) -> None:
@@ -287,9 +287,9 @@ class Simulator:
     def advance(self, frame_dt: float) -> int:
         """Simulate one frame: n substeps, then the divergence check and the event provider.
 
-        The frame runs on active boxes fitted at its start. If a particle's next stencil left its
-        box (G2P counts it, read with the divergence check), the frame is rolled back and redone
-        with more box slack; a third try runs on the whole grid, where nothing can escape."""
+        The frame runs on active boxes fitted at its start. If a particle's stencil left its box
+        (P2G counts it; read with the divergence check), the frame is rolled back and redone with
+        more box slack; a third try runs on the whole grid, where nothing can escape."""
         if self.substeps == 0:
             self._poll_provider()  # an oracle may latch before the first substep
         start, substeps0 = self.time, self.substeps
@@ -360,12 +360,6 @@ class Simulator:
         """(diverged particles, box escapes) of the frame, in one host read."""
         bad, escaped = torch.stack([self._bad_particles(dt), self.counts[1].long()]).tolist()
         return int(bad), int(escaped)
-
-    def check_divergence(self, dt: float) -> None:
-        """Raise `SimulationDiverged` if any particle is non-finite or faster than Δx/Δt."""
-        count = int(self._bad_particles(dt))
-        if count:
-            self._raise_diverged(dt, count)
 
     def _raise_diverged(self, dt: float, count: int) -> None:
         bound = self.cfl_dt()
