@@ -7,7 +7,7 @@ import torch
 
 from fracture_gs import sim as S
 from fracture_gs.sim import reference as ref
-from fracture_gs.sim.diagnostics import mixing
+from fracture_gs.sim.diagnostics import SEPARATION, reapproach_ratio
 from simutil import block, config, particles, rand_rotations, rel_err
 
 N = 3000
@@ -270,3 +270,13 @@ def test_table2_bench_times_every_build_of_every_branch():
     by = {r["variant"]: r for r in rows}
     assert by["stress_zero"]["grid_mib"] < by["full"]["grid_mib"] < 1.5 * by["stress_zero"]["grid_mib"]
     assert by["full"]["kernels_us"] is None, "the CUDA profiler cannot see CPU kernels"
+
+
+def test_reapproach_is_relative_to_a_real_opening():
+    """Re-approach is the drop below the running maximum over that maximum once the interface has
+    opened; below the separation threshold the maximum is floored, so noise cannot be amplified."""
+    assert reapproach_ratio(2.0, 1.5) == pytest.approx(0.25)
+    assert reapproach_ratio(2.0, 2.0) == 0.0
+    assert reapproach_ratio(2.0, -1.0) == pytest.approx(1.5), "closing past the latch state reads > 1"
+    noisy = reapproach_ratio(0.001, -0.009)  # never opened: a 0.01 Δx drop below 0.001 Δx of noise
+    assert noisy == pytest.approx(0.01 / SEPARATION) and noisy < 1

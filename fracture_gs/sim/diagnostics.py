@@ -20,6 +20,14 @@ from .grid import Grid
 from .transfer import NEVER, STAT_DPX, STAT_DPZ, STAT_DVT, STAT_FIRST_T, STAT_GATED, STAT_PNORM, STAT_UN_AFTER
 
 EPS = 1e-30
+SEPARATION = 0.1  # Δx: an interface whose opening exceeds this has separated (DESIGN.md)
+
+
+def reapproach_ratio(open_max: float, opening: float) -> float:
+    """Drop of the opening below its running maximum, over that maximum (DESIGN.md), with the
+    maximum floored at the separation threshold: an interface that never opened past noise level
+    would otherwise divide by noise (a 0.01 Δx drop below a 0.001 Δx maximum reads 10)."""
+    return max(0.0, open_max - opening) / max(open_max, SEPARATION)
 
 
 def interface_pairs(x, fragment, band, radius: float, chunk: int = 2048):
@@ -207,13 +215,12 @@ class Diagnostics:
         P = sim.particles
         opening = (self._raw_opening() - self.opening0) / dx
         self.open_max = max(self.open_max, opening)
-        if self.open_max > 0:
-            self.reapproach = max(self.reapproach, (self.open_max - opening) / self.open_max)
+        self.reapproach = max(self.reapproach, reapproach_ratio(self.open_max, opening))
         x = P.x.double()
         pen = penetration(x, P.fragment, P.band, self.n, 2.0 * dx) / dx
         crossing = identity_crossing(x, P.fragment, P.band, self.n)
         return {"opening": opening, "reapproach": self.reapproach, "stringing": stringing(P.F, P.band),
-                "separated": opening > 0.1, "penetration": pen, "identity_crossing": crossing}
+                "separated": opening > SEPARATION, "penetration": pen, "identity_crossing": crossing}
 
     def _contact_metrics(self) -> dict:
         stats = self.sim.grid.contact_stats.double().cpu()
