@@ -155,7 +155,9 @@ def test_fresh_set_roundtrip(tmp_path):
     assert names[:6] == ("x", "y", "z", "nx", "ny", "nz")  # INRIA layout for a fresh set
     back = load_ply(tmp_path / "a.ply")
     torch.testing.assert_close(back.scales, gs.scales, rtol=1e-6, atol=0)
-    torch.testing.assert_close(back.quats, gs.quats, rtol=0, atol=1e-7)
+    # loading re-normalizes quaternions; in float32 that moves a unit quaternion's components by up
+    # to 2 ulps (1.2e-7 below 1), which a fresh seed found against the old 1e-7 bound
+    torch.testing.assert_close(back.quats, gs.quats, rtol=0, atol=2.5e-7)
     torch.testing.assert_close(back.opacities, gs.opacities, rtol=1e-6, atol=0)
     assert torch.equal(back.means, gs.means) and torch.equal(back.sh, gs.sh)
     assert torch.equal(back.interior, gs.interior) and torch.equal(back.labels, gs.labels)
