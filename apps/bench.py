@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import datetime
+import gc
 import json
 import platform
 import statistics
@@ -220,14 +221,21 @@ def time_branches(cfg, P, topo, device: str, steps=200, warmup=20, trials=3, gra
 
 
 def _median_step(sim: Simulator, fn, graph, steps: int) -> float:
-    """Median milliseconds of one substep over `steps` (graph replays where captured)."""
+    """Median milliseconds of one substep over `steps` (graph replays where captured), with the
+    garbage collector paused as `timeit` does: a collection inside a long-running process (the
+    figures script) otherwise lands in the CPU wall-clock samples."""
     timer = Timer(sim.device)
-    marks = [timer.mark()]
-    for _ in range(steps):
-        with sim._stream_scope():
-            wp.capture_launch(graph) if graph is not None else fn()
-        marks.append(timer.mark())
-    timer.sync()
+    gc.collect()
+    gc.disable()
+    try:
+        marks = [timer.mark()]
+        for _ in range(steps):
+            with sim._stream_scope():
+                wp.capture_launch(graph) if graph is not None else fn()
+            marks.append(timer.mark())
+        timer.sync()
+    finally:
+        gc.enable()
     return statistics.median(timer.ms(a, b) for a, b in zip(marks, marks[1:]))
 
 
@@ -309,7 +317,7 @@ def run_bench(cfg=None, variants=None, device="cuda:0", out_dir="runs/bench", pa
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     scfg, P, topo = bench_state(particles, device)
-    dev_name = torch.cuda.get_device_name(torch.device(device)) if device.startswith("cuda") else platform.processor() or "CPU"
+    dev_name = torch.cuda.get_device_name(torch.device(device)) if device.startswith("cuda") else platform.processor() or platform.machine() or "CPU"
     if placements is None:
         placements = 5 if device.startswith("cuda") else 1
     result = {"particles": len(P), "grid": scfg.sim.grid_shape[0], "graph": graph and device.startswith("cuda"), "sort": sort,
