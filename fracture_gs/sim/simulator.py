@@ -202,7 +202,9 @@ class Simulator:
 
     # ---- the substep ----------------------------------------------------------------------------
     def substep(self, dt: Optional[float] = None) -> None:
-        """Advance by one substep Δt (default `cfg.dt`). Allocates nothing, never syncs."""
+        """Advance by one substep Δt (default `cfg.dt`). Never syncs; allocates nothing, except slot 1
+        of the grid on the first substep after boxes were reset without a refit (`latch` outside
+        `advance`; `advance` refits, and so allocates, between frames)."""
         dt = float(self.dt if dt is None else dt)
         with self._stream_scope():
             self.boundaries.apply_regions(self.wp["x"], self.wp["v"], len(self.particles), self.time, dt, self.device)
