@@ -111,7 +111,7 @@ class Grid:
                        mb=wp.from_torch(self._mb[:max(1, 2 * n)]))
 
     def clear(self) -> None:
-        """Reset every accumulator (no allocation)."""
+        """Reset every accumulator (of slot 1 on the current S)."""
         self.ensure()
         self.mp.zero_()
         self.mp1.zero_()
