@@ -84,6 +84,7 @@ class Grid:
         self.boxes = (tuple(box0), tuple(box1))
         self.support = box_intersection(box0, box1) if self.n_fields > 1 else EMPTY_BOX
         self.wp_support = (wp.vec3i(*self.support[:3]), wp.vec3i(*self.support[3:]))
+        self.wp_boxes = [wp.vec3i(*c) for b in self.boxes for c in (b[:3], b[3:])]  # lo0, hi0, lo1, hi1
         self._stale = True
 
     def ensure(self) -> None:

@@ -18,7 +18,7 @@ import warp as wp
 from ..config import MATERIALS, VARIANTS, SimConfig
 from .boundary import Boundaries
 from .constitutive import compute_stress, lame
-from .grid import Grid, fit_grid
+from .grid import EMPTY_BOX, Grid, fit_grid
 from .particles import Particles, SimulationError
 from .topology import Topology
 from .transfer import clear_fields, g2p, grid_update, p2g
@@ -67,6 +67,8 @@ def normalize_device(device) -> str:
 
 class Simulator:
     """MLS-MPM on torch tensors with Warp kernels; `particles` is shared with the kernels."""
+
+    MUTABLE = ("x", "v", "C", "F", "yield_stress")  # what a substep writes into the particles
 
     def __init__(self, cfg: SimConfig, particles: Particles, device="cpu", provider=None):
         validate_sim_config(cfg)
@@ -127,10 +129,13 @@ class Simulator:
         g = self.grid
         full = (0, 0, 0) + tuple(g.shape)
         self.box = full  # active node box (lo, hi): where grid work happens
-        self.field_boxes = [full, full]
-        g.set_boxes(full, full if self.multifield else (0, 0, 0, 0, 0, 0))
+        g.set_boxes(full, full if self.multifield else EMPTY_BOX)
         self._box_origin = wp.vec3i(0, 0, 0)
-        self._field_box_wp = [wp.vec3i(*c) for c in (full[:3], full[3:])] * 2
+
+    @property
+    def field_boxes(self) -> tuple:
+        """Node boxes (lo, hi) of field 0 (or the single field) and field 1 (the grid holds them)."""
+        return self.grid.boxes
 
     def fit_active_box(self, horizon: float) -> float:
         """Restrict per-substep grid work to where particles can be during the next `horizon`
@@ -156,20 +161,19 @@ class Simulator:
         for k in range(n):
             lo_w, hi_w = stats[3 * k:3 * k + 3], stats[3 * (n + k):3 * (n + k) + 3]
             if float(lo_w[0]) > float(hi_w[0]):  # empty field
-                boxes.append((0, 0, 0, 0, 0, 0))
+                boxes.append(EMPTY_BOX)
                 continue
             lo = [max(0, int(math.floor((float(lo_w[a]) - o) / g.dx)) - pad) for a, o in enumerate(g.origin)]
             hi = [min(s, int(math.floor((float(hi_w[a]) - o) / g.dx)) + 1 + pad) for a, (o, s) in enumerate(zip(g.origin, g.shape))]
             boxes.append(tuple(lo) + tuple(hi))
         live = [b for b in boxes if b[3] > b[0]]
         union = tuple(min(b[a] for b in live) for a in range(3)) + tuple(max(b[a] for b in live) for a in range(3, 6))
-        boxes = boxes if self.multifield else [union, union]
-        if union != self.box or boxes != self.field_boxes:
-            self.box, self.field_boxes = union, boxes
-            g.set_boxes(boxes[0], boxes[1] if self.multifield else (0, 0, 0, 0, 0, 0))
+        boxes = tuple(boxes) if self.multifield else (union, EMPTY_BOX)
+        if union != self.box or boxes != g.boxes:
+            self.box = union
+            g.set_boxes(*boxes)
             g.zero()
             self._box_origin = wp.vec3i(*union[:3])
-            self._field_box_wp = [wp.vec3i(*c) for b in boxes for c in (b[:3], b[3:])]
         return vmax
 
     def _stream_scope(self):
@@ -245,11 +249,10 @@ class Simulator:
                       inputs=[self._box_origin, self._shape, *g.wp_support, g.wp["mp"], g.wp["mb"]])
         else:
             g.clear()
-        boxes = self._field_box_wp if target is None else [wp.vec3i(0, 0, 0), self._shape] * 2
         wp.launch(p2g, dim=len(self.particles), device=self.device,
                   inputs=[w["x"], w["v"], w["C"], w["mass"], w["volume"], w["stress"] if stress is None else stress,
                           w["fragment"], w["band"], multi, only_fragment, dt, self._origin, g.dx, 1.0 / g.dx, self._shape,
-                          *g.wp_support, *boxes, g.wp["mp"], g.wp["mb"], w["escaped"]])
+                          *g.wp_support, *g.wp_boxes, g.wp["mp"], g.wp["mb"], w["escaped"]])
 
     def update_grid(self, dt: float) -> None:
         """Normalize + gravity per active field, contact projection (full), boundaries."""
@@ -322,8 +325,6 @@ class Simulator:
         if self._diagnostics is not None:
             self._diagnostics.on_frame()
         return n
-
-    MUTABLE = ("x", "v", "C", "F", "yield_stress")  # what a substep writes into the particles
 
     def _save_state(self) -> None:
         """Copy what a frame can change into buffers made once (device copies, no sync)."""
