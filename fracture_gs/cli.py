@@ -290,6 +290,31 @@ def cmd_figures(args: argparse.Namespace) -> int:
     return 0
 
 
+def _prepare_warp() -> None:
+    """The CLI is an application, so it sets Warp up for the whole process: no per-module load
+    lines (log level WARNING), and on a machine without a CUDA driver Warp's native start-up
+    warning is kept off stderr so user errors stay one line (`fracture-gs info` reports devices).
+    The library itself never does this (`fracture_gs.runtime`)."""
+    import warp as wp
+
+    from .runtime import ensure_warp
+
+    wp.config.log_level = max(wp.config.log_level, wp.LOG_WARNING)
+    available, _, _ = _cuda_devices()
+    if available:
+        ensure_warp()
+        return
+    sys.stderr.flush()
+    saved, devnull = os.dup(2), os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, 2)
+    try:
+        ensure_warp()
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+        os.close(devnull)
+
+
 def _version_of(module: str) -> tuple[Optional[Any], str]:
     """Import a module lazily: (module or None, version or the failure)."""
     try:
@@ -401,6 +426,7 @@ def cmd_validate(args: argparse.Namespace) -> int:
     return 0
 
 
+_WARP_COMMANDS = ("render-sim", "bench", "figures")
 _COMMANDS = {"render-sim": cmd_render_sim, "bench": cmd_bench, "figures": cmd_figures, "info": cmd_info, "validate": cmd_validate}
 
 
@@ -440,6 +466,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         if not args.command:
             parser.print_help()
             return 0
+        if args.command in _WARP_COMMANDS:
+            _prepare_warp()
         return _COMMANDS[args.command](args)
     except SystemExit as exc:  # --help / --version: keep main() returning an exit code
         return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 2)

@@ -9,7 +9,10 @@ from __future__ import annotations
 import torch
 import warp as wp
 
+from ..runtime import ensure_warp
 from ..config import CuboidBoundary, ParticleRegion, PlaneBoundary
+
+wp.set_module_options({"enable_backward": False})  # forward-only kernels compile in half the time
 
 PLANE_MODE_IDS = {"sticky": 0, "slip": 1, "friction": 2}
 
@@ -106,6 +109,7 @@ class Boundaries:
     """The config's boundary list as device arrays (allocated once) plus the particle regions."""
 
     def __init__(self, items, device: str, shape=(1, 1, 1), wall_cells: int = 0):
+        ensure_warp()
         planes = [b for b in items if isinstance(b, PlaneBoundary)]
         boxes = [b for b in items if isinstance(b, CuboidBoundary)]
         self.regions = [b for b in items if isinstance(b, ParticleRegion)]

@@ -15,6 +15,7 @@ import math
 import torch
 import warp as wp
 
+from ..runtime import ensure_warp
 from ..config import SimConfig
 from .transfer import N_STATS, NEVER, STAT_FIRST_T
 
@@ -62,6 +63,7 @@ class Grid:
     mass of both fields, read only on S) live on the shared box `support`."""
 
     def __init__(self, origin, dx: float, shape, n_fields: int, device: str):
+        ensure_warp()
         self.origin = tuple(float(o) for o in origin)
         self.dx = float(dx)
         self.shape = tuple(int(s) for s in shape)

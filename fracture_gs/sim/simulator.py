@@ -8,7 +8,6 @@ fracture event provider run.
 """
 from __future__ import annotations
 
-import contextlib
 import math
 from typing import Optional
 
@@ -16,6 +15,7 @@ import torch
 import warp as wp
 
 from ..config import MATERIALS, VARIANTS, SimConfig
+from ..runtime import ensure_warp, torch_stream
 from .boundary import Boundaries
 from .constitutive import compute_stress, lame
 from .grid import EMPTY_BOX, Grid, fit_grid
@@ -72,6 +72,7 @@ class Simulator:
 
     def __init__(self, cfg: SimConfig, particles: Particles, device="cpu", provider=None):
         validate_sim_config(cfg)
+        ensure_warp()
         self.cfg = cfg
         self.device = normalize_device(device)
         self.particles = particles.to(self.device)
@@ -121,7 +122,6 @@ class Simulator:
         self._origin = wp.vec3(*g.origin)
         self._shape = wp.vec3i(*g.shape)
         self._gravity = wp.vec3(*[float(a) for a in self.cfg.gravity])
-        self._streams = {}
         self._reset_boxes()
 
     def _reset_boxes(self) -> None:
@@ -178,13 +178,7 @@ class Simulator:
 
     def _stream_scope(self):
         """Launch Warp on torch's current stream (DESIGN.md "Performance rules")."""
-        if not self.device.startswith("cuda"):
-            return contextlib.nullcontext()
-        ts = torch.cuda.current_stream(self.device)
-        key = ts.cuda_stream
-        if key not in self._streams:
-            self._streams[key] = wp.stream_from_torch(ts)
-        return wp.ScopedStream(self._streams[key], sync_enter=False)
+        return torch_stream(self.device)
 
     # ---- state queries -----------------------------------------------------------------------
     @property

@@ -1,0 +1,49 @@
+"""Warp on first use, on torch's stream: the two things every kernel launcher in the package needs.
+
+Importing `fracture_gs` changes nothing in the process: no Warp config is written, Warp is not
+initialised and no file descriptor is touched. The first object that launches a kernel calls
+`ensure_warp()`; kernel modules set their own compile options with `wp.set_module_options`
+(forward-only kernels, `enable_backward=False`), so another Warp user in the same process, or
+the differentiable path of this package, keeps Warp's defaults.
+
+`torch_stream(device)` launches Warp kernels on torch's current CUDA stream (DESIGN.md,
+"Performance rules"): a kernel must never read a tensor before torch has finished writing it.
+"""
+from __future__ import annotations
+
+import contextlib
+
+import warp as wp
+
+_streams: dict[int, object] = {}
+
+
+def ensure_warp() -> None:
+    """Initialise Warp once, without its start-up banner (the log level is restored afterwards)."""
+    if _initialised():
+        return
+    level = wp.config.log_level
+    try:
+        wp.config.log_level = max(level, wp.LOG_WARNING)
+        wp.init()
+    finally:
+        wp.config.log_level = level
+
+
+def _initialised() -> bool:
+    from warp._src import context  # Warp 1.19 has no public `is_initialized`
+
+    return context.runtime is not None
+
+
+def torch_stream(device: str):
+    """Context in which Warp launches go to torch's current stream on `device` (no-op on the CPU)."""
+    if not str(device).startswith("cuda"):
+        return contextlib.nullcontext()
+    import torch
+
+    ts = torch.cuda.current_stream(device)
+    key = ts.cuda_stream
+    if key not in _streams:
+        _streams[key] = wp.stream_from_torch(ts)
+    return wp.ScopedStream(_streams[key], sync_enter=False)
