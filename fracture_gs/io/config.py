@@ -46,6 +46,7 @@ import typing
 from pathlib import Path
 from typing import Any, Iterable, Optional, Sequence, Union
 
+from ..errors import ConfigError
 from ..config import (
     MATERIALS,
     PLANE_MODES,
@@ -97,13 +98,6 @@ RENDER_BACKENDS = ("auto", "gsplat", "torch")
 NEEDS_PROVIDER = tuple(v for v in VARIANTS if v != "baseline")
 
 
-class ConfigError(ValueError):
-    """A config problem, stated in one sentence: `<file>: <field> <problem>; <fix>.`"""
-
-    def __init__(self, source: str, field: Optional[str], message: str):
-        self.source = source
-        self.field = field
-        super().__init__(f"{source}: {message}" if source else message)
 
 
 # --------------------------------------------------------------------------------------------

@@ -28,15 +28,14 @@ from plyfile import PlyData, PlyElement
 
 from .gaussian_set import GaussianSet
 
+from ..errors import PlyError
+
 INTERIOR_PROP = "fgs_interior"
 LABEL_PROP = "fgs_label"
 NORMAL_PROPS = ("nx", "ny", "nz")
 SH_REST_COUNTS = {0: 0, 9: 1, 24: 2, 45: 3}  # number of f_rest_* -> SH degree
 _LOGIT_CLAMP = 80.0  # |logit| written for opacities 0 or 1 (sigmoid(80) == 1 in float32)
 
-
-class PlyError(ValueError):
-    """A PLY file that cannot be read as 3D Gaussians; the message names the file, property and fix."""
 
 
 @dataclass

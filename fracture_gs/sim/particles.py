@@ -5,12 +5,10 @@ from typing import Optional
 
 import torch
 
+from ..errors import SimulationError
 from ..config import MATERIALS, MaterialConfig, SceneConfig
 from .constitutive import MATERIAL_IDS, dp_alpha
 
-
-class SimulationError(ValueError):
-    """Invalid simulation input (one sentence naming the field and the fix)."""
 
 
 def _per_particle(value, n: int, name: str, device) -> torch.Tensor:

@@ -14,6 +14,7 @@ from typing import Optional
 import torch
 import warp as wp
 
+from ..errors import SimulationDiverged
 from ..config import MATERIALS, VARIANTS, SimConfig
 from ..runtime import ensure_warp, torch_stream
 from .boundary import Boundaries
@@ -26,15 +27,6 @@ from .transfer import clear_fields, g2p, grid_update, p2g
 MULTIFIELD_VARIANTS = ("local_multifield", "full")
 RELEASE_VARIANTS = ("stress_zero", "global_fragment_pass", "local_multifield", "full")
 
-
-
-class SimulationDiverged(RuntimeError):
-    """The state became non-finite or exploded; carries the frame and the likely cause."""
-
-    def __init__(self, message: str, frame: int, count: int):
-        super().__init__(message)
-        self.frame = frame
-        self.count = count
 
 
 def validate_sim_config(cfg: SimConfig) -> None:
@@ -365,7 +357,7 @@ class Simulator:
         raise SimulationDiverged(
             f"simulation diverged at frame {self.frame} (t = {self.time:.4g}s): {count} of {len(self.particles)} particles have a "
             f"non-finite or exploding velocity; likely cause: {cause}. Lower sim.dt or set sim.adaptive_dt = true.",
-            frame=self.frame, count=count)
+            frame=self.frame, count=count, cause=cause)
 
     # ---- topology -----------------------------------------------------------------------------
     def latch(self, topology: Topology) -> None:
