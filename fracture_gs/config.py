@@ -8,13 +8,34 @@ render). Units are SI throughout: metres, seconds, kilograms, pascals.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Optional
+from typing import Literal, Optional, get_args
+
+from .variants import VARIANT_NAMES, VariantName
 
 Vec3 = tuple[float, float, float]
 
-VARIANTS = ("baseline", "probe_latch", "stress_zero", "global_fragment_pass", "local_multifield", "full")
-MATERIALS = ("fixed_corotated", "neo_hookean", "stvk_hencky_vm", "drucker_prager")
-PLANE_MODES = ("sticky", "slip", "friction")
+# the enum-like fields: each `Literal` is the one list of valid values (the TOML loader checks it)
+MaterialName = Literal["fixed_corotated", "neo_hookean", "stvk_hencky_vm", "drucker_prager"]
+PlaneMode = Literal["sticky", "slip", "friction"]
+RegionKind = Literal["impulse", "velocity"]
+GridKind = Literal["explicit", "auto"]
+ProviderName = Literal["none", "oracle", "stress"]
+RenderMode = Literal["classic", "antialiased"]
+RenderBackend = Literal["auto", "gsplat", "torch"]
+Preset = Literal["small", "paper"]
+
+VARIANTS = VARIANT_NAMES
+MATERIALS = get_args(MaterialName)
+PLANE_MODES = get_args(PlaneMode)
+REGION_KINDS = get_args(RegionKind)
+GRID_KINDS = get_args(GridKind)
+PROVIDERS = get_args(ProviderName)
+RENDER_MODES = get_args(RenderMode)
+RENDER_BACKENDS = get_args(RenderBackend)
+PRESETS: dict[str, float] = {"small": 1.0 / 64, "paper": 1.0 / 128}
+"""Scene preset → the grid spacing Δx it selects: the size of a built-in scene and its grid."""
+assert tuple(PRESETS) == get_args(Preset)
+BUILTIN_SCENES = ("bread", "ficus", "recontact", "beam", "plane_drop")
 
 
 @dataclass
@@ -25,7 +46,7 @@ class PlaneBoundary:
     """A point on the plane [m]."""
     normal: Vec3 = (0.0, 0.0, 1.0)
     """Outward normal, pointing into the free side [unitless, normalized on load]."""
-    mode: str = "slip"
+    mode: PlaneMode = "slip"
     """`sticky` (v = 0), `slip` (only the approaching normal part removed) or `friction` (Coulomb)."""
     friction: float = 0.0
     """Coulomb coefficient μ for `friction` mode [unitless]."""
@@ -57,7 +78,7 @@ class ParticleRegion:
     [start, end] (an impulse per unit mass). `kind = "velocity"`: their velocity is overridden
     with `velocity` during [start, end]."""
 
-    kind: str = "impulse"
+    kind: RegionKind = "impulse"
     """`impulse` or `velocity`."""
     lower: Vec3 = (0.0, 0.0, 0.0)
     """Box lower corner [m]."""
@@ -77,7 +98,7 @@ class ParticleRegion:
 class MaterialConfig:
     """Default constitutive parameters; `fracture_gs.sim.Particles` holds them per particle."""
 
-    model: str = "fixed_corotated"
+    model: MaterialName = "fixed_corotated"
     """One of `fixed_corotated`, `neo_hookean`, `stvk_hencky_vm` (metal), `drucker_prager` (sand)."""
     E: float = 2.0e6
     """Young's modulus [Pa]."""
@@ -101,7 +122,7 @@ class MaterialMapEntry:
 
     label: int = 0
     """Material label (from the asset, or a PLY property named by `SceneConfig.material_property`)."""
-    model: Optional[str] = None
+    model: Optional[MaterialName] = None
     """Constitutive model for this label."""
     E: Optional[float] = None
     """Young's modulus [Pa]."""
@@ -131,9 +152,9 @@ class SimConfig:
     """CFL number for `adaptive_dt`."""
     gravity: Vec3 = (0.0, 0.0, -9.8)
     """Gravity vector [m/s²]."""
-    variant: str = "baseline"
+    variant: VariantName = "baseline"
     """Transfer variant: baseline, probe_latch, stress_zero, global_fragment_pass, local_multifield, full."""
-    grid: str = "explicit"
+    grid: GridKind = "explicit"
     """`explicit` (grid_origin, dx, grid_shape) or `auto` (fitted to the particles, see grid_margin)."""
     grid_origin: Vec3 = (0.0, 0.0, 0.0)
     """World position of node (0,0,0) [m]; rounded to a multiple of dx."""
@@ -147,7 +168,7 @@ class SimConfig:
     """Auto grid: world box (lower, upper) that must also be covered, e.g. to reach a floor [m]."""
     wall_cells: int = 3
     """Domain walls: nodes this close to the grid edge stop outward motion."""
-    material: str = "fixed_corotated"
+    material: MaterialName = "fixed_corotated"
     """Default constitutive model (per-particle ids may override)."""
     boundaries: list = field(default_factory=list)
     """PlaneBoundary / CuboidBoundary / ParticleRegion instances."""
@@ -166,7 +187,7 @@ class SimConfig:
 class TopologyConfig:
     """Fracture event provider (DESIGN.md "Fracture event providers")."""
 
-    provider: str = "none"
+    provider: ProviderName = "none"
     """`none`, `oracle` (analytic plane) or `stress` (stress-guided detection)."""
     point: Vec3 = (0.0, 0.0, 0.0)
     """Oracle plane point [m]."""
@@ -216,9 +237,9 @@ class RenderConfig:
     """Background colour, RGB in [0, 1]."""
     fps: int = 24
     """Video frame rate."""
-    mode: str = "classic"
+    mode: RenderMode = "classic"
     """gsplat rasterization mode: `classic` or `antialiased`."""
-    backend: str = "auto"
+    backend: RenderBackend = "auto"
     """`auto` (gsplat on CUDA, torch on CPU), `gsplat` or `torch`."""
     show_exposed_interior: bool = True
     """Draw interior fill particles once a fracture exposes them (coloured like the nearest surface)."""
@@ -238,7 +259,7 @@ class SceneConfig:
     """Run name (used for output folders)."""
     scene: str = "bread"
     """Built-in asset name (bread, ficus, recontact, beam, plane_drop) or a path to a 3DGS .ply."""
-    preset: str = "small"
+    preset: Preset = "small"
     """Built-in asset size: `small` (≈20k particles, CPU) or `paper` (the paper's counts)."""
     particles: Optional[int] = None
     """Override a built-in scene's particle count (quick looks and tests); None = the preset's."""
@@ -264,3 +285,7 @@ class SceneConfig:
     """Rendering."""
     variants: list = field(default_factory=lambda: ["baseline", "stress_zero", "full"])
     """Variants `render-sim` runs side by side by default."""
+
+
+BOUNDARY_TYPES: dict[str, type] = {"plane": PlaneBoundary, "cuboid": CuboidBoundary, "region": ParticleRegion}
+"""Value of a `[[sim.boundaries]]` table's `type` key → boundary class."""

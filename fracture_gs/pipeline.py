@@ -17,7 +17,8 @@ from . import assets
 from .config import SceneConfig
 from .io import GaussianSet
 from .render.gaussians import deform_covariances, polar_rotation
-from .sim import Particles, Simulator, SimulationError, Topology, make_provider
+from .sim import Particles, Simulator, SimulationError, Topology
+from .sim.providers import ReplayProvider, make_provider
 
 
 @dataclass
@@ -83,20 +84,6 @@ def make_simulator(cfg: SceneConfig, gs: GaussianSet, variant: str, device: str,
     sim = Simulator(sim_cfg, particles, device=device, provider=provider)
     check_inside_grid(sim, cfg.name)
     return sim
-
-
-class ReplayProvider:
-    """Latches a saved topology at its recorded frame (labels identical across variants)."""
-
-    def __init__(self, topology: Topology):
-        self.topology = topology
-
-    def __call__(self, sim) -> Optional[Topology]:
-        if sim.frame < self.topology.latch_frame:
-            return None
-        t = self.topology
-        return Topology(fragment=t.fragment.to(sim.device), band=t.band.to(sim.device), normal=t.normal, point=t.point,
-                        latch_time=sim.time, latch_frame=sim.frame, pair_radius=t.pair_radius)
 
 
 def frame_output(sim: Simulator, cov0: torch.Tensor, metrics: dict, substeps: int = 0) -> FrameOutput:

@@ -40,7 +40,7 @@ def test_two_field_transfer_matches_reference(device, seed, fitted):
     if fitted:
         full_bytes = g.nbytes
         sim.fit_active_box(1e-3)
-        assert S.grid.box_volume(g.support) < 0.7 * S.grid.box_volume(sim.field_boxes[1]), "slot 1 must shrink to S"
+        assert S.layout.box_volume(g.support) < 0.7 * S.layout.box_volume(sim.field_boxes[1]), "slot 1 must shrink to S"
         assert g.nbytes < 0.75 * full_bytes
     sim.compute_stress(sim.stress, commit=True)
     x0, F0, field = P.x.cpu().clone(), P.F.cpu().clone(), P.fragment.cpu().long()
@@ -224,7 +224,7 @@ def test_fragments_apart_need_no_second_field():
         sim.latch(S.Topology.from_plane(sim.particles.x, (0.5, 0.5, 0.5), (1.0, 0.0, 0.0), 0.05))
         if fit:
             sim.fit_active_box(0.01)
-            assert sim.grid.support == S.grid.EMPTY_BOX
+            assert sim.grid.support == S.layout.EMPTY_BOX
             assert sim.grid.nbytes < 32**3 * (16 + 12) + 16, "slot 0 only"
         for _ in range(5):
             sim.substep()

@@ -11,7 +11,7 @@ import pytest
 import torch
 
 from fracture_gs import sim as S
-from fracture_gs.sim.stress_provider import StressProvider, least_variance_axis, mean_direction
+from fracture_gs.sim.providers.stress import StressProvider, least_variance_axis, mean_direction
 from simutil import block, config, particles
 
 DX = 1 / 32

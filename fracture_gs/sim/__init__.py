@@ -7,10 +7,11 @@ from ..config import CuboidBoundary, MaterialConfig, ParticleRegion, PlaneBounda
 from .grid import Grid, fit_grid
 from .particles import Particles, SimulationError
 from .simulator import MULTIFIELD_VARIANTS, RELEASE_VARIANTS, SimulationDiverged, Simulator
-from .topology import OracleProvider, Topology, make_provider
+from .providers import OracleProvider, ReplayProvider, StressProvider, make_provider
+from .topology import Topology
 
 __all__ = [
     "CuboidBoundary", "Grid", "MaterialConfig", "MULTIFIELD_VARIANTS", "OracleProvider", "ParticleRegion", "Particles",
-    "PlaneBoundary", "RELEASE_VARIANTS", "SimConfig", "SimulationDiverged", "SimulationError", "Simulator", "Topology",
+    "PlaneBoundary", "RELEASE_VARIANTS", "ReplayProvider", "StressProvider", "SimConfig", "SimulationDiverged", "SimulationError", "Simulator", "Topology",
     "TopologyConfig", "fit_grid", "make_provider",
 ]

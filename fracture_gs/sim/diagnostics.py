@@ -17,7 +17,7 @@ import warp as wp
 
 from ..config import PlaneBoundary
 from .grid import Grid
-from .transfer import NEVER, STAT_DPX, STAT_DPZ, STAT_DVT, STAT_FIRST_T, STAT_GATED, STAT_PNORM, STAT_UN_AFTER
+from .layout import NEVER, STAT_DPX, STAT_DPZ, STAT_DVT, STAT_FIRST_T, STAT_GATED, STAT_PNORM, STAT_UN_AFTER
 
 EPS = 1e-30
 SEPARATION = 0.1  # Δx: an interface whose opening exceeds this has separated (DESIGN.md)
@@ -197,7 +197,7 @@ class Diagnostics:
         sim = self.sim
         sim.compute_stress(self.shadow_stress, commit=False)
         sim.p2g(sim.dt, target=self.shadow, multifield=True, stress=self.shadow_stress_wp)
-        per_fragment = sim.multifield or sim.cfg.variant == "global_fragment_pass"
+        per_fragment = sim.multifield or (sim.latched and sim.spec.per_fragment_pass)
         cf, real, shared = mixing(self.shadow.mass, self.shadow.momentum, sim.eps_m, (0, 1) if per_fragment else (0, 0))
         # the realized fields once a fragment-conditioned P2G has run, else the shadow (same kernel)
         source = sim.grid.mass if sim.multifield and sim.substeps > self.latch_substeps else self.shadow.mass

@@ -17,10 +17,7 @@ import warp as wp
 
 from ..runtime import ensure_warp
 from ..config import SimConfig
-from .transfer import N_STATS, NEVER, STAT_FIRST_T
-
-EMPTY_BOX = (0, 0, 0, 0, 0, 0)
-
+from .layout import EMPTY_BOX, N_STATS, NEVER, STAT_FIRST_T, box_intersection, box_volume
 
 def fit_grid(cfg: SimConfig, x: torch.Tensor) -> tuple[tuple, float, tuple]:
     """(origin, dx, shape) for the config: explicit, or fitted to the particles' bounds plus
@@ -42,16 +39,6 @@ def fit_grid(cfg: SimConfig, x: torch.Tensor) -> tuple[tuple, float, tuple]:
     origin = tuple(math.floor(float(a) / dx) * dx for a in lo)
     shape = tuple(int(math.ceil((float(b) - o) / dx)) + 1 for o, b in zip(origin, hi))
     return origin, dx, shape
-
-
-def box_intersection(a: tuple, b: tuple) -> tuple:
-    """Intersection of two node boxes (lo, hi), or EMPTY_BOX."""
-    box = tuple(max(a[i], b[i]) for i in range(3)) + tuple(min(a[i], b[i]) for i in range(3, 6))
-    return box if all(box[i + 3] > box[i] for i in range(3)) else EMPTY_BOX
-
-
-def box_volume(box: tuple) -> int:
-    return max(0, box[3] - box[0]) * max(0, box[4] - box[1]) * max(0, box[5] - box[2])
 
 
 class Grid:

@@ -15,17 +15,19 @@ import torch
 import warp as wp
 
 from ..errors import SimulationDiverged
-from ..config import MATERIALS, VARIANTS, SimConfig
+from ..config import MATERIALS, SimConfig
+from ..variants import VARIANTS, variant_spec
 from ..runtime import ensure_warp, torch_stream
 from .boundary import Boundaries
 from .constitutive import compute_stress, lame
-from .grid import EMPTY_BOX, Grid, fit_grid
+from .grid import Grid, fit_grid
+from .layout import EMPTY_BOX
 from .particles import Particles, SimulationError
 from .topology import Topology
 from .transfer import clear_fields, g2p, grid_update, p2g
 
-MULTIFIELD_VARIANTS = ("local_multifield", "full")
-RELEASE_VARIANTS = ("stress_zero", "global_fragment_pass", "local_multifield", "full")
+MULTIFIELD_VARIANTS = tuple(v for v, s in VARIANTS.items() if s.multifield)
+RELEASE_VARIANTS = tuple(v for v, s in VARIANTS.items() if s.release)
 
 
 
@@ -66,10 +68,11 @@ class Simulator:
         validate_sim_config(cfg)
         ensure_warp()
         self.cfg = cfg
+        self.spec = variant_spec(cfg.variant)
         self.device = normalize_device(device)
         self.particles = particles.to(self.device)
         origin, dx, shape = fit_grid(cfg, self.particles.x)
-        n_fields = 2 if cfg.variant in MULTIFIELD_VARIANTS else 1
+        n_fields = 2 if self.spec.multifield else 1
         self.grid = Grid(origin, dx, shape, n_fields, self.device)
         self.boundaries = Boundaries(cfg.boundaries, self.device, shape, cfg.wall_cells)
         self.provider = provider
@@ -180,11 +183,11 @@ class Simulator:
     @property
     def multifield(self) -> bool:
         """Fragment-conditioned transfer is in force (multi-field variant, after the latch)."""
-        return self.latched and self.cfg.variant in MULTIFIELD_VARIANTS
+        return self.latched and self.spec.multifield
 
     @property
     def release(self) -> bool:
-        return self.latched and self.cfg.variant in RELEASE_VARIANTS
+        return self.latched and self.spec.release
 
     def cfl_dt(self, max_speed: float = 0.0) -> float:
         """Δt ≤ cfl·Δx / (max|v| + wave speed), wave speed √((λ+2μ)/ρ)."""
@@ -199,7 +202,7 @@ class Simulator:
         with self._stream_scope():
             self.boundaries.apply_regions(self.wp["x"], self.wp["v"], len(self.particles), self.time, dt, self.device)
             self.compute_stress(self.stress, commit=True)
-            if self.latched and self.cfg.variant == "global_fragment_pass":
+            if self.latched and self.spec.per_fragment_pass:
                 for k in (0, 1):
                     self._grid_pass(dt, only_fragment=k)
             else:
@@ -248,7 +251,7 @@ class Simulator:
         b = self.box
         wp.launch(grid_update, dim=(b[3] - b[0], b[4] - b[1], b[5] - b[2]), device=self.device,
                   inputs=[self._box_origin, self._shape, *g.wp_support, g.wp["mp"], g.wp["mb"], g.wp["vel"], self.eps_m,
-                          self.eps_b, multi, int(multi and self.cfg.variant == "full"), self._normal, float(self.cfg.restitution), dt, self._gravity, self._origin, g.dx, self.time,
+                          self.eps_b, multi, int(multi and self.spec.contact), self._normal, float(self.cfg.restitution), dt, self._gravity, self._origin, g.dx, self.time,
                           self.boundaries.colliders, int(self.record_contact), g.wp["stats"]])
 
     def g2p(self, dt: float, only_fragment: int = -1) -> None:

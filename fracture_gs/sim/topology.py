@@ -1,17 +1,15 @@
-"""`Topology` (the latched binary interface) and fracture event providers.
+"""`Topology`: the latched interface as data (fragment ids, band, plane), saved with every run.
 
-A provider is called once per frame with the simulator and may return a `Topology`; the simulator
-latches the first one it gets and never again (DESIGN.md "Fracture event providers").
+Who produces one is `fracture_gs.sim.providers` (oracle plane, stress-guided, replay of a saved
+run); the simulator only reads it (`Simulator.latch`).
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Optional
 
 import numpy as np
 import torch
 
-from ..config import TopologyConfig
 
 
 @dataclass
@@ -64,34 +62,3 @@ class Topology:
             latch_time=float(z["latch_time"]), latch_frame=int(z["latch_frame"]),
             pair_radius=float(z["pair_radius"]) if "pair_radius" in z else 1.5,
         )
-
-
-class OracleProvider:
-    """Latches an analytic plane from the config at a configured frame or time."""
-
-    def __init__(self, cfg: TopologyConfig):
-        self.cfg = cfg
-
-    def due(self, frame: int, time: float) -> bool:
-        if self.cfg.latch_time is not None:
-            return time >= self.cfg.latch_time - 1e-9
-        return frame >= self.cfg.latch_frame
-
-    def __call__(self, sim) -> Optional[Topology]:
-        if not self.due(sim.frame, sim.time):
-            return None
-        return Topology.from_plane(sim.particles.x, self.cfg.point, self.cfg.normal, self.cfg.band_width * sim.grid.dx,
-                                   latch_time=sim.time, latch_frame=sim.frame, pair_radius=self.cfg.pair_radius)
-
-
-def make_provider(cfg: TopologyConfig):
-    """The provider named by the config (None for `none`)."""
-    if cfg.provider == "none":
-        return None
-    if cfg.provider == "oracle":
-        return OracleProvider(cfg)
-    if cfg.provider == "stress":
-        from .stress_provider import StressProvider
-
-        return StressProvider(cfg)
-    raise ValueError(f"topology.provider '{cfg.provider}' is unknown; use none, oracle or stress")

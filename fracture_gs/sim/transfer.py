@@ -13,13 +13,11 @@ from __future__ import annotations
 import warp as wp
 
 from .boundary import Colliders, apply_boundaries
+from .layout import (STAT_DPX, STAT_DPY, STAT_DPZ, STAT_DVT, STAT_FIRST_T, STAT_GATED, STAT_PNORM, STAT_PROJECTED,
+                     STAT_UN_AFTER, flat, inside, slot_index)
 
 wp.set_module_options({"enable_backward": False})  # forward-only kernels compile in half the time
 
-# contact statistics accumulated by `grid_update` (indices into Grid.contact_stats)
-STAT_GATED, STAT_PROJECTED, STAT_DPX, STAT_DPY, STAT_DPZ, STAT_PNORM, STAT_UN_AFTER, STAT_DVT, STAT_FIRST_T = range(9)
-N_STATS = 9
-NEVER = 1e30  # STAT_FIRST_T before any contact
 
 
 _RED_V4 = r"""
@@ -96,26 +94,6 @@ def routed_field(o: int, only_fragment: int, multifield: int):
     if only_fragment >= 0 and o != only_fragment:
         return -1
     return field_of(o, multifield)
-
-
-@wp.func
-def inside(node: wp.vec3i, lo: wp.vec3i, hi: wp.vec3i):
-    return node[0] >= lo[0] and node[0] < hi[0] and node[1] >= lo[1] and node[1] < hi[1] and node[2] >= lo[2] and node[2] < hi[2]
-
-
-@wp.func
-def flat(node: wp.vec3i, lo: wp.vec3i, dims: wp.vec3i):
-    d = node - lo
-    return (d[0] * dims[1] + d[1]) * dims[2] + d[2]
-
-
-@wp.func
-def slot_index(node: wp.vec3i, k: int, shape: wp.vec3i, s_lo: wp.vec3i, s_hi: wp.vec3i):
-    """Storage index of field k at `node` (layout in `grid.py`): slot 1, after slot 0's X·Y·Z
-    nodes, for field 1 on S; slot 0 otherwise. Branch-free, so one load or atomic serves both."""
-    on_s = k == 1 and inside(node, s_lo, s_hi)
-    i1 = shape[0] * shape[1] * shape[2] + flat(node, s_lo, s_hi - s_lo)
-    return wp.where(on_s, i1, flat(node, wp.vec3i(0, 0, 0), shape))
 
 
 @wp.kernel

@@ -16,8 +16,8 @@ from typing import Optional
 
 import torch
 
-from ..config import TopologyConfig
-from .topology import Topology
+from ...config import TopologyConfig
+from ..topology import Topology
 
 
 EIGH_CHUNK = 32768  # batched CUDA eigh (cusolver) fails for batches of ≥ 65,536 in torch 2.11 + CUDA 13

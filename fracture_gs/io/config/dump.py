@@ -1,0 +1,86 @@
+"""Writing a SceneConfig as TOML that `load_config` reads back to an equal SceneConfig."""
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from typing import Any, Optional
+
+from ...config import BOUNDARY_TYPES, SceneConfig
+
+
+def to_plain_value(value: Any) -> Any:
+    """Tuples → lists, dataclasses → dicts; recursively."""
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return to_dict(value)
+    if isinstance(value, (list, tuple)):
+        return [to_plain_value(v) for v in value]
+    return value
+
+
+def to_dict(obj: Any) -> dict:
+    """One dataclass → TOML-shaped dict; None fields are left out, boundaries get `type` first."""
+    out: dict[str, Any] = {}
+    for kind, cls in BOUNDARY_TYPES.items():
+        if type(obj) is cls:
+            out["type"] = kind
+    for f in dataclasses.fields(obj):
+        value = getattr(obj, f.name)
+        if value is not None:
+            out[f.name] = to_plain_value(value)
+    return out
+
+
+def config_to_dict(cfg: SceneConfig) -> dict:
+    """SceneConfig → plain dict shaped like the TOML (inverse of `config_from_dict`)."""
+    return to_dict(cfg)
+
+
+def toml_value(value: Any) -> str:
+    """One TOML value (scalars and inline arrays)."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, float):
+        if math.isnan(value):
+            return "nan"
+        if math.isinf(value):
+            return "inf" if value > 0 else "-inf"
+        return repr(value)
+    if isinstance(value, str):
+        return json.dumps(value, ensure_ascii=False)
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(toml_value(v) for v in value) + "]"
+    raise TypeError(f"cannot write {type(value).__name__} as a TOML value")
+
+
+def _is_table_array(value: Any) -> bool:
+    return isinstance(value, list) and bool(value) and all(isinstance(v, dict) for v in value)
+
+
+def _join(prefix: str, key: str) -> str:
+    return f"{prefix}.{key}" if prefix else key
+
+
+def _emit(lines: list[str], path: str, table: dict) -> None:
+    """Write a table's scalars, then its sub-tables and arrays of tables."""
+    for key, value in table.items():
+        if not isinstance(value, dict) and not _is_table_array(value):
+            lines.append(f"{key} = {toml_value(value)}")
+    for key, value in table.items():
+        sub = _join(path, key)
+        if isinstance(value, dict):
+            lines += ["", f"[{sub}]"]
+            _emit(lines, sub, value)
+        elif _is_table_array(value):
+            for item in value:
+                lines += ["", f"[[{sub}]]"]
+                _emit(lines, sub, item)
+
+
+def dump_config(cfg: SceneConfig, header: Optional[str] = None) -> str:
+    """SceneConfig → TOML text that `load_config` reads back to an equal SceneConfig."""
+    lines: list[str] = [f"# {line}" for line in (header or "").splitlines()]
+    _emit(lines, "", config_to_dict(cfg))
+    return "\n".join(lines).lstrip("\n") + "\n"

@@ -1,0 +1,142 @@
+"""Finding config files, reading TOML and resolving `extends` chains: path or name → SceneConfig.
+
+`load_config` is the front door: find the file, read it, apply `extends` recursively (tables
+deep-merge key by key; scalars and arrays replace), build the dataclasses (`build.py`) and check
+every value (`validate.py`).
+"""
+from __future__ import annotations
+
+import dataclasses
+import os
+import tomllib
+from pathlib import Path
+from typing import Any, Optional, Union
+
+from ...config import SceneConfig
+from ...errors import ConfigError
+from .build import build_scene, describe
+from .dump import to_dict
+from .validate import validate
+
+CONFIG_DIR = Path(__file__).resolve().parents[2] / "configs"
+"""Package data directory holding the built-in TOML configs (repo-root `configs/` links here)."""
+
+
+def builtin_configs() -> list[str]:
+    """Names of the built-in configs (file stems in the package's `configs/` directory)."""
+    if not CONFIG_DIR.is_dir():
+        return []
+    return sorted(p.stem for p in CONFIG_DIR.glob("*.toml"))
+
+
+def find_config(name_or_path: Union[str, os.PathLike]) -> Path:
+    """Resolve a config path, a path without `.toml`, or a bare built-in name like `bread`."""
+    text = os.fspath(name_or_path)
+    path = Path(text).expanduser()
+    if path.is_file():
+        return path
+    if path.suffix != ".toml" and path.with_name(path.name + ".toml").is_file():
+        return path.with_name(path.name + ".toml")
+    if len(path.parts) == 1:
+        stem = path.stem if path.suffix == ".toml" else path.name
+        candidate = CONFIG_DIR / f"{stem}.toml"
+        if candidate.is_file():
+            return candidate
+    if path.suffix.lower() == ".ply":
+        raise ConfigError(text, None, f"this is a 3DGS scene, not a config; write a TOML config with scene = \"{text}\" (for instance extends = \"bread\" plus that line) and pass the TOML instead.")
+    names = ", ".join(builtin_configs()) or "none installed"
+    raise ConfigError(text, None, f"no such config file; pass a path to a TOML file or a built-in name ({names}).")
+
+
+def _display(path: Path) -> str:
+    """Short form of a path for messages: relative to the working directory when inside it."""
+    try:
+        return str(path.resolve().relative_to(Path.cwd().resolve()))
+    except ValueError:
+        return str(path)
+
+
+def _read_toml(path: Path) -> dict:
+    """Parse one TOML file, turning syntax errors into ConfigError."""
+    src = _display(path)
+    try:
+        with open(path, "rb") as fh:
+            return tomllib.load(fh)
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(src, None, f"invalid TOML ({exc}); fix the syntax there.") from None
+    except OSError as exc:
+        raise ConfigError(src, None, f"cannot read the file ({exc.strerror}); check the path and permissions.") from None
+
+
+def _resolve_extends(value: Any, base_dir: Optional[Path], src: str) -> Path:
+    """Find the file an `extends` key names: relative to the extending file, then built-ins."""
+    if not isinstance(value, str) or not value:
+        raise ConfigError(src, "extends", "extends must be a config name or path string; write it like extends = \"bread\".")
+    if base_dir is not None:
+        for candidate in (base_dir / value, base_dir / f"{value}.toml"):
+            if candidate.is_file():
+                return candidate
+    try:
+        return find_config(value)
+    except ConfigError:
+        names = ", ".join(builtin_configs())
+        raise ConfigError(src, "extends", f"extends = {value!r} names no config file; use a path relative to this file or a built-in name ({names}).") from None
+
+
+def _deep_merge(base: dict, over: dict) -> dict:
+    """Tables merge key by key; any other value in `over` replaces the base's."""
+    out = dict(base)
+    for key, value in over.items():
+        if isinstance(value, dict) and isinstance(out.get(key), dict):
+            out[key] = _deep_merge(out[key], value)
+        else:
+            out[key] = value
+    return out
+
+
+def _resolve_chain(raw: dict, src: str, base_dir: Optional[Path], seen: tuple[Path, ...]) -> dict:
+    """Apply `extends` recursively; each file's own keys are checked under its own name."""
+    raw = dict(raw)
+    parent = raw.pop("extends", None)
+    build_scene(raw, src)  # keys and types of this file alone, so errors name the right file
+    if parent is None:
+        return raw
+    base_path = _resolve_extends(parent, base_dir, src)
+    if base_path.resolve() in seen:
+        raise ConfigError(src, "extends", f"extends = {parent!r} forms a cycle; remove one of the extends keys.")
+    base_raw = _read_toml(base_path)
+    base = _resolve_chain(base_raw, _display(base_path), base_path.parent, seen + (base_path.resolve(),))
+    return _deep_merge(base, raw)
+
+
+def load_config(path_or_name: Union[str, os.PathLike]) -> SceneConfig:
+    """Load, resolve `extends`, type-check, normalize and validate a TOML config."""
+    path = find_config(path_or_name)
+    src = _display(path)
+    merged = _resolve_chain(_read_toml(path), src, path.parent, (path.resolve(),))
+    cfg = build_scene(merged, src)
+    validate(cfg, src)
+    return cfg
+
+
+def config_from_dict(d: dict, source: str = "<dict>") -> SceneConfig:
+    """Build a SceneConfig from a plain dict shaped like the TOML (same checks as `load_config`).
+
+    An `extends` key resolves relative to the working directory, then to the built-in configs."""
+    if not isinstance(d, dict):
+        raise ConfigError(source, None, f"a config must be a table (dict), not {describe(d)}; pass a dict of sections.")
+    merged = _resolve_chain(_plain(d), source, Path.cwd(), ())
+    cfg = build_scene(merged, source)
+    validate(cfg, source)
+    return cfg
+
+
+def _plain(value: Any) -> Any:
+    """Turn dataclass instances inside a user dict into TOML-shaped dicts (boundaries get `type`)."""
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return to_dict(value)
+    if isinstance(value, dict):
+        return {k: _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return type(value)(_plain(v) for v in value)
+    return value

@@ -1,0 +1,209 @@
+"""Value checks of a SceneConfig: one sentence naming the source, the field and the fix, on the first problem."""
+from __future__ import annotations
+
+import difflib
+import math
+from typing import Any, Sequence
+
+from ...config import (BUILTIN_SCENES, GRID_KINDS, MATERIALS, PLANE_MODES, PRESETS, PROVIDERS, REGION_KINDS, RENDER_BACKENDS,
+                       RENDER_MODES, VARIANTS, CuboidBoundary, MaterialMapEntry, ParticleRegion, PlaneBoundary, RenderConfig,
+                       SceneConfig, SimConfig, TopologyConfig)
+from ...errors import ConfigError
+from ...variants import variant_spec
+
+
+class _Checker:
+    """Collects nothing: raises on the first problem, naming source and field."""
+
+    def __init__(self, source: str):
+        self.src = source
+
+    def fail(self, field: str, problem: str, fix: str) -> None:
+        raise ConfigError(self.src, field, f"{problem}; {fix}.")
+
+    def choice(self, field: str, value: Any, options: Sequence[str]) -> None:
+        if value in options:
+            return
+        close = difflib.get_close_matches(str(value), list(options), n=1)
+        fix = f"did you mean {close[0]!r}?" if close else "use one of them."
+        raise ConfigError(self.src, field, f"{field} = {value!r} is not one of {', '.join(options)}; {fix}")
+
+    def positive(self, field: str, value: float, fix: str) -> None:
+        if not (value > 0 and math.isfinite(value)):
+            self.fail(field, f"{field} = {value!r} must be a positive finite number", fix)
+
+    def at_least(self, field: str, value: float, low: float, fix: str) -> None:
+        if not value >= low:
+            self.fail(field, f"{field} = {value!r} must be at least {low}", fix)
+
+    def within(self, field: str, value: float, low: float, high: float, fix: str, open_high: bool = False) -> None:
+        ok = low <= value < high if open_high else low <= value <= high
+        if not ok:
+            bracket = ")" if open_high else "]"
+            self.fail(field, f"{field} = {value!r} is outside [{low}, {high}{bracket}", fix)
+
+    def nonzero(self, field: str, v: tuple, fix: str) -> None:
+        if not any(c != 0 for c in v) or not all(math.isfinite(c) for c in v):
+            self.fail(field, f"{field} = {list(v)} must be a finite nonzero vector", fix)
+
+    def box(self, prefix: str, lower: tuple, upper: tuple) -> None:
+        if not all(lo < hi for lo, hi in zip(lower, upper)):
+            self.fail(f"{prefix}.lower", f"{prefix}.lower {list(lower)} is not below {prefix}.upper {list(upper)} on every axis", "swap or fix the corners so lower < upper")
+
+    def interval(self, prefix: str, start: float, end: float) -> None:
+        if not (0 <= start <= end):
+            self.fail(f"{prefix}.start", f"{prefix}.start = {start!r} and end = {end!r} do not form a time interval", "use 0 <= start <= end (seconds)")
+
+
+def validate(cfg: SceneConfig, source: str = "<config>") -> SceneConfig:
+    """Check every value of a SceneConfig; raise ConfigError (one sentence) on the first problem."""
+    c = _Checker(source)
+    _check_scene(c, cfg)
+    _check_material(c, "material", cfg.material)
+    _check_sim(c, cfg.sim, cfg.frame_dt)
+    _check_material_map(c, cfg.material_map)
+    _check_topology(c, cfg.topology, cfg.frames)
+    _check_render(c, cfg.render)
+    _check_provider_needed(c, cfg)
+    return cfg
+
+
+def _check_scene(c: _Checker, cfg: SceneConfig) -> None:
+    if not cfg.name or any(ch in cfg.name for ch in "/\\:") or cfg.name.strip() != cfg.name:
+        c.fail("name", f"name = {cfg.name!r} cannot be used as a folder name", "use letters, digits, '_', '-' or '.'")
+    if cfg.scene not in BUILTIN_SCENES and not cfg.scene.lower().endswith(".ply"):
+        c.fail("scene", f"scene = {cfg.scene!r} is neither a built-in scene nor a .ply path", f"use one of {', '.join(BUILTIN_SCENES)} or a path ending in .ply")
+    c.choice("preset", cfg.preset, list(PRESETS))
+    c.at_least("frames", cfg.frames, 1, "simulate at least one frame")
+    c.positive("frame_dt", cfg.frame_dt, "give the time between frames in seconds, e.g. frame_dt = 0.01")
+    if cfg.material_property is not None and not cfg.material_property:
+        c.fail("material_property", "material_property is empty", "name the PLY property holding the labels or remove the key")
+    _check_variants(c, cfg)
+
+
+def _check_variants(c: _Checker, cfg: SceneConfig) -> None:
+    if not cfg.variants:
+        c.fail("variants", "variants is empty", f"list at least one of {', '.join(VARIANTS)}")
+    for i, v in enumerate(cfg.variants):
+        c.choice(f"variants[{i}]", v, VARIANTS)
+    if len(set(cfg.variants)) != len(cfg.variants):
+        c.fail("variants", f"variants {cfg.variants} lists a variant twice", "list each variant once")
+
+
+def _check_provider_needed(c: _Checker, cfg: SceneConfig) -> None:
+    """Every variant but baseline needs fragment labels, hence an event provider."""
+    needing = [v for v in cfg.variants if variant_spec(v).needs_provider]
+    if needing and cfg.topology.provider == "none":
+        c.fail("topology.provider", f"variants {needing} need a fracture event provider but topology.provider = 'none'", "set topology.provider = \"stress\" or \"oracle\", or run only baseline")
+
+
+def _check_sim(c: _Checker, s: SimConfig, frame_dt: float) -> None:
+    c.positive("sim.dt", s.dt, "give the substep in seconds, e.g. dt = 1e-4")
+    if s.dt > frame_dt:
+        c.fail("sim.dt", f"sim.dt = {s.dt!r} is longer than frame_dt = {frame_dt!r}", "use a substep no longer than one frame")
+    if not s.adaptive_dt and frame_dt / s.dt > s.max_substeps_per_frame * (1 + 1e-9):
+        c.fail("sim.max_substeps_per_frame", f"frame_dt / sim.dt = {frame_dt / s.dt:.0f} substeps exceeds sim.max_substeps_per_frame = {s.max_substeps_per_frame}", "raise max_substeps_per_frame or sim.dt")
+    c.within("sim.cfl", s.cfl, 1e-12, 1.0, "use a CFL number in (0, 1], e.g. cfl = 0.4")
+    c.choice("sim.variant", s.variant, VARIANTS)
+    c.choice("sim.grid", s.grid, GRID_KINDS)
+    c.positive("sim.dx", s.dx, "give the grid spacing in metres, e.g. dx = 0.015625")
+    c.at_least("sim.wall_cells", s.wall_cells, 0, "use 0 or more cells")
+    for i, n in enumerate(s.grid_shape):
+        if n < max(4, 2 * s.wall_cells + 2):
+            c.fail(f"sim.grid_shape[{i}]", f"sim.grid_shape[{i}] = {n} is too small for the B-spline stencil and {s.wall_cells} wall cells", f"use at least {max(4, 2 * s.wall_cells + 2)} nodes per axis")
+    c.at_least("sim.grid_margin", s.grid_margin, 0.0, "use a non-negative fraction, e.g. grid_margin = 0.5")
+    if s.grid_bounds is not None:
+        c.box("sim.grid_bounds", s.grid_bounds[0], s.grid_bounds[1])
+    if not all(math.isfinite(g) for g in s.gravity):
+        c.fail("sim.gravity", f"sim.gravity = {list(s.gravity)} is not finite", "give three finite numbers in m/s², e.g. [0, 0, -9.8]")
+    c.choice("sim.material", s.material, MATERIALS)
+    c.within("sim.restitution", s.restitution, 0.0, 1.0, "use a restitution in [0, 1]")
+    c.at_least("sim.eps_mass", s.eps_mass, 0.0, "use a non-negative threshold, e.g. eps_mass = 1e-3")
+    c.at_least("sim.eps_band", s.eps_band, 0.0, "use a non-negative threshold, e.g. eps_band = 1e-3")
+    c.at_least("sim.max_substeps_per_frame", s.max_substeps_per_frame, 1, "use a positive bound")
+    for i, b in enumerate(s.boundaries):
+        _check_boundary(c, f"sim.boundaries[{i}]", b)
+
+
+def _check_boundary(c: _Checker, p: str, b: Any) -> None:
+    if isinstance(b, PlaneBoundary):
+        c.choice(f"{p}.mode", b.mode, PLANE_MODES)
+        c.nonzero(f"{p}.normal", b.normal, "give the outward normal, e.g. normal = [0, 0, 1]")
+        c.at_least(f"{p}.friction", b.friction, 0.0, "use a non-negative Coulomb coefficient")
+    elif isinstance(b, CuboidBoundary):
+        c.box(p, b.lower, b.upper)
+        c.interval(p, b.start, b.end)
+    elif isinstance(b, ParticleRegion):
+        c.choice(f"{p}.kind", b.kind, REGION_KINDS)
+        c.box(p, b.lower, b.upper)
+        c.interval(p, b.start, b.end)
+    else:
+        c.fail(p, f"{p} is a {type(b).__name__}, not a boundary", "use PlaneBoundary, CuboidBoundary or ParticleRegion")
+
+
+def _check_material(c: _Checker, p: str, m: Any) -> None:
+    """Shared by the default material and material-map entries (None = keep default)."""
+    if m.model is not None:
+        c.choice(f"{p}.model", m.model, MATERIALS)
+    if m.E is not None:
+        c.positive(f"{p}.E", m.E, "give Young's modulus in pascals, e.g. E = 2e6")
+    if m.nu is not None:
+        c.within(f"{p}.nu", m.nu, 0.0, 0.5, "use a Poisson ratio below 0.5, e.g. nu = 0.3", open_high=True)
+    if m.density is not None:
+        c.positive(f"{p}.density", m.density, "give the density in kg/m³, e.g. density = 200")
+    if m.yield_stress is not None:
+        c.positive(f"{p}.yield_stress", m.yield_stress, "give the yield stress in pascals")
+    if m.hardening is not None:
+        c.at_least(f"{p}.hardening", m.hardening, 0.0, "use a non-negative hardening coefficient")
+    if m.friction_angle is not None:
+        c.within(f"{p}.friction_angle", m.friction_angle, 0.0, 90.0, "use an angle in degrees below 90", open_high=True)
+    if m.sigma_R is not None:
+        c.positive(f"{p}.sigma_R", m.sigma_R, "give the fracture strength in pascals, e.g. sigma_R = 5e4")
+
+
+def _check_material_map(c: _Checker, entries: list) -> None:
+    seen: set[int] = set()
+    for i, e in enumerate(entries):
+        p = f"material_map[{i}]"
+        if not isinstance(e, MaterialMapEntry):
+            c.fail(p, f"{p} is a {type(e).__name__}, not a MaterialMapEntry", "use [[material_map]] tables")
+        c.at_least(f"{p}.label", e.label, 0, "use a non-negative integer label")
+        if e.label in seen:
+            c.fail(f"{p}.label", f"{p}.label = {e.label} appears twice in material_map", "give each label one entry")
+        seen.add(e.label)
+        _check_material(c, p, e)
+
+
+def _check_topology(c: _Checker, t: TopologyConfig, frames: int) -> None:
+    c.choice("topology.provider", t.provider, PROVIDERS)
+    c.nonzero("topology.normal", t.normal, "give the plane normal, e.g. normal = [1, 0, 0]")
+    c.at_least("topology.latch_frame", t.latch_frame, 0, "use a frame index >= 0")
+    if t.latch_frame > frames:
+        c.fail("topology.latch_frame", f"topology.latch_frame = {t.latch_frame} is after the last frame ({frames})", "latch within the run or raise frames")
+    if t.latch_time is not None:
+        c.at_least("topology.latch_time", t.latch_time, 0.0, "use a time in seconds >= 0")
+    c.at_least("topology.min_particles", t.min_particles, 1, "need at least one over-stressed particle")
+    c.at_least("topology.persist_frames", t.persist_frames, 1, "use at least one frame")
+    c.positive("topology.band_width", t.band_width, "give the band half-width in Δx, e.g. band_width = 1.0")
+    c.positive("topology.pair_radius", t.pair_radius, "give the pair radius in Δx, e.g. pair_radius = 1.5")
+    c.within("topology.direction_agreement", t.direction_agreement, 0.0, 1.0, "use a |cos| threshold in [0, 1]")
+
+
+def _check_render(c: _Checker, r: RenderConfig) -> None:
+    c.at_least("render.width", r.width, 2, "use an image width of at least 2 pixels")
+    c.at_least("render.height", r.height, 2, "use an image height of at least 2 pixels")
+    c.at_least("render.fps", r.fps, 1, "use a positive frame rate")
+    c.choice("render.mode", r.mode, RENDER_MODES)
+    c.choice("render.backend", r.backend, RENDER_BACKENDS)
+    for i, ch in enumerate(r.background):
+        c.within(f"render.background[{i}]", ch, 0.0, 1.0, "give RGB components in [0, 1]")
+    c.at_least("render.inset_radius", r.inset_radius, 0, "use a radius in pixels >= 0")
+    c.positive("render.inset_zoom", r.inset_zoom, "use a magnification > 0, e.g. inset_zoom = 2.5")
+    cam = r.camera
+    c.within("render.camera.fov_deg", cam.fov_deg, 1e-6, 179.0, "use a field of view in degrees between 0 and 179")
+    c.nonzero("render.camera.up", cam.up, "give an up vector, e.g. up = [0, 0, 1]")
+    view = tuple(t - e for t, e in zip(cam.target, cam.eye))
+    c.nonzero("render.camera.target", view, "put the camera eye and target at different points")
+    cross = (view[1] * cam.up[2] - view[2] * cam.up[1], view[2] * cam.up[0] - view[0] * cam.up[2], view[0] * cam.up[1] - view[1] * cam.up[0])
+    if math.sqrt(sum(x * x for x in cross)) <= 1e-9 * math.sqrt(sum(x * x for x in view)) * math.sqrt(sum(x * x for x in cam.up)):
+        c.fail("render.camera.up", f"render.camera.up = {list(cam.up)} is parallel to the viewing direction", "tilt the eye or choose another up vector")
