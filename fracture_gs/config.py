@@ -140,6 +140,21 @@ class MaterialMapEntry:
     """Fracture strength [Pa]."""
 
 
+ContactNormal = Literal["auto", "latched", "mass_gradient"]
+
+
+@dataclass
+class ContactConfig:
+    """Contact between fragment fields at shared grid nodes (DESIGN.md "Many fragments")."""
+
+    friction: float = 0.0
+    """Coulomb coefficient μ between fragments [unitless]; 0 = the paper's frictionless projection."""
+    normal: ContactNormal = "auto"
+    """Contact normal: `latched` (the first event's plane normal n_Π, the paper), `mass_gradient` (per node
+    n_ab ∝ ∇m_b − ∇m_a of the fragments' band masses) or `auto` (latched for one plane cut into two
+    fragments, mass gradient otherwise)."""
+
+
 @dataclass
 class SimConfig:
     """MLS-MPM solver settings (DESIGN.md "Transfer equations", "Transfer variants")."""
@@ -181,6 +196,13 @@ class SimConfig:
     """Contact gate ε_band (band mass a field needs at a node), same unit as eps_mass."""
     max_substeps_per_frame: int = 100000
     """Safety bound on substeps in one frame (adaptive Δt)."""
+    max_fragments: int = 64
+    """Most fragment ids a run may create (K); providers stop splitting beyond it."""
+    field_slots: int = 4
+    """Fields one grid node can hold (S, 2…8): a node reached by more fragments merges the extra ones
+    into its first field and counts a slot overflow."""
+    contact: ContactConfig = field(default_factory=ContactConfig)
+    """Fragment–fragment contact: friction and normals."""
 
 
 @dataclass

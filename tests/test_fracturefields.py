@@ -8,7 +8,7 @@ import torch
 from fracture_gs import sim as S
 from fracture_gs.sim import reference as ref
 from fracture_gs.sim.diagnostics import SEPARATION, reapproach_ratio
-from simutil import block, config, particles, rand_rotations, rel_err
+from simutil import block, config, fill_slots, particles, rand_rotations, rel_err
 
 N = 3000
 
@@ -31,28 +31,26 @@ def split_state(seed, device, variant, plane_x=0.5, band_all=False, boundaries=(
 @pytest.mark.parametrize("fitted", [False, True])
 def test_two_field_transfer_matches_reference(device, seed, fitted):
     """Fragment-conditioned P2G (mass, momentum, band mass), normalization + contact projection and
-    field-aware G2P equal their float64 references (dense fields), also when the second field is
-    stored only on the shared box S = B⁰ ∩ B¹ and fragment 1 uses slot 0 elsewhere."""
+    field-aware G2P equal their float64 references (dense fields), read back from the slot storage
+    (slot 0 dense, fragment 1 in pool rows where both fragments meet); fitted, the grid work shrinks
+    to the particles' box and the pool holds only nodes near the interface."""
     sim, topo = split_state(seed, device, "full")
     sim.latch(topo)
     P, g, dt = sim.particles, sim.grid, 1e-3
     sim.cfg.wall_cells = 0
     if fitted:
-        full_bytes = g.nbytes
         sim.fit_active_box(1e-3)
-        assert S.layout.box_volume(g.support) < 0.7 * S.layout.box_volume(sim.field_boxes[1]), "slot 1 must shrink to S"
-        assert g.nbytes < 0.75 * full_bytes
+        assert S.layout.box_volume(sim.box) < 0.7 * g.n_nodes, "the active box must shrink the grid work"
     sim.compute_stress(sim.stress, commit=True)
     x0, F0, field = P.x.cpu().clone(), P.F.cpu().clone(), P.fragment.cpu().long()
     gm, gp, gb = ref.p2g(x0, P.v.cpu(), P.C.cpu(), P.mass.cpu(), P.volume.cpu(), sim.stress.cpu(), field, 2, g.shape,
                          g.origin, g.dx, dt, band=P.band.cpu())
     sim.p2g(dt)
-    on_s = torch.zeros(g.shape, dtype=torch.bool)
-    b = g.support
-    on_s[b[0]:b[3], b[1]:b[4], b[2]:b[5]] = True
-    gb_read = gb * on_s  # band mass is kept (and read) only on S
-    assert float(gb_read.sum()) > 0
-    for name, ours, theirs in (("mass", g.mass, gm), ("momentum", g.momentum, gp), ("band mass", g.band_mass, gb_read)):
+    assert float(gb.sum()) > 0
+    rows = int(g.rows_used())
+    shared = int(((gm[0] > 0) & (gm[1] > 0)).sum())
+    assert shared <= rows < 0.5 * int((gm.sum(0) > 0).sum()), "rows only where two fragments (or the band) meet"
+    for name, ours, theirs in (("mass", g.mass, gm), ("momentum", g.momentum, gp), ("band mass", g.band_mass, gb)):
         assert rel_err(ours.cpu(), theirs) <= 1e-5, f"two-field P2G {name} (seed {seed})"
     sim.update_grid(dt)
     gv = ref.grid_update(gm, gp, gb, sim.eps_m, sim.eps_b, dt, sim.cfg.gravity, normal=topo.normal, project=True)
@@ -114,20 +112,24 @@ def random_fields(seed, device, shape=(8, 8, 8)):
     return m, v, n
 
 
+def contact_grid(device, slots=2, friction=0.0, normal="latched", n=(1.0, 0.0, 0.0)):
+    """A full-variant simulator on an 8³ grid whose storage the test fills by hand (`fill_slots`)."""
+    x, vol = block((0.4, 0.4, 0.4), (0.45, 0.45, 0.45), 0.01)
+    cfg = S.SimConfig(dx=1 / 8, grid_shape=(8, 8, 8), gravity=(0, 0, 0), variant="full", wall_cells=0,
+                      field_slots=max(slots, 2), contact=S.ContactConfig(friction=friction, normal=normal))
+    sim = S.Simulator(cfg, particles(x, vol), device=device)
+    sim.latch(S.Topology.from_plane(sim.particles.x, (0.5, 0.5, 0.5), tuple(n), 0.0))
+    sim.grid.ensure_pool(sim.grid.n_nodes)
+    return sim
+
+
 def test_contact_projection_properties(device, seed):
     """Per node: momentum m⁰v⁰ + m¹v¹ conserved (≤ 1e-6 rel), no impulse on separating fields
     (u_n ≥ 0), tangential relative velocity unchanged, u_n ≥ 0 afterwards (e = 0)."""
     m, v, n = random_fields(seed, device)
-    x, vol = block((0.4, 0.4, 0.4), (0.45, 0.45, 0.45), 0.01)
-    cfg = S.SimConfig(dx=1 / 8, grid_shape=(8, 8, 8), gravity=(0, 0, 0), variant="full", wall_cells=0)
-    sim = S.Simulator(cfg, particles(x, vol), device=device)
-    sim.latch(S.Topology.from_plane(sim.particles.x, (0.5, 0.5, 0.5), tuple(n.tolist()), 0.0))
+    sim = contact_grid(device, n=tuple(n.tolist()))
     g = sim.grid
-    g.ensure()
-    assert g.support == (0, 0, 0, 8, 8, 8), "unfitted, slot 1 covers the whole grid"
-    for slot, k in ((g.mp, 0), (g.mp1, 1)):  # (p, m) packed per node
-        slot.copy_(torch.cat([m[k, ..., None] * v[k], m[k, ..., None]], -1).to(device))
-    g.mb.copy_(m.to(device))
+    fill_slots(g, m, v)
     sim.update_grid(1e-3)
     w = g.velocity.double().cpu()
     v, m, n = v.double(), m.double(), n.double()
@@ -160,15 +162,19 @@ def test_global_fragment_pass_equals_local_multifield(device, seed):
 
 
 def test_latch_is_impulse_free(device, seed):
-    """Latching writes only o_p and γ_p: x, v, C, F, mass, volume unchanged to the bit."""
+    """Latching writes only o_p and γ_p: x, v, C, F, mass, volume unchanged to the bit, also when a
+    second event refines the fragments (repeated fracture)."""
     sim, topo = split_state(seed, device, "full")
     sim.substep()
-    before = {k: getattr(sim.particles, k).clone() for k in ("x", "v", "C", "F", "mass", "volume")}
-    sim.latch(topo)
-    for k, t in before.items():
-        assert torch.equal(getattr(sim.particles, k), t), k
-    with pytest.raises(S.SimulationError):
+    for event in range(2):
+        before = {k: getattr(sim.particles, k).clone() for k in ("x", "v", "C", "F", "mass", "volume")}
+        if event == 1:
+            topo.fragment[sim.particles.x[:, 1].cpu() > 0.5] += 2  # a second cut: fragments 2 and 3
         sim.latch(topo)
+        for k, t in before.items():
+            assert torch.equal(getattr(sim.particles, k), t), k
+        sim.substep()
+    assert sim.n_fragments == 4 and len(sim.topologies) == 2
 
 
 def recontact(device, variant, frames=40):
@@ -212,9 +218,9 @@ def test_recontact_full_vs_local_multifield(device):
 
 
 def test_fragments_apart_need_no_second_field():
-    """Two fragments whose boxes do not overlap share no support: S is empty, the grid holds no
-    second field at all, and five substeps match whole-grid boxes bitwise (CPU) with per-fragment
-    mass conserved."""
+    """Two fragments that never share a node (and no band particle) get no pool row: the grid holds
+    slot 0 only, and five substeps match whole-grid boxes bitwise (CPU) with per-fragment mass
+    conserved."""
     xa, vol = block((0.2, 0.4, 0.4), (0.35, 0.6, 0.6), 1 / 48)
     xb, _ = block((0.65, 0.4, 0.4), (0.8, 0.6, 0.6), 1 / 48)
     x = torch.cat([xa, xb])
@@ -224,10 +230,9 @@ def test_fragments_apart_need_no_second_field():
         sim.latch(S.Topology.from_plane(sim.particles.x, (0.5, 0.5, 0.5), (1.0, 0.0, 0.0), 0.05))
         if fit:
             sim.fit_active_box(0.01)
-            assert sim.grid.support == S.layout.EMPTY_BOX
-            assert sim.grid.nbytes < 32**3 * (16 + 12) + 16, "slot 0 only"
         for _ in range(5):
             sim.substep()
+        assert int(sim.grid.rows_used()) == 0, "no node is shared, so no pool row"
         runs.append(sim)
     for k in ("x", "v", "C", "F"):
         assert torch.equal(getattr(runs[0].particles, k), getattr(runs[1].particles, k)), k
@@ -268,8 +273,7 @@ def test_active_box_skips_only_empty_nodes(seed, variant):
         sim.latch(topo)
         if fit:
             sim.fit_active_box(0.01)
-            n_box = [(b[3] - b[0]) * (b[4] - b[1]) * (b[5] - b[2]) for b in sim.field_boxes]
-            assert max(n_box) < 32**3, "the box must actually shrink the work"
+            assert S.layout.box_volume(sim.box) < 32**3, "the box must actually shrink the work"
         for _ in range(5):
             sim.substep()
         runs.append(sim.particles)

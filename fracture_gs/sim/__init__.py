@@ -3,7 +3,9 @@
 Importing this package has no side effects: Warp is initialised by the first `Simulator`
 (`fracture_gs.runtime.ensure_warp`) and each kernel module sets its own compile options.
 """
-from ..config import CuboidBoundary, MaterialConfig, ParticleRegion, PlaneBoundary, SimConfig, TopologyConfig
+from ..config import (ContactConfig, CuboidBoundary, MaterialConfig, ParticleRegion, PlaneBoundary, SimConfig,
+                      TopologyConfig)
+from . import layout
 from .grid import Grid, fit_grid
 from .particles import Particles, SimulationError
 from .simulator import MULTIFIELD_VARIANTS, RELEASE_VARIANTS, SimulationDiverged, Simulator
@@ -11,7 +13,7 @@ from .providers import OracleProvider, ReplayProvider, StressProvider, make_prov
 from .topology import Topology
 
 __all__ = [
-    "CuboidBoundary", "Grid", "MaterialConfig", "MULTIFIELD_VARIANTS", "OracleProvider", "ParticleRegion", "Particles",
+    "ContactConfig", "CuboidBoundary", "Grid", "MaterialConfig", "MULTIFIELD_VARIANTS", "OracleProvider", "ParticleRegion", "Particles",
     "PlaneBoundary", "RELEASE_VARIANTS", "ReplayProvider", "StressProvider", "SimConfig", "SimulationDiverged", "SimulationError", "Simulator", "Topology",
     "TopologyConfig", "fit_grid", "make_provider",
 ]

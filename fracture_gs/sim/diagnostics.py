@@ -17,7 +17,7 @@ import warp as wp
 
 from ..config import PlaneBoundary
 from .grid import Grid
-from .layout import NEVER, STAT_DPX, STAT_DPZ, STAT_DVT, STAT_FIRST_T, STAT_GATED, STAT_PNORM, STAT_UN_AFTER
+from .layout import COUNT_POOL_OVERFLOW, N_COUNTS, NEVER, STAT_DPX, STAT_DPZ, STAT_DVT, STAT_FIRST_T, STAT_GATED, STAT_PNORM, STAT_UN_AFTER
 
 EPS = 1e-30
 SEPARATION = 0.1  # Δx: an interface whose opening exceeds this has separated (DESIGN.md)
@@ -149,11 +149,11 @@ class Diagnostics:
         self.opening0 = self._raw_opening()
         self.open_max = 0.0
         g = sim.grid
-        self.shadow = Grid(g.origin, g.dx, g.shape, 2, sim.device)
-        full = (0, 0, 0) + tuple(g.shape)
-        self.shadow.set_boxes(full, full)  # both fields dense: the counterfactual needs every node
+        self.shadow = Grid(g.origin, g.dx, g.shape, sim.device, slots=sim.cfg.field_slots,
+                           max_fragments=sim.cfg.max_fragments)  # per-fragment fields of the current state
         self.shadow_stress = torch.zeros_like(sim.stress)
         self.shadow_stress_wp = wp.from_torch(self.shadow_stress, dtype=wp.mat33)
+        self.shadow_counts = torch.zeros(N_COUNTS, dtype=torch.int32, device=sim.device)
         counts = topo.counts()
         self.latch_info = {"latch_frame": topo.latch_frame, "latch_time": topo.latch_time, "point": list(topo.point),
                            "normal": list(topo.normal), **counts, "interface_pairs": int(self.pairs[0].numel())}
@@ -193,19 +193,36 @@ class Diagnostics:
             row.update(self._plane_metrics(mom))
         return row
 
-    def _transfer_metrics(self) -> dict:
+    def _shadow_p2g(self) -> None:
+        """Fragment-conditioned P2G of the current state into the shadow grid (its pool grown until
+        nothing overflows), for the counterfactual mixing of any variant."""
         sim = self.sim
         sim.compute_stress(self.shadow_stress, commit=False)
-        sim.p2g(sim.dt, target=self.shadow, multifield=True, stress=self.shadow_stress_wp)
+        self.shadow.n_fields = sim.n_fragments
+        rows = max(sim.pool_rows, 256)
+        for _ in range(8):
+            self.shadow.ensure_pool(rows)
+            self.shadow_counts.zero_()
+            sim.p2g(sim.dt, target=self.shadow, multifield=True, stress=self.shadow_stress_wp,
+                    counts=wp.from_torch(self.shadow_counts))
+            if int(self.shadow_counts[COUNT_POOL_OVERFLOW]) == 0:
+                return
+            rows = 2 * self.shadow.capacity
+
+    def _transfer_metrics(self) -> dict:
+        sim = self.sim
+        with sim._stream_scope():
+            self._shadow_p2g()
         per_fragment = sim.multifield or (sim.latched and sim.spec.per_fragment_pass)
-        cf, real, shared = mixing(self.shadow.mass, self.shadow.momentum, sim.eps_m, (0, 1) if per_fragment else (0, 0))
+        cf, shared = self.shadow.mixing(sim.eps_m)
+        real = 0.0 if per_fragment else cf
         # the realized fields once a fragment-conditioned P2G has run, else the shadow (same kernel)
-        source = sim.grid.mass if sim.multifield and sim.substeps > self.latch_substeps else self.shadow.mass
+        source = sim.grid if sim.multifield and sim.substeps > self.latch_substeps else self.shadow
+        K = sim.n_fragments
         P = sim.particles
-        residual = []
-        for k in (0, 1):
-            mp = float(P.mass.double()[P.fragment == k].sum())
-            residual.append(abs(float(source[k].double().sum()) - mp) / (mp + 1e-12))
+        mp = torch.zeros(K, dtype=torch.float64, device=P.x.device).index_add_(0, P.fragment.long(), P.mass.double())
+        mg = source.fragment_mass(K)
+        residual = ((mg - mp).abs() / (mp + 1e-12)).tolist()
         return {"mixing_counterfactual": cf, "mixing_realized": real, "shared_support_pct": shared,
                 "mass_residual": residual}
 

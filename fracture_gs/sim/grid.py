@@ -1,12 +1,10 @@
-"""`Grid`: nodal fields m^k, p^k, v^k, m^k_band (k = 0, or k ∈ {0, 1} after a multi-field latch).
+"""`Grid`: the nodal fields m^k, p^k, v^k, m^k_band of every fragment k, in the slot storage of `layout.py`.
 
-Storage follows "second fields only where fragments share support" (DESIGN.md, Performance
-rules). Slot 0 is dense over the grid. Fragment 1's field lives in slot 1 only on the shared box
-S = B⁰ ∩ B¹ of the two fields' boxes (each fragment's particles plus stencil and travel). Outside
-S at most one fragment can reach a node, so its field sits in slot 0 there, with the same
-normalization, gravity and boundaries; contact and band mass matter only inside S. The logical
-fields `mass`, `momentum`, `velocity` and `band_mass` ([K, X, Y, Z, …]) are rebuilt from the
-slots for diagnostics and tests.
+A single-field grid (shared variants, or any run before its first latch) is dense slot 0 only. A
+multi-field grid adds the owner word per node and a pool of rows for nodes that two or more
+fragments reach, sized between frames from the rows the last frame used (`ensure_pool`). The
+logical fields `mass`, `momentum`, `velocity`, `band_mass` ([K, X, Y, Z, …]) are rebuilt from the
+slots for tests and small diagnostics; `fragment_mass` and `mixing` reduce the slots directly.
 """
 from __future__ import annotations
 
@@ -15,9 +13,13 @@ import math
 import torch
 import warp as wp
 
-from ..runtime import ensure_warp
 from ..config import SimConfig
-from .layout import EMPTY_BOX, N_STATS, NEVER, STAT_FIRST_T, box_intersection, box_volume
+from ..runtime import ensure_warp
+from .layout import (EMPTY_KEY, N_PAIR_STATS, N_STATS, NEVER, OWNER_MASK, PAIR_FIRST_T, STAT_FIRST_T, GridView,
+                     pool_capacity)
+
+EPS = 1e-30
+
 
 def fit_grid(cfg: SimConfig, x: torch.Tensor) -> tuple[tuple, float, tuple]:
     """(origin, dx, shape) for the config: explicit, or fitted to the particles' bounds plus
@@ -42,126 +44,186 @@ def fit_grid(cfg: SimConfig, x: torch.Tensor) -> tuple[tuple, float, tuple]:
 
 
 class Grid:
-    """Both slots in one buffer per quantity, so a kernel reaches either with one index
-    (`transfer.slot_index`): nodes [0, X·Y·Z) are slot 0 (dense), the next |S| are slot 1 on S.
+    """Slot storage on torch tensors, seen by the kernels through one `GridView` struct (`view`).
 
-    `mp` [X, Y, Z, 4] packs (p, m) so P2G scatters both with one 16-byte atomic, `vel` [X, Y, Z, 3];
-    with two fields, `mp1` [Sx, Sy, Sz, 4], `vel1` [Sx, Sy, Sz, 3] and `mb` [2, Sx, Sy, Sz] (band
-    mass of both fields, read only on S) live on the shared box `support`."""
+    `slots` = 1: one dense field. `slots` = S ≥ 2: up to S fields per node (sim.field_slots).
+    `n_fields` (K, the number of fragment ids in use) sizes the logical fields and pair statistics."""
 
-    def __init__(self, origin, dx: float, shape, n_fields: int, device: str):
+    def __init__(self, origin, dx: float, shape, device: str, slots: int = 1, max_fragments: int = 64):
         ensure_warp()
         self.origin = tuple(float(o) for o in origin)
         self.dx = float(dx)
         self.shape = tuple(int(s) for s in shape)
         if min(self.shape) < 5:
             raise ValueError(f"sim.grid_shape {self.shape} is too small; every axis needs at least 5 nodes")
-        self.n_fields = n_fields
         self.device = device
+        self.slots = int(slots)
+        self.multi = self.slots > 1
+        self.n_nodes = self.shape[0] * self.shape[1] * self.shape[2]
+        self.n_fields = 1
+        self.max_fragments = int(max_fragments)
         self.contact_stats = torch.zeros(N_STATS, dtype=torch.float32, device=device)
         self.contact_stats[STAT_FIRST_T] = NEVER
-        self.wp = dict(stats=wp.from_torch(self.contact_stats))
-        self._capacity = -1
-        self.set_boxes((0, 0, 0) + self.shape, EMPTY_BOX)
-        self.ensure()
+        self.pair_stats = torch.zeros(self.max_fragments**2 * N_PAIR_STATS, dtype=torch.float32, device=device)
+        self.pair_stats.view(-1, N_PAIR_STATS)[:, PAIR_FIRST_T] = NEVER
+        self.wp = dict(stats=wp.from_torch(self.contact_stats), pair_stats=wp.from_torch(self.pair_stats))
+        self.box = (0, 0, 0) + self.shape
+        self.capacity = -1
+        self._owner = torch.zeros(self.n_nodes if self.multi else 1, dtype=torch.int32, device=device)
+        self.ensure_pool(0)
 
-    # ---- the shared box -------------------------------------------------------------------------
-    def set_boxes(self, box0: tuple, box1: tuple) -> None:
-        """Field boxes B⁰, B¹ (node ranges the fields can occupy); slot 1 moves to S = B⁰ ∩ B¹,
-        sized when a kernel first needs it (`ensure`), so a box replaced before any launch costs
-        nothing. Slot 1 starts zeroed; the caller clears slot 0 where it matters."""
-        self.boxes = (tuple(box0), tuple(box1))
-        self.support = box_intersection(box0, box1) if self.n_fields > 1 else EMPTY_BOX
-        self.wp_support = (wp.vec3i(*self.support[:3]), wp.vec3i(*self.support[3:]))
-        self.wp_boxes = [wp.vec3i(*c) for b in self.boxes for c in (b[:3], b[3:])]  # lo0, hi0, lo1, hi1
-        self._stale = True
+    # ---- buffers ------------------------------------------------------------------------------
+    def ensure_pool(self, rows: int) -> bool:
+        """A pool for about `rows` multi-fragment nodes (between frames only: buffers may move).
+        Reallocated (zeroed) when too small or four times too large; returns whether it moved."""
+        cap = pool_capacity(rows) if self.multi else 1
+        if self.capacity >= cap and (not self.multi or self.capacity <= 4 * cap):
+            return False
+        self.capacity = cap
+        extra = cap * (self.slots - 1)
+        n = self.n_nodes + extra
+        self._mp = torch.zeros((n, 4), dtype=torch.float32, device=self.device)
+        self._vel = torch.zeros((n, 3), dtype=torch.float32, device=self.device)
+        self.key = torch.full((cap,), EMPTY_KEY, dtype=torch.int32, device=self.device)
+        self.pool_owner = torch.full((max(1, extra),), -1, dtype=torch.int32, device=self.device)
+        self.band = torch.zeros(cap * self.slots, dtype=torch.float32, device=self.device)
+        self.grad = torch.zeros((cap * self.slots, 3), dtype=torch.float32, device=self.device)
+        self._owner.zero_()
+        self.mp = self._mp[:self.n_nodes].view(*self.shape, 4)
+        self.vel = self._vel[:self.n_nodes].view(*self.shape, 3)
+        v = GridView()
+        v.mp = wp.from_torch(self._mp, dtype=wp.vec4)
+        v.vel = wp.from_torch(self._vel, dtype=wp.vec3)
+        v.owner = wp.from_torch(self._owner)
+        v.key = wp.from_torch(self.key)
+        v.pool_owner = wp.from_torch(self.pool_owner)
+        v.band = wp.from_torch(self.band)
+        v.grad = wp.from_torch(self.grad, dtype=wp.vec3)
+        v.shape = wp.vec3i(*self.shape)
+        v.n_nodes = self.n_nodes
+        v.slots = self.slots
+        v.mask = cap - 1
+        v.origin = wp.vec3(*self.origin)
+        v.dx = self.dx
+        v.inv_dx = 1.0 / self.dx
+        self.view = v
+        return True
 
-    def ensure(self) -> None:
-        """Buffers for slot 0 and slot 1 on S: reallocated (zeroed) when S outgrows them or falls
-        under a quarter of them, which happens only between frames (boxes change there)."""
-        if not self._stale:
-            return
-        self._stale = False
-        n0 = self.shape[0] * self.shape[1] * self.shape[2]
-        dims = tuple(max(0, self.support[i + 3] - self.support[i]) for i in range(3))
-        n = dims[0] * dims[1] * dims[2]
-        if n > self._capacity or 4 * n < self._capacity:
-            self._capacity = n
-            self._mp = torch.zeros((n0 + n, 4), dtype=torch.float32, device=self.device)
-            self._vel = torch.zeros((n0 + n, 3), dtype=torch.float32, device=self.device)
-            self._mb = torch.zeros(max(1, 2 * n), dtype=torch.float32, device=self.device)
-        self.mp = self._mp[:n0].view(*self.shape, 4)
-        self.vel = self._vel[:n0].view(*self.shape, 3)
-        self.mp1 = self._mp[n0:n0 + n].view(*dims, 4)
-        self.vel1 = self._vel[n0:n0 + n].view(*dims, 3)
-        self.mb = self._mb[:2 * n].view(2, *dims)
-        for t in (self.mp1, self.vel1, self.mb):
-            t.zero_()
-        self.wp.update(mp=wp.from_torch(self._mp[:n0 + n], dtype=wp.vec4), vel=wp.from_torch(self._vel[:n0 + n], dtype=wp.vec3),
-                       mb=wp.from_torch(self._mb[:max(1, 2 * n)]))
+    def rows_used(self) -> torch.Tensor:
+        """Pool rows holding a node (a device count, read with the frame's other numbers)."""
+        return (self.key >= 0).sum() if self.multi else torch.zeros((), dtype=torch.int64, device=self.device)
 
     def clear(self) -> None:
-        """Reset every accumulator (of slot 1 on the current S)."""
-        self.ensure()
-        self.mp.zero_()
-        self.mp1.zero_()
-        self.mb.zero_()
+        """Reset every accumulator (dense slot 0, owners, the pool)."""
+        self._mp.zero_()
+        self._owner.zero_()
+        self.key.fill_(EMPTY_KEY)
+        self.pool_owner.fill_(-1)
+        self.band.zero_()
+        self.grad.zero_()
 
     def zero(self) -> None:
         """Reset accumulators and velocities (after a box change no stale node may survive)."""
         self.clear()
-        self.vel.zero_()
-        self.vel1.zero_()
+        self._vel.zero_()
 
-    # ---- logical fields [K, X, Y, Z, …] (diagnostics and tests) ---------------------------------
-    def _expand(self, slot0: torch.Tensor, slot1: torch.Tensor) -> torch.Tensor:
-        """Field k at every node: field 0 is slot 0 inside B⁰; field 1 is slot 1 on S and slot 0
-        on B¹ \\ B⁰."""
-        if self.n_fields == 1:
-            return slot0[None]
-        out = torch.zeros((2, *slot0.shape), dtype=slot0.dtype, device=slot0.device)
-        in0, in1 = self._mask(self.boxes[0]), self._mask(self.boxes[1])
-        shape = in0.shape + (1,) * (slot0.dim() - 3)
-        out[0] = slot0 * in0.view(shape)
-        out[1] = slot0 * (in1 & ~in0).view(shape)
-        s = self.support
-        if box_volume(s) > 0:
-            out[1, s[0]:s[3], s[1]:s[4], s[2]:s[5]] += slot1
+    # ---- slot tables as torch (diagnostics and tests) -------------------------------------------
+    def _slot0_fragment(self) -> torch.Tensor:  # [X·Y·Z] fragment in slot 0 (−1: none)
+        if not self.multi:
+            return torch.zeros(self.n_nodes, dtype=torch.int64, device=self.device)
+        return (self._owner.long() & OWNER_MASK) - 1
+
+    def _pool(self):
+        """(nodes [R], pool fragment [R, S−1], pool buffer index [R, S−1], row index [R]) of used rows."""
+        rows = torch.nonzero(self.key >= 0).flatten()
+        s1 = self.slots - 1
+        frag = self.pool_owner[:self.capacity * s1].view(self.capacity, s1)[rows].long()
+        index = self.n_nodes + rows[:, None] * s1 + torch.arange(s1, device=self.device)[None, :]
+        return self.key[rows].long(), frag, index, rows
+
+    def _expand(self, dense: torch.Tensor, pooled: torch.Tensor) -> torch.Tensor:
+        """Logical field [K, X·Y·Z, …] from slot values (dense [X·Y·Z, …], pooled [n − X·Y·Z, …])."""
+        K = self.n_fields
+        out = torch.zeros((K, self.n_nodes) + dense.shape[1:], dtype=dense.dtype, device=dense.device)
+        f0 = self._slot0_fragment()
+        ok = (f0 >= 0) & (f0 < K)
+        out[f0[ok], torch.nonzero(ok).flatten()] = dense[ok]
+        if self.multi:
+            nodes, frag, index, _ = self._pool()
+            ok = (frag >= 0) & (frag < K)
+            vals = pooled[index - self.n_nodes]
+            out.index_put_((frag[ok], nodes[:, None].expand_as(frag)[ok]), vals[ok], accumulate=True)
         return out
 
-    def _mask(self, box: tuple) -> torch.Tensor:
-        m = torch.zeros(self.shape, dtype=torch.bool, device=self.mp.device)
-        m[box[0]:box[3], box[1]:box[4], box[2]:box[5]] = True
-        return m
+    def _logical(self, buf: torch.Tensor) -> torch.Tensor:
+        return self._expand(buf[:self.n_nodes], buf[self.n_nodes:])
 
     @property
     def mass(self) -> torch.Tensor:  # [K, X, Y, Z]
-        self.ensure()
-        return self._expand(self.mp[..., 3], self.mp1[..., 3])
+        return self._logical(self._mp[:, 3]).view(self.n_fields, *self.shape)
 
     @property
     def momentum(self) -> torch.Tensor:  # [K, X, Y, Z, 3]
-        self.ensure()
-        return self._expand(self.mp[..., :3], self.mp1[..., :3])
+        return self._logical(self._mp[:, :3]).view(self.n_fields, *self.shape, 3)
 
     @property
     def velocity(self) -> torch.Tensor:  # [K, X, Y, Z, 3]
-        self.ensure()
-        return self._expand(self.vel, self.vel1)
+        return self._logical(self._vel).view(self.n_fields, *self.shape, 3)
 
     @property
-    def band_mass(self) -> torch.Tensor:  # [K, X, Y, Z], zero outside S (read only there)
-        if self.n_fields == 1:
-            return torch.zeros((1, *self.shape), dtype=torch.float32, device=self.mp.device)
-        self.ensure()
-        out = torch.zeros((2, *self.shape), dtype=torch.float32, device=self.mp.device)
-        s = self.support
-        if box_volume(s) > 0:
-            out[:, s[0]:s[3], s[1]:s[4], s[2]:s[5]] = self.mb
+    def band_mass(self) -> torch.Tensor:  # [K, X, Y, Z], kept only at nodes with a pool row
+        K = self.n_fields
+        out = torch.zeros((K, self.n_nodes), dtype=torch.float32, device=self.device)
+        if self.multi:
+            nodes, frag, _, rows = self._pool()
+            band = self.band.view(self.capacity, self.slots)[rows]  # [R, S]
+            f0 = self._slot0_fragment()[nodes]
+            allf = torch.cat([f0[:, None], frag], 1)
+            ok = (allf >= 0) & (allf < K)
+            out.index_put_((allf[ok], nodes[:, None].expand_as(allf)[ok]), band[ok], accumulate=True)
+        return out.view(K, *self.shape)
+
+    def fragment_mass(self, K: int) -> torch.Tensor:
+        """Σ_i m_i^k per fragment k < K, in float64 ([K]); a single-field grid holds field 0 only."""
+        m = self._mp[:, 3].double()
+        out = torch.zeros(K, dtype=torch.float64, device=self.device)
+        f0 = self._slot0_fragment()
+        ok = (f0 >= 0) & (f0 < K)
+        out.index_add_(0, f0[ok], m[:self.n_nodes][ok])
+        if self.multi:
+            _, frag, index, _ = self._pool()
+            ok = (frag >= 0) & (frag < K)
+            out.index_add_(0, frag[ok], m[index[ok]])
         return out
+
+    def mixing(self, eps_m: float) -> tuple[float, float]:
+        """(E_mix counterfactual, shared-support %) of the stored fields (Eq. mixing): at every node
+        Σ_k m^k ‖v̄ − v^k‖² with v̄ = Σ_k p^k / Σ_k m^k, over Σ m; shared = nodes with ≥ 2 active fields
+        over nodes with ≥ 1."""
+        m = self._mp[:, 3].double()
+        p = self._mp[:, :3].double()
+        total = float(m.sum()) + EPS
+        active = (m[:self.n_nodes] > eps_m).long()
+        if not self.multi:
+            return 0.0, 0.0
+        nodes, frag, index, _ = self._pool()
+        if nodes.numel() == 0:
+            return 0.0, 0.0
+        mm = torch.cat([m[nodes][:, None], torch.where(frag >= 0, m[index], 0.0)], 1)  # [R, S]
+        pp = torch.cat([p[nodes][:, None], torch.where((frag >= 0)[..., None], p[index], 0.0)], 1)  # [R, S, 3]
+        on = mm > eps_m
+        vbar = pp.sum(1) / mm.sum(1).clamp_min(EPS)[:, None]
+        v = torch.where(on[..., None], pp / mm.clamp_min(EPS)[..., None], torch.zeros_like(pp))
+        cf = float((mm * on * ((vbar[:, None] - v) ** 2).sum(-1)).sum()) / total
+        count = active.clone()
+        count.index_add_(0, nodes, on[:, 1:].sum(1))
+        shared = 100.0 * float((count >= 2).sum()) / max(1, int((count >= 1).sum()))
+        return cf, shared
 
     @property
     def nbytes(self) -> int:
-        """Grid-buffer footprint (slot 0, slot 1 and band mass as allocated) in bytes."""
-        self.ensure()
-        return sum(t.numel() * t.element_size() for t in (self._mp, self._vel, self._mb))
+        """Grid-buffer footprint (dense slot 0, owners and the pool, as allocated) in bytes."""
+        ts = (self._mp, self._vel, self.key, self.pool_owner, self.band, self.grad)
+        owner = self._owner.numel() * 4 if self.multi else 0
+        pool = sum(t.numel() * t.element_size() for t in ts[2:]) if self.multi else 0
+        return sum(t.numel() * t.element_size() for t in ts[:2]) + owner + pool

@@ -1,14 +1,23 @@
-"""The grid's storage layout and the solver's statistics indices: one owner for both.
+"""The grid's storage layout and the solver's counters: one owner, read by grid, kernels and diagnostics.
 
-Storage ("second fields only where fragments share support", DESIGN.md): every quantity keeps
-both slots in one buffer, so a kernel reaches field k at a node with one index. Nodes
-[0, X·Y·Z) are slot 0, dense over the grid; the next |S| entries are slot 1 on the shared box
-S = B⁰ ∩ B¹ of the two fields' node boxes. Field 0 always sits in slot 0; field 1 sits in slot 1
-on S and in slot 0 elsewhere, where no fragment-0 particle reaches (`slot_index`). Boxes are
-(lo, hi) node ranges, hi exclusive.
+Fields live in *slots* (DESIGN.md "Many fragments"). Slot 0 is dense: one (p, m) and one velocity
+per node, for whichever fragment reached the node first in this substep's P2G (`owner`, the
+fragment id + 1 in the low bits of a per-node word, 0 = free). A node that a second fragment
+reaches gets a *row* of a compact pool, an open-addressing hash table keyed by the node's flat
+index: the row holds slots 1 … S−1 (their owners, (p, m), velocities) plus the band mass and
+band-mass gradient of all S slots, which the contact gate and the contact normals read. Only
+nodes touched by two or more fragments (or by an interface-band particle) have a row, so memory
+grows with the fractured surface, not with the grid or with K. `ROW_FLAG` in the owner word tells
+the dense grid update that the node's fields finish in the pool pass (contact before boundaries).
 
-`grid.py` allocates this layout, `transfer.py` indexes it in its kernels, `diagnostics.py` reads
-the statistics; none of them defines either.
+One buffer per quantity holds the dense slots first and the pool slots after them, so a kernel
+reaches any field with one index (`field_index`). A fragment that finds no free slot at a node
+deposits into slot 0 and reads it back there (mass and momentum conserved, that node's fields
+merged): a *slot overflow*, counted every substep and reported, never silent. A pool that is
+full is a *pool overflow*: the frame is redone with a larger pool.
+
+Node boxes are (lo, hi) node ranges, hi exclusive. With one field (shared variants, or before a
+latch) the owner word and the pool are not touched: the kernels take the dense path only.
 """
 from __future__ import annotations
 
@@ -16,10 +25,23 @@ import warp as wp
 
 EMPTY_BOX = (0, 0, 0, 0, 0, 0)
 
-# contact statistics accumulated by the grid update (indices into Grid.contact_stats)
+OWNER_MASK = 0xFFFF  # low bits of the owner word: fragment id + 1 of slot 0 (0 = free)
+ROW_FLAG = 0x10000  # the node has a pool row
+EMPTY_KEY = -1  # a free pool row
+MAX_PROBES = 64  # linear probing gives up here (a pool overflow, then a redo with a larger pool)
+MAX_SLOTS = 8  # compile-time bound on sim.field_slots (registers of the pool pass)
+
+# solver counters (int32, one device array; read once per frame)
+COUNT_CLAMPED, COUNT_ESCAPED, COUNT_SLOT_OVERFLOW, COUNT_POOL_OVERFLOW = range(4)
+N_COUNTS = 4
+
+# contact statistics accumulated by the grid update (float32, indices into Grid.contact_stats)
 STAT_GATED, STAT_PROJECTED, STAT_DPX, STAT_DPY, STAT_DPZ, STAT_PNORM, STAT_UN_AFTER, STAT_DVT, STAT_FIRST_T = range(9)
 N_STATS = 9
-NEVER = 1e30  # STAT_FIRST_T before any contact
+# per fragment pair (a < b, row a·K + b of Grid.pair_stats)
+PAIR_FIRST_T, PAIR_DPX, PAIR_DPY, PAIR_DPZ, PAIR_PNORM, PAIR_GATED = range(6)
+N_PAIR_STATS = 6
+NEVER = 1e30  # a first-contact time before any contact
 
 
 def box_intersection(a: tuple, b: tuple) -> tuple:
@@ -32,9 +54,19 @@ def box_volume(box: tuple) -> int:
     return max(0, box[3] - box[0]) * max(0, box[4] - box[1]) * max(0, box[5] - box[2])
 
 
+def pool_capacity(rows: int) -> int:
+    """Pool rows for `rows` expected multi-fragment nodes: twice that (load ≤ ½ keeps probing short),
+    a power of two, at least 256."""
+    c = 256
+    while c < 2 * rows:
+        c *= 2
+    return c
+
+
 @wp.func
 def inside(node: wp.vec3i, lo: wp.vec3i, hi: wp.vec3i):
-    return node[0] >= lo[0] and node[0] < hi[0] and node[1] >= lo[1] and node[1] < hi[1] and node[2] >= lo[2] and node[2] < hi[2]
+    return (node[0] >= lo[0] and node[0] < hi[0] and node[1] >= lo[1] and node[1] < hi[1]
+            and node[2] >= lo[2] and node[2] < hi[2])
 
 
 @wp.func
@@ -44,9 +76,112 @@ def flat(node: wp.vec3i, lo: wp.vec3i, dims: wp.vec3i):
 
 
 @wp.func
-def slot_index(node: wp.vec3i, k: int, shape: wp.vec3i, s_lo: wp.vec3i, s_hi: wp.vec3i):
-    """Storage index of field k at `node` (layout in `grid.py`): slot 1, after slot 0's X·Y·Z
-    nodes, for field 1 on S; slot 0 otherwise. Branch-free, so one load or atomic serves both."""
-    on_s = k == 1 and inside(node, s_lo, s_hi)
-    i1 = shape[0] * shape[1] * shape[2] + flat(node, s_lo, s_hi - s_lo)
-    return wp.where(on_s, i1, flat(node, wp.vec3i(0, 0, 0), shape))
+def unflat(n: int, shape: wp.vec3i):
+    return wp.vec3i(n // (shape[1] * shape[2]), (n // shape[2]) % shape[1], n % shape[2])
+
+
+@wp.func
+def row_hash(n: int, mask: int):
+    """First probe of node n in a pool of mask + 1 rows (Knuth's multiplicative hash, 31 bits)."""
+    return ((n * 1640531527) & 0x7FFFFFFF) & mask
+
+
+@wp.func
+def find_row(key: wp.array(dtype=wp.int32), n: int, mask: int):
+    """The pool row of node n, or −1 (no row)."""
+    h = row_hash(n, mask)
+    for _probe in range(MAX_PROBES):
+        k = key[h]
+        if k == n:
+            return h
+        if k == EMPTY_KEY:
+            return -1
+        h = (h + 1) & mask
+    return -1
+
+
+@wp.func
+def claim_row(key: wp.array(dtype=wp.int32), owner: wp.array(dtype=wp.int32), n: int, mask: int):
+    """The pool row of node n, inserted (lock-free compare-and-swap) if it has none; −1 when the
+    pool is full. The inserting thread flags the node's owner word."""
+    h = row_hash(n, mask)
+    for _probe in range(MAX_PROBES):
+        k = key[h]
+        if k == n:
+            return h
+        if k == EMPTY_KEY:
+            prev = wp.atomic_cas(key, h, EMPTY_KEY, n)
+            if prev == EMPTY_KEY:
+                wp.atomic_or(owner, n, ROW_FLAG)
+                return h
+            if prev == n:
+                return h
+        h = (h + 1) & mask
+    return -1
+
+
+@wp.func
+def claim_slot0(owner: wp.array(dtype=wp.int32), n: int, k: int):
+    """Fragment id + 1 that owns slot 0 of node n after trying to claim it for fragment k."""
+    word = owner[n]
+    for _try in range(8):
+        if (word & OWNER_MASK) != 0:
+            return word & OWNER_MASK
+        prev = wp.atomic_cas(owner, n, word, word | (k + 1))
+        if prev == word:
+            return k + 1
+        word = prev  # another thread changed the word (claimed slot 0, or flagged a row): look again
+    return word & OWNER_MASK
+
+
+@wp.func
+def claim_pool_slot(pool_owner: wp.array(dtype=wp.int32), row: int, slots: int, k: int):
+    """Slot j ∈ [1, slots) of fragment k in pool row `row` (claimed if free), or 0 when all are taken."""
+    base = row * (slots - 1)
+    for j in range(1, slots):
+        o = pool_owner[base + j - 1]
+        if o == k:
+            return j
+        if o == -1:
+            prev = wp.atomic_cas(pool_owner, base + j - 1, -1, k)
+            if prev == -1 or prev == k:
+                return j
+    return 0
+
+
+@wp.func
+def find_pool_slot(pool_owner: wp.array(dtype=wp.int32), row: int, slots: int, k: int):
+    """Slot j ∈ [1, slots) of fragment k in pool row `row`, or 0 (the fragment deposited in slot 0)."""
+    base = row * (slots - 1)
+    for j in range(1, slots):
+        if pool_owner[base + j - 1] == k:
+            return j
+    return 0
+
+
+@wp.func
+def field_index(n: int, row: int, j: int, n_nodes: int, slots: int):
+    """Buffer index of slot j of node n (row: its pool row, read only when j > 0)."""
+    if j == 0:
+        return n
+    return n_nodes + row * (slots - 1) + j - 1
+
+
+@wp.struct
+class GridView:
+    """Everything a kernel needs to reach the fields (built by `Grid.view`, rebuilt when buffers move)."""
+
+    mp: wp.array(dtype=wp.vec4)  # [X·Y·Z + C·(S−1)] (p, m): dense slot 0, then the pool's slots
+    vel: wp.array(dtype=wp.vec3)  # [X·Y·Z + C·(S−1)] field velocities, same indexing
+    owner: wp.array(dtype=wp.int32)  # [X·Y·Z] fragment + 1 of slot 0 | ROW_FLAG (multi-field grids)
+    key: wp.array(dtype=wp.int32)  # [C] node of each pool row, EMPTY_KEY if free
+    pool_owner: wp.array(dtype=wp.int32)  # [C·(S−1)] fragment of pool slots 1 … S−1, −1 if free
+    band: wp.array(dtype=float)  # [C·S] band mass of slots 0 … S−1 of each row
+    grad: wp.array(dtype=wp.vec3)  # [C·S] band-mass gradient Σ m_p ∇w of slots 0 … S−1
+    shape: wp.vec3i  # nodes per axis
+    n_nodes: int  # X·Y·Z
+    slots: int  # S = sim.field_slots (1 for a single-field grid)
+    mask: int  # C − 1 (C a power of two)
+    origin: wp.vec3  # node (0, 0, 0) [m]
+    dx: float
+    inv_dx: float

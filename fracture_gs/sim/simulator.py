@@ -1,10 +1,11 @@
 """`Simulator`: one MLS-MPM substep per call, in the transfer variant the config names.
 
 Per substep (Algorithm 1): particle regions → stress (plastic return, band release) → grid reset
-→ P2G (shared or fragment-conditioned) → grid update (normalize + gravity per field, contact
-projection, boundaries) → G2P (own field only). A frame is a whole number of substeps ending
-exactly on the frame time; after it the divergence check (one host sync per frame) and the
-fracture event provider run.
+→ P2G (shared or fragment-conditioned, any number of fragments) → grid update (normalize + gravity
+per field; at multi-fragment nodes the contact projection between every pair of fields; then
+boundaries) → G2P (own field only). A frame is a whole number of substeps ending exactly on the
+frame time; after it one host read (divergence, box escapes, slot and pool overflows) and the
+fracture event provider, which may latch again (repeated fracture).
 """
 from __future__ import annotations
 
@@ -20,11 +21,12 @@ from ..variants import VARIANTS, variant_spec
 from ..runtime import ensure_warp, torch_stream
 from .boundary import Boundaries
 from .constitutive import compute_stress, lame
+from .contact import NORMAL_LATCHED, NORMAL_MASS_GRADIENT
 from .grid import Grid, fit_grid
-from .layout import EMPTY_BOX
+from .layout import (COUNT_CLAMPED, COUNT_ESCAPED, COUNT_POOL_OVERFLOW, COUNT_SLOT_OVERFLOW, MAX_SLOTS, N_COUNTS)
 from .particles import Particles, SimulationError
 from .topology import Topology
-from .transfer import clear_fields, g2p, grid_update, p2g
+from .transfer_kernels import clear_dense, clear_pool, g2p, grid_update_dense, grid_update_pool, p2g
 
 MULTIFIELD_VARIANTS = tuple(v for v, s in VARIANTS.items() if s.multifield)
 RELEASE_VARIANTS = tuple(v for v, s in VARIANTS.items() if s.release)
@@ -43,6 +45,12 @@ def validate_sim_config(cfg: SimConfig) -> None:
             raise SimulationError(f"sim.{name} must be a positive number, not {value}")
     if cfg.eps_mass < 0 or cfg.eps_band < 0:
         raise SimulationError("sim.eps_mass and sim.eps_band must be >= 0")
+    if not 2 <= cfg.field_slots <= MAX_SLOTS:
+        raise SimulationError(f"sim.field_slots = {cfg.field_slots} must lie in [2, {MAX_SLOTS}]")
+    if not 2 <= cfg.max_fragments <= 4096:
+        raise SimulationError(f"sim.max_fragments = {cfg.max_fragments} must lie in [2, 4096]")
+    if not (cfg.contact.friction >= 0 and math.isfinite(cfg.contact.friction)):
+        raise SimulationError(f"sim.contact.friction = {cfg.contact.friction} must be a finite number >= 0")
 
 
 def normalize_device(device) -> str:
@@ -72,20 +80,26 @@ class Simulator:
         self.device = normalize_device(device)
         self.particles = particles.to(self.device)
         origin, dx, shape = fit_grid(cfg, self.particles.x)
-        n_fields = 2 if self.spec.multifield else 1
-        self.grid = Grid(origin, dx, shape, n_fields, self.device)
+        slots = cfg.field_slots if self.spec.multifield else 1
+        self.grid = Grid(origin, dx, shape, self.device, slots, cfg.max_fragments)
         self.boundaries = Boundaries(cfg.boundaries, self.device, shape, cfg.wall_cells)
         self.provider = provider
         self.topology: Optional[Topology] = None
+        self.topologies: list[Topology] = []  # every latched topology, in order (repeated fracture)
+        self.n_fragments = 1
         self.time = 0.0
         self.frame = 0
         self.substeps = 0
         self.dt = float(cfg.dt)
         n = len(self.particles)
         self.stress = torch.zeros(n, 3, 3, dtype=torch.float32, device=self.device)
-        self.counts = torch.zeros(2, dtype=torch.int32, device=self.device)  # clamped to the walls, escaped a box
-        self.box_slack = 0  # extra cells on every active box; grows when a frame had to be redone
+        self.counts = torch.zeros(N_COUNTS, dtype=torch.int32, device=self.device)  # see layout.COUNT_*
+        self.box_slack = 0  # extra cells on the active box; grows when a frame had to be redone
         self.frame_redos = 0
+        self.pool_rows = 0  # multi-fragment nodes expected per substep (sizes the grid's pool)
+        self.slot_overflow = 0  # deposits that found no free slot, in the last frame
+        self.slot_overflow_total = 0
+        self.pool_overflow = 0  # pool insertions that failed in the last accepted frame
         P = self.particles
         self.node_mass = float(P.mass.sum() / P.volume.sum()) * dx**3  # typical occupied-node mass ρ̄Δx³
         self.eps_m = cfg.eps_mass * self.node_mass
@@ -94,6 +108,8 @@ class Simulator:
         rho = (P.mass / P.volume).double()
         self.wave_speed = float(torch.sqrt((lam + 2 * mu) / rho).max())
         self._normal = wp.vec3(0.0, 0.0, 0.0)
+        self.normal_mode = NORMAL_LATCHED
+        self.centroids = torch.zeros(cfg.max_fragments, 3, dtype=torch.float32, device=self.device)
         self._diagnostics = None
         self._saved = None  # frame-start state for a redo (`advance`)
         self.record_contact = True  # contact statistics for the diagnostics (off when timing)
@@ -108,68 +124,59 @@ class Simulator:
         self.wp.update({k: wp.from_torch(getattr(P, k)) for k in ("mass", "volume", "E", "nu", "material", "yield_stress",
                                                                    "hardening", "alpha", "fragment", "band")})
         self.wp["stress"] = wp.from_torch(self.stress, dtype=wp.mat33)
-        self.wp["clamped"] = wp.from_torch(self.counts[0:1])
-        self.wp["escaped"] = wp.from_torch(self.counts[1:2])
+        self.wp["counts"] = wp.from_torch(self.counts)
+        self.wp["centroids"] = wp.from_torch(self.centroids, dtype=wp.vec3)
         g = self.grid
         lo = [o + (self.cfg.wall_cells - 1) * g.dx for o in g.origin]
         hi = [o + (s - self.cfg.wall_cells) * g.dx for o, s in zip(g.origin, g.shape)]
         self._lower, self._upper = wp.vec3(*lo), wp.vec3(*hi)
-        self._origin = wp.vec3(*g.origin)
-        self._shape = wp.vec3i(*g.shape)
         self._gravity = wp.vec3(*[float(a) for a in self.cfg.gravity])
         self._reset_boxes()
 
     def _reset_boxes(self) -> None:
         """Grid work over the whole grid (until `fit_active_box`)."""
-        g = self.grid
-        full = (0, 0, 0) + tuple(g.shape)
-        self.box = full  # active node box (lo, hi): where grid work happens
-        g.set_boxes(full, full if self.multifield else EMPTY_BOX)
-        self._box_origin = wp.vec3i(0, 0, 0)
+        self._set_box((0, 0, 0) + tuple(self.grid.shape))
 
-    @property
-    def field_boxes(self) -> tuple:
-        """Node boxes (lo, hi) of field 0 (or the single field) and field 1 (the grid holds them)."""
-        return self.grid.boxes
+    def _set_box(self, box: tuple) -> None:
+        self.box = tuple(box)  # active node box (lo, hi): where grid work happens
+        self.grid.box = self.box
+        self._box_lo, self._box_hi = wp.vec3i(*box[:3]), wp.vec3i(*box[3:])
 
     def fit_active_box(self, horizon: float) -> float:
         """Restrict per-substep grid work to where particles can be during the next `horizon`
-        seconds ("no work on empty grid"): per field, the bounding box of its particles plus the
-        stencil, the distance they can travel (current speed and gravity) and `box_slack`. Slot 0
-        covers their union, slot 1 only the boxes' intersection ("second fields only where
-        fragments share support"). P2G counts any particle whose stencil has left its box, and
-        `advance` redoes such a frame with more slack. One host read, which also returns max |v|
-        for the CFL step; the grid is cleared whenever a box changes so no stale node survives."""
+        seconds ("no work on empty grid"): the particles' bounding box plus the stencil, the
+        distance they can travel (current speed and gravity) and `box_slack`. P2G counts any
+        particle whose stencil has left the box, and `advance` redoes such a frame with more slack.
+        One host read, which also returns max |v| for the CFL step; the grid is cleared whenever
+        the box changes so no stale node survives. The pool is sized here, between frames."""
         P, g = self.particles, self.grid
-        fields = [P.fragment <= 0, P.fragment == 1] if self.multifield else [torch.ones_like(P.fragment, dtype=torch.bool)]
-        big = torch.tensor(3.0e38, device=P.x.device)
-        rows = [torch.where(m[:, None], P.x, big).min(0).values for m in fields]
-        rows += [torch.where(m[:, None], P.x, -big).max(0).values for m in fields]
-        stats = torch.cat(rows + [P.v.norm(dim=1).max()[None]]).cpu()
+        stats = torch.cat([P.x.min(0).values, P.x.max(0).values, P.v.norm(dim=1).max()[None]]).cpu()
         vmax = float(stats[-1])
         if not bool(torch.isfinite(stats).all()):
             return vmax  # the divergence check reports it
         travel = vmax * horizon + 0.5 * math.hypot(*self.cfg.gravity) * horizon**2
         pad = 3 + math.ceil(travel / g.dx) + self.box_slack
-        n = len(fields)
-        boxes = []
-        for k in range(n):
-            lo_w, hi_w = stats[3 * k:3 * k + 3], stats[3 * (n + k):3 * (n + k) + 3]
-            if float(lo_w[0]) > float(hi_w[0]):  # empty field
-                boxes.append(EMPTY_BOX)
-                continue
-            lo = [max(0, int(math.floor((float(lo_w[a]) - o) / g.dx)) - pad) for a, o in enumerate(g.origin)]
-            hi = [min(s, int(math.floor((float(hi_w[a]) - o) / g.dx)) + 1 + pad) for a, (o, s) in enumerate(zip(g.origin, g.shape))]
-            boxes.append(tuple(lo) + tuple(hi))
-        live = [b for b in boxes if b[3] > b[0]]
-        union = tuple(min(b[a] for b in live) for a in range(3)) + tuple(max(b[a] for b in live) for a in range(3, 6))
-        boxes = tuple(boxes) if self.multifield else (union, EMPTY_BOX)
-        if union != self.box or boxes != g.boxes:
-            self.box = union
-            g.set_boxes(*boxes)
+        lo = [max(0, int(math.floor((float(stats[a]) - o) / g.dx)) - pad) for a, o in enumerate(g.origin)]
+        hi = [min(s, int(math.floor((float(stats[3 + a]) - o) / g.dx)) + 1 + pad)
+              for a, (o, s) in enumerate(zip(g.origin, g.shape))]
+        box = tuple(lo) + tuple(hi)
+        moved = g.ensure_pool(self.pool_rows) if self.multifield else False
+        if box != self.box or moved:
+            self._set_box(box)
             g.zero()
-            self._box_origin = wp.vec3i(*union[:3])
+        if self.multifield and self.normal_mode == NORMAL_MASS_GRADIENT:
+            self._update_centroids()
         return vmax
+
+    def _update_centroids(self) -> None:
+        """Mass centroid of every fragment (the contact normal's fallback), on the device."""
+        P = self.particles
+        k = P.fragment.long().clamp(0, self.cfg.max_fragments - 1)
+        mx = torch.zeros(self.cfg.max_fragments, 3, dtype=torch.float32, device=self.device)
+        m = torch.zeros(self.cfg.max_fragments, dtype=torch.float32, device=self.device)
+        mx.index_add_(0, k, P.mass[:, None] * P.x)
+        m.index_add_(0, k, P.mass)
+        self.centroids.copy_(mx / m.clamp_min(1e-30)[:, None])
 
     def _stream_scope(self):
         """Launch Warp on torch's current stream (DESIGN.md "Performance rules")."""
@@ -195,15 +202,13 @@ class Simulator:
 
     # ---- the substep ----------------------------------------------------------------------------
     def substep(self, dt: Optional[float] = None) -> None:
-        """Advance by one substep Δt (default `cfg.dt`). Never syncs; allocates nothing, except slot 1
-        of the grid on the first substep after boxes were reset without a refit (`latch` outside
-        `advance`; `advance` refits, and so allocates, between frames)."""
+        """Advance by one substep Δt (default `cfg.dt`). Never syncs and allocates nothing."""
         dt = float(self.dt if dt is None else dt)
         with self._stream_scope():
             self.boundaries.apply_regions(self.wp["x"], self.wp["v"], len(self.particles), self.time, dt, self.device)
             self.compute_stress(self.stress, commit=True)
             if self.latched and self.spec.per_fragment_pass:
-                for k in (0, 1):
+                for k in range(self.n_fragments):
                     self._grid_pass(dt, only_fragment=k)
             else:
                 self._grid_pass(dt, only_fragment=-1)
@@ -215,8 +220,8 @@ class Simulator:
         w = self.wp
         out_wp = w["stress"] if out is self.stress else wp.from_torch(out, dtype=wp.mat33)
         wp.launch(compute_stress, dim=len(self.particles), device=self.device,
-                  inputs=[w["F"], w["material"], w["E"], w["nu"], w["yield_stress"], w["hardening"], w["alpha"], w["band"],
-                          int(self.release), int(commit), out_wp])
+                  inputs=[w["F"], w["material"], w["E"], w["nu"], w["yield_stress"], w["hardening"], w["alpha"],
+                          w["band"], int(self.release), int(commit), out_wp])
 
     def _grid_pass(self, dt: float, only_fragment: int) -> None:
         """Grid reset, P2G, grid update, G2P over all particles or one fragment's."""
@@ -224,44 +229,52 @@ class Simulator:
         self.update_grid(dt)
         self.g2p(dt, only_fragment)
 
-    def p2g(self, dt: float, only_fragment: int = -1, target=None, multifield=None, stress=None) -> None:
+    def p2g(self, dt: float, only_fragment: int = -1, target=None, multifield=None, stress=None, counts=None) -> None:
         """Reset the active fields and scatter particles into them (Eq. multifield_p2g).
 
-        `target` (a Grid), `multifield` and `stress` (a Warp view) override the destination, the
-        routing and the stress; the diagnostics use them for the per-fragment shadow transfer."""
+        `target` (a Grid), `multifield`, `stress` (a Warp view) and `counts` (a Warp int32 array)
+        override the destination, the routing, the stress and the counters; the diagnostics use
+        them for the per-fragment shadow transfer."""
         g, w = target or self.grid, self.wp
         multi = int(self.multifield if multifield is None else multifield)
-        g.ensure()
         if target is None:
             b = self.box
-            wp.launch(clear_fields, dim=(b[3] - b[0], b[4] - b[1], b[5] - b[2]), device=self.device,
-                      inputs=[self._box_origin, self._shape, *g.wp_support, g.wp["mp"], g.wp["mb"]])
+            wp.launch(clear_dense, dim=(b[3] - b[0], b[4] - b[1], b[5] - b[2]), device=self.device,
+                      inputs=[g.view, self._box_lo, multi])
+            if multi:
+                wp.launch(clear_pool, dim=g.capacity, device=self.device, inputs=[g.view])
+            lo, hi = self._box_lo, self._box_hi
         else:
             g.clear()
+            lo, hi = wp.vec3i(0, 0, 0), wp.vec3i(*g.shape)
+        gradients = int(multi and self.normal_mode == NORMAL_MASS_GRADIENT)
         wp.launch(p2g, dim=len(self.particles), device=self.device,
                   inputs=[w["x"], w["v"], w["C"], w["mass"], w["volume"], w["stress"] if stress is None else stress,
-                          w["fragment"], w["band"], multi, only_fragment, dt, self._origin, g.dx, 1.0 / g.dx, self._shape,
-                          *g.wp_support, *g.wp_boxes, g.wp["mp"], g.wp["mb"], w["escaped"]])
+                          w["fragment"], w["band"], multi, only_fragment, gradients, dt, g.view, lo, hi,
+                          w["counts"] if counts is None else counts])
 
     def update_grid(self, dt: float) -> None:
         """Normalize + gravity per active field, contact projection (full), boundaries."""
         g, multi = self.grid, int(self.multifield)
-        g.ensure()
         self.boundaries.colliders.wall_cells = int(self.cfg.wall_cells)  # the config may change between calls
         b = self.box
-        wp.launch(grid_update, dim=(b[3] - b[0], b[4] - b[1], b[5] - b[2]), device=self.device,
-                  inputs=[self._box_origin, self._shape, *g.wp_support, g.wp["mp"], g.wp["mb"], g.wp["vel"], self.eps_m,
-                          self.eps_b, multi, int(multi and self.spec.contact), self._normal, float(self.cfg.restitution), dt, self._gravity, self._origin, g.dx, self.time,
-                          self.boundaries.colliders, int(self.record_contact), g.wp["stats"]])
+        wp.launch(grid_update_dense, dim=(b[3] - b[0], b[4] - b[1], b[5] - b[2]), device=self.device,
+                  inputs=[g.view, self._box_lo, multi, self.eps_m, dt, self._gravity, self.time,
+                          self.boundaries.colliders])
+        if multi:
+            c = self.cfg.contact
+            wp.launch(grid_update_pool, dim=g.capacity, device=self.device,
+                      inputs=[g.view, self.eps_m, self.eps_b, multi, int(self.spec.contact), self.normal_mode,
+                              self._normal, self.wp["centroids"], float(self.cfg.restitution), float(c.friction), dt,
+                              self._gravity, self.time, self.boundaries.colliders, int(self.record_contact),
+                              g.wp["stats"], g.wp["pair_stats"], g.max_fragments])
 
     def g2p(self, dt: float, only_fragment: int = -1) -> None:
         """Gather v, C, F's update and x from each particle's own field (Eq. field_g2p)."""
         g, w = self.grid, self.wp
-        g.ensure()
         wp.launch(g2p, dim=len(self.particles), device=self.device,
                   inputs=[w["x"], w["v"], w["C"], w["F"], w["fragment"], int(self.multifield), only_fragment, dt,
-                          self._origin, g.dx, 1.0 / g.dx, self._shape, *g.wp_support, g.wp["vel"],
-                          self._lower, self._upper, w["clamped"]])
+                          g.view, self._lower, self._upper, w["counts"]])
 
     # ---- frames -------------------------------------------------------------------------------
     def frame_substeps(self, frame_dt: float, vmax: Optional[float] = None) -> tuple[int, float]:
@@ -275,37 +288,52 @@ class Simulator:
                 dt = min(dt, self.cfl_dt(vmax))
         n = max(1, math.ceil(frame_dt / dt - 1e-9))
         if n > self.cfg.max_substeps_per_frame:
-            raise SimulationError(f"a frame of {frame_dt}s needs {n} substeps of {dt:.3g}s, over sim.max_substeps_per_frame")
+            raise SimulationError(f"a frame of {frame_dt}s needs {n} substeps of {dt:.3g}s, "
+                                  f"over sim.max_substeps_per_frame")
         return n, frame_dt / n
+
+    MAX_TRIES = 8
 
     def advance(self, frame_dt: float) -> int:
         """Simulate one frame: n substeps, then the divergence check and the event provider.
 
-        The frame runs on active boxes fitted at its start. If a particle's stencil left its box
-        (P2G counts it; read with the divergence check), the frame is rolled back and redone with
-        more box slack; a third try runs on the whole grid, where nothing can escape."""
+        The frame runs on an active box fitted at its start. If a particle's stencil left the box
+        (P2G counts it) or the pool of multi-fragment nodes filled up, the frame is rolled back and
+        redone: with more box slack (the second escape runs on the whole grid, where nothing can
+        escape) or with a pool twice as large. One host read per try."""
         if self.substeps == 0:
             self._poll_provider()  # an oracle may latch before the first substep
         start, substeps0 = self.time, self.substeps
         self._save_state()
-        for attempt in range(3):
-            if attempt < 2:
+        escapes = 0
+        for attempt in range(self.MAX_TRIES):
+            if escapes < 2:
                 vmax = self.fit_active_box(frame_dt)  # the frame's one host read also gives max |v|
             else:
+                if self.multifield:
+                    self.grid.ensure_pool(self.pool_rows)
                 self._reset_boxes()
+                self.grid.zero()
                 vmax = None
             n, dt = self.frame_substeps(frame_dt, vmax)
             self.dt = dt
-            self.counts[1] = 0
+            self.counts[COUNT_ESCAPED:] = 0
             for _ in range(n):
                 self.substep(dt)
-            bad, escaped = self._frame_check(dt)
-            if escaped == 0 or attempt == 2:
+            bad, escaped, slot_overflow, pool_overflow, rows = self._frame_check(dt)
+            self.pool_rows = max(rows, self.pool_rows // 2)
+            if (escaped == 0 and pool_overflow == 0) or attempt == self.MAX_TRIES - 1:
                 break
             self._restore_state()
             self.time, self.substeps = start, substeps0
-            self.box_slack = 2 * self.box_slack + 2
+            if escaped:
+                escapes += 1
+                self.box_slack = 2 * self.box_slack + 2
+            if pool_overflow:
+                self.pool_rows = 2 * self.grid.capacity
             self.frame_redos += 1
+        self.slot_overflow, self.pool_overflow = slot_overflow, pool_overflow
+        self.slot_overflow_total += slot_overflow
         self.time = start + frame_dt  # end exactly on the frame time (no drift from summing Δt)
         self.frame += 1
         if bad:
@@ -317,26 +345,27 @@ class Simulator:
 
     def _save_state(self) -> None:
         """Copy what a frame can change into buffers made once (device copies, no sync)."""
-        P = self.particles
+        P, g = self.particles, self.grid
+        keep = {"stats": g.contact_stats, "pair_stats": g.pair_stats, "counts": self.counts}
         if self._saved is None:
             self._saved = {k: torch.empty_like(getattr(P, k)) for k in self.MUTABLE}
-            self._saved["stats"] = torch.empty_like(self.grid.contact_stats)
-            self._saved["counts"] = torch.empty_like(self.counts)
+            self._saved.update({k: torch.empty_like(t) for k, t in keep.items()})
         for k in self.MUTABLE:
             self._saved[k].copy_(getattr(P, k))
-        self._saved["stats"].copy_(self.grid.contact_stats)
-        self._saved["counts"].copy_(self.counts)
+        for k, t in keep.items():
+            self._saved[k].copy_(t)
 
     def _restore_state(self) -> None:
-        P = self.particles
+        P, g = self.particles, self.grid
         for k in self.MUTABLE:
             getattr(P, k).copy_(self._saved[k])
-        self.grid.contact_stats.copy_(self._saved["stats"])
+        g.contact_stats.copy_(self._saved["stats"])
+        g.pair_stats.copy_(self._saved["pair_stats"])
         self.counts.copy_(self._saved["counts"])
 
     def _poll_provider(self) -> None:
-        """Ask the event provider for a topology; the first one returned is latched, once."""
-        if self.provider is not None and not self.latched:
+        """Ask the event provider for a new topology (it returns one per fracture event) and latch it."""
+        if self.provider is not None:
             topology = self.provider(self)
             if topology is not None:
                 self.latch(topology)
@@ -348,40 +377,62 @@ class Simulator:
         bad = ~torch.isfinite(speed) | ~torch.isfinite(P.x).all(dim=1) | (speed > self.grid.dx / dt)
         return bad.sum()
 
-    def _frame_check(self, dt: float) -> tuple[int, int]:
-        """(diverged particles, box escapes) of the frame, in one host read."""
-        bad, escaped = torch.stack([self._bad_particles(dt), self.counts[1].long()]).tolist()
-        return int(bad), int(escaped)
+    def _frame_check(self, dt: float) -> tuple[int, int, int, int, int]:
+        """(diverged particles, box escapes, slot overflows, pool overflows, pool rows used) of the
+        frame, in one host read."""
+        c = self.counts.long()
+        values = torch.stack([self._bad_particles(dt), c[COUNT_ESCAPED], c[COUNT_SLOT_OVERFLOW],
+                              c[COUNT_POOL_OVERFLOW], self.grid.rows_used().to(c.device)]).tolist()
+        return tuple(int(v) for v in values)
 
     def _raise_diverged(self, dt: float, count: int) -> None:
         bound = self.cfl_dt()
-        cause = (f"Δt = {dt:.3g}s is over the CFL bound {bound:.3g}s for this stiffness (wave speed {self.wave_speed:.3g} m/s)"
-                 if dt > bound else "an extreme deformation or boundary velocity")
+        cause = (f"Δt = {dt:.3g}s is over the CFL bound {bound:.3g}s for this stiffness "
+                 f"(wave speed {self.wave_speed:.3g} m/s)" if dt > bound else "an extreme deformation or boundary velocity")
         raise SimulationDiverged(
-            f"simulation diverged at frame {self.frame} (t = {self.time:.4g}s): {count} of {len(self.particles)} particles have a "
-            f"non-finite or exploding velocity; likely cause: {cause}. Lower sim.dt or set sim.adaptive_dt = true.",
-            frame=self.frame, count=count, cause=cause)
+            f"simulation diverged at frame {self.frame} (t = {self.time:.4g}s): {count} of {len(self.particles)} "
+            f"particles have a non-finite or exploding velocity; likely cause: {cause}. Lower sim.dt or set "
+            f"sim.adaptive_dt = true.", frame=self.frame, count=count, cause=cause)
 
     # ---- topology -----------------------------------------------------------------------------
     def latch(self, topology: Topology) -> None:
-        """Impulse-free latch (Eq. state_inheritance): only o_p, γ_p and n_Π are written."""
-        if self.latched:
-            raise SimulationError("this simulation has already latched a topology; a binary run latches once")
+        """Impulse-free latch (Eq. state_inheritance): only o_p, γ_p (and the contact normal) are
+        written. May be called again with a refined topology (repeated fracture): every latch is
+        impulse-free, and the fragment ids only grow."""
         P = self.particles
         if topology.fragment.shape != (len(P),) or topology.band.shape != (len(P),):
             raise SimulationError(f"Topology labels must have shape [{len(P)}] like the particles")
-        P.fragment.copy_(topology.fragment.to(P.fragment.device, torch.int32))
+        fragment = topology.fragment.to(P.fragment.device, torch.int32)
+        k, bands = (int(v) for v in torch.stack([fragment.max().long(), topology.band.to(fragment.device).bool().sum()]))
+        if not (0 <= int(fragment.min()) and k < self.cfg.max_fragments):
+            raise SimulationError(f"Topology fragment ids must lie in [0, sim.max_fragments = {self.cfg.max_fragments}); "
+                                  f"got up to {k}")
+        first = self.topology is None
+        P.fragment.copy_(fragment)
         P.band.copy_(topology.band.to(P.band.device, torch.int32))
-        n = torch.tensor(topology.normal, dtype=torch.float64)
-        self._normal = wp.vec3(*[float(a) for a in n / n.norm()])
+        if first:
+            n = torch.tensor(topology.normal, dtype=torch.float64)
+            self._normal = wp.vec3(*[float(a) for a in n / n.norm()])
         self.topology = topology
-        self._reset_boxes()  # the routing changed: the next advance() refits one box per field
+        self.topologies.append(topology)
+        self.n_fragments = max(self.n_fragments, k + 1)
+        self.grid.n_fields = self.n_fragments if self.spec.multifield else 1
+        mode = self.cfg.contact.normal
+        binary = len(getattr(topology, "events", ())) <= 1 and self.n_fragments <= 2
+        self.normal_mode = NORMAL_LATCHED if mode == "latched" or (mode == "auto" and binary) else NORMAL_MASS_GRADIENT
+        self.pool_rows = max(self.pool_rows, 4 * bands + len(P) // 64)
+        self._reset_boxes()  # the routing changed: the next advance() refits the box and the pool
+        if self.multifield:
+            self.grid.ensure_pool(self.pool_rows)
+            self.grid.zero()
+            if self.normal_mode == NORMAL_MASS_GRADIENT:
+                self._update_centroids()
         if self._diagnostics is not None:
             self._diagnostics.on_latch()
 
     def clamped_count(self) -> int:
         """Particles clamped to the domain walls so far (host read)."""
-        return int(self.counts[0].item())
+        return int(self.counts[COUNT_CLAMPED].item())
 
     def diagnostics(self) -> dict:
         """Metrics of DESIGN.md "Diagnostics" for the current state (see `diagnostics.py`)."""

@@ -12,6 +12,7 @@ class OracleProvider:
 
     def __init__(self, cfg: TopologyConfig):
         self.cfg = cfg
+        self.topology: Optional[Topology] = None
 
     def due(self, frame: int, time: float) -> bool:
         if self.cfg.latch_time is not None:
@@ -19,7 +20,8 @@ class OracleProvider:
         return frame >= self.cfg.latch_frame
 
     def __call__(self, sim) -> Optional[Topology]:
-        if not self.due(sim.frame, sim.time):
+        if self.topology is not None or not self.due(sim.frame, sim.time):
             return None
-        return Topology.from_plane(sim.particles.x, self.cfg.point, self.cfg.normal, self.cfg.band_width * sim.grid.dx,
+        self.topology = Topology.from_plane(sim.particles.x, self.cfg.point, self.cfg.normal, self.cfg.band_width * sim.grid.dx,
                                    latch_time=sim.time, latch_frame=sim.frame, pair_radius=self.cfg.pair_radius)
+        return self.topology

@@ -12,10 +12,12 @@ class ReplayProvider:
 
     def __init__(self, topology: Topology):
         self.topology = topology
+        self.done = False
 
     def __call__(self, sim) -> Optional[Topology]:
-        if sim.frame < self.topology.latch_frame:
+        if self.done or sim.frame < self.topology.latch_frame:
             return None
+        self.done = True
         t = self.topology
         return Topology(fragment=t.fragment.to(sim.device), band=t.band.to(sim.device), normal=t.normal, point=t.point,
                         latch_time=sim.time, latch_frame=sim.frame, pair_radius=t.pair_radius)

@@ -1,0 +1,362 @@
+"""Particle–grid transfer kernels: P2G, grid update (normalize, gravity, contact, boundaries) and G2P
+— shared, fragment-conditioned (FractureFields, any number of fragments) and per-fragment passes.
+
+Quadratic B-spline weights with ξ = (x − origin)/Δx, base = ⌊ξ − 0.5⌋, f = ξ − base:
+w = (½(1.5−f)², 0.75−(f−1)², ½(f−0.5)²), ∇w from dw = (f−1.5, −2(f−1), f−0.5)/Δx.
+Routing (Eqs. multifield_p2g, field_g2p): with `multifield` a particle writes to and reads from
+the field of its own fragment k = o_p only, wherever the slot storage keeps it at that node
+(`layout.py`); otherwise every particle uses the dense field. The float64 torch twins (dense
+fields) are in `fracture_gs.sim.reference`.
+"""
+from __future__ import annotations
+
+import warp as wp
+
+from .boundary import Colliders, apply_boundaries
+from .contact import contact_normal, contact_projection, record_contact
+from .layout import (COUNT_CLAMPED, COUNT_ESCAPED, COUNT_POOL_OVERFLOW, COUNT_SLOT_OVERFLOW, EMPTY_KEY, MAX_SLOTS,
+                     OWNER_MASK, ROW_FLAG, GridView, claim_pool_slot, claim_row, claim_slot0, field_index, find_pool_slot,
+                     find_row, flat, inside, unflat)
+
+wp.set_module_options({"enable_backward": False})  # forward-only kernels compile in half the time
+
+mat_s3 = wp.types.matrix(shape=(MAX_SLOTS, 3), dtype=float)  # one vec3 per slot (registers of the pool pass)
+vec_s = wp.types.vector(length=MAX_SLOTS, dtype=float)
+vec_si = wp.types.vector(length=MAX_SLOTS, dtype=int)
+
+_RED_V4 = r"""
+#if defined(__CUDA_ARCH__) && (__CUDA_ARCH__ >= 900)
+    wp::vec4* p = &wp::index(arr, i);
+    asm volatile("red.global.add.v4.f32 [%0], {%1, %2, %3, %4};"
+                 :: "l"(p), "f"(value[0]), "f"(value[1]), "f"(value[2]), "f"(value[3]) : "memory");
+#else
+    wp::atomic_add(arr, i, value);
+#endif
+"""
+
+
+@wp.func_native(_RED_V4)
+def atomic_add_vec4(arr: wp.array(dtype=wp.vec4), i: int, value: wp.vec4):
+    """arr[i,j,k,l] += value: one 16-byte vector reduction on Hopper (sm_90+), where P2G's
+    (momentum, mass) scatter is bound by atomic throughput; Warp's atomic_add elsewhere."""
+    ...
+
+
+@wp.func
+def stencil_base(xi: wp.vec3, shape: wp.vec3i):
+    """Lowest stencil node ⌊ξ − 0.5⌋, clamped into the grid so a stray (or non-finite) particle
+    never indexes outside it; the domain walls keep real particles well inside."""
+    base = wp.vec3i(0, 0, 0)
+    for a in range(3):
+        b = wp.floor(xi[a] - 0.5)
+        if not (b >= 0.0):  # also catches NaN
+            b = 0.0
+        if b > float(shape[a] - 3):
+            b = float(shape[a] - 3)
+        base[a] = int(b)
+    return base
+
+
+@wp.func
+def stencil(xp: wp.vec3, origin: wp.vec3, inv_dx: float, shape: wp.vec3i):
+    """Base node, weights w[a, axis] and their ξ-derivatives dw[a, axis] for a = 0, 1, 2."""
+    xi = (xp - origin) * inv_dx
+    base = stencil_base(xi, shape)
+    f = xi - wp.vec3(float(base[0]), float(base[1]), float(base[2]))
+    w = wp.mat33(0.0)
+    dw = wp.mat33(0.0)
+    for a in range(3):
+        w[0, a] = 0.5 * (1.5 - f[a]) * (1.5 - f[a])
+        w[1, a] = 0.75 - (f[a] - 1.0) * (f[a] - 1.0)
+        w[2, a] = 0.5 * (f[a] - 0.5) * (f[a] - 0.5)
+        dw[0, a] = f[a] - 1.5
+        dw[1, a] = -2.0 * (f[a] - 1.0)
+        dw[2, a] = f[a] - 0.5
+    return base, f, w, dw
+
+
+@wp.func
+def node_terms(i: int, j: int, l: int, f: wp.vec3, w: wp.mat33, dw: wp.mat33, dx: float, inv_dx: float):
+    """Weight w_ip, gradient ∇w_ip and offset x_i − x_p of stencil node (i, j, l)."""
+    weight = w[i, 0] * w[j, 1] * w[l, 2]
+    grad = wp.vec3(dw[i, 0] * w[j, 1] * w[l, 2], w[i, 0] * dw[j, 1] * w[l, 2], w[i, 0] * w[j, 1] * dw[l, 2]) * inv_dx
+    dpos = (wp.vec3(float(i), float(j), float(l)) - f) * dx
+    return weight, grad, dpos
+
+
+
+@wp.func
+def routed_field(o: int, only_fragment: int, multifield: int):
+    """Field the particle writes to and reads from (its fragment under fragment-conditioned
+    transfer, else the one shared field 0), or −1 when a per-fragment pass skips it."""
+    if only_fragment >= 0 and o != only_fragment:
+        return -1
+    if multifield != 0 and o > 0:
+        return o
+    return 0
+
+
+@wp.func
+def deposit_index(g: GridView, n: int, k: int, in_band: int, counts: wp.array(dtype=wp.int32)):
+    """(buffer index, pool row, slot) where fragment k deposits at node n: slot 0 if it owns it or
+    claims it; else a pool slot of the node's row; else (slot overflow) slot 0 of another fragment.
+    Band particles also make sure the node has a row, which holds the band mass the gate reads."""
+    own = claim_slot0(g.owner, n, k)
+    row = int(-1)
+    j = int(0)
+    if own != k + 1 or in_band != 0:
+        row = claim_row(g.key, g.owner, n, g.mask)
+        if row < 0:
+            wp.atomic_add(counts, COUNT_POOL_OVERFLOW, 1)
+        elif own != k + 1:
+            j = claim_pool_slot(g.pool_owner, row, g.slots, k)
+            if j == 0:
+                wp.atomic_add(counts, COUNT_SLOT_OVERFLOW, 1)
+    return field_index(n, row, j, g.n_nodes, g.slots), row, j
+
+
+@wp.func
+def read_index(g: GridView, n: int, k: int):
+    """Buffer index of fragment k's field at node n: the same slot P2G deposited into."""
+    word = g.owner[n]
+    if (word & OWNER_MASK) == k + 1 or (word & ROW_FLAG) == 0:
+        return n
+    row = find_row(g.key, n, g.mask)
+    if row < 0:
+        return n
+    return field_index(n, row, find_pool_slot(g.pool_owner, row, g.slots, k), g.n_nodes, g.slots)
+
+
+@wp.kernel
+def p2g(
+    x: wp.array(dtype=wp.vec3),  # [N]
+    v: wp.array(dtype=wp.vec3),  # [N]
+    C: wp.array(dtype=wp.mat33),  # [N]
+    mass: wp.array(dtype=float),  # [N]
+    volume: wp.array(dtype=float),  # [N] rest volume V⁰
+    stress: wp.array(dtype=wp.mat33),  # [N] Kirchhoff τ (band-released)
+    fragment: wp.array(dtype=wp.int32),  # [N] o_p (−1 before the first latch)
+    band: wp.array(dtype=wp.int32),  # [N] γ_p
+    multifield: int,
+    only_fragment: int,  # ≥ 0: skip every particle of another fragment (global fragment pass)
+    gradients: int,  # accumulate band-mass gradients (mass-gradient contact normals)
+    dt: float,
+    g: GridView,
+    lo: wp.vec3i,  # active box [lo, hi): a stencil outside it is counted (the frame is redone)
+    hi: wp.vec3i,
+    counts: wp.array(dtype=wp.int32),  # [N_COUNTS] running counters
+):
+    """m_i^k += w m_p;  p_i^k += w m_p (v_p + C_p(x_i − x_p)) − Δt V⁰ τ_p ∇w  (k = routed field);
+    band particles add w m_p (and m_p ∇w) to their slot's band mass at the node (Eq. band_mass)."""
+    p = wp.tid()
+    k = routed_field(fragment[p], only_fragment, multifield)
+    if k < 0:
+        return
+    base, f, w, dw = stencil(x[p], g.origin, g.inv_dx, g.shape)
+    if not (inside(base, lo, hi) and inside(base + wp.vec3i(2, 2, 2), lo, hi)):
+        wp.atomic_add(counts, COUNT_ESCAPED, 1)  # the grid update will not see it: `advance` redoes the frame
+    m = mass[p]
+    vp = v[p]
+    Cp = C[p]
+    force = -dt * volume[p] * stress[p]
+    in_band = band[p]
+    for i in range(3):
+        for j in range(3):
+            for l in range(3):  # noqa: E741
+                weight, grad, dpos = node_terms(i, j, l, f, w, dw, g.dx, g.inv_dx)
+                n = flat(wp.vec3i(base[0] + i, base[1] + j, base[2] + l), wp.vec3i(0, 0, 0), g.shape)
+                mom = weight * m * (vp + Cp * dpos) + force * grad
+                idx = n
+                if multifield != 0:
+                    idx, row, s = deposit_index(g, n, k, in_band, counts)
+                    if in_band != 0 and row >= 0:
+                        wp.atomic_add(g.band, row * g.slots + s, weight * m)
+                        if gradients != 0:
+                            wp.atomic_add(g.grad, row * g.slots + s, m * grad)
+                atomic_add_vec4(g.mp, idx, wp.vec4(mom[0], mom[1], mom[2], weight * m))
+
+
+@wp.kernel
+def clear_dense(g: GridView, box_origin: wp.vec3i, multifield: int):
+    """Reset slot 0 (and its owner word) over the active box."""
+    ti, tj, tl = wp.tid()
+    n = flat(wp.vec3i(ti + box_origin[0], tj + box_origin[1], tl + box_origin[2]), wp.vec3i(0, 0, 0), g.shape)
+    g.mp[n] = wp.vec4(0.0)
+    if multifield != 0:
+        g.owner[n] = 0
+
+
+@wp.kernel
+def clear_pool(g: GridView):
+    """Free every pool row."""
+    r = wp.tid()
+    g.key[r] = EMPTY_KEY
+    for s in range(g.slots):
+        g.band[r * g.slots + s] = 0.0
+        g.grad[r * g.slots + s] = wp.vec3(0.0)
+        if s > 0:
+            g.pool_owner[r * (g.slots - 1) + s - 1] = -1
+            g.mp[g.n_nodes + r * (g.slots - 1) + s - 1] = wp.vec4(0.0)
+
+
+@wp.func
+def normalized(q: wp.vec4, eps_m: float, dt: float, gravity: wp.vec3):
+    """v = p/m + Δt g for an active field (m > ε_m), else 0."""
+    if q[3] > eps_m:
+        return wp.vec3(q[0], q[1], q[2]) / q[3] + dt * gravity
+    return wp.vec3(0.0)
+
+
+@wp.kernel
+def grid_update_dense(
+    g: GridView,
+    box_origin: wp.vec3i,  # the launch covers the active box starting at this node
+    multifield: int,
+    eps_m: float,  # absolute ε_m
+    dt: float,
+    gravity: wp.vec3,
+    t: float,
+    colliders: Colliders,
+):
+    """Slot 0 of every node: v = p/m + Δt g where m > ε_m, else 0; then the boundaries, except at
+    nodes with a pool row, whose fields finish in `grid_update_pool` (contact before boundaries)."""
+    ti, tj, tl = wp.tid()
+    node = wp.vec3i(ti + box_origin[0], tj + box_origin[1], tl + box_origin[2])
+    n = flat(node, wp.vec3i(0, 0, 0), g.shape)
+    q = g.mp[n]
+    v = normalized(q, eps_m, dt, gravity)
+    deferred = False
+    if multifield != 0:
+        deferred = (g.owner[n] & ROW_FLAG) != 0
+    if q[3] > eps_m and not deferred:
+        xi = g.origin + wp.vec3(float(node[0]), float(node[1]), float(node[2])) * g.dx
+        v = apply_boundaries(v, node, xi, t, colliders)
+    g.vel[n] = v
+
+
+@wp.kernel
+def grid_update_pool(
+    g: GridView,
+    eps_m: float,
+    eps_b: float,  # absolute ε_band
+    gate: int,  # evaluate the contact gate (multi-field after a latch)
+    project: int,  # apply the contact projection (FractureFields)
+    normal_mode: int,  # contact.NORMAL_LATCHED or NORMAL_MASS_GRADIENT
+    latched: wp.vec3,  # n_Π of the first event
+    centroids: wp.array(dtype=wp.vec3),  # [K] fragment centroids (normal fallback)
+    restitution: float,
+    friction: float,  # Coulomb μ between fragments
+    dt: float,
+    gravity: wp.vec3,
+    t: float,
+    colliders: Colliders,
+    record: int,  # accumulate contact statistics (off when timing the transfer)
+    stats: wp.array(dtype=float),  # [N_STATS]
+    pair_stats: wp.array(dtype=float),  # [K·K·N_PAIR_STATS]
+    n_fragments: int,  # K (pair rows of pair_stats)
+):
+    """Nodes with a pool row: every field normalized, the contact projection between every pair of
+    active, band-supported, approaching fields (ordered by fragment id), then the boundaries."""
+    r = wp.tid()
+    n = g.key[r]
+    if n == EMPTY_KEY:
+        return
+    node = unflat(n, g.shape)
+    xi = g.origin + wp.vec3(float(node[0]), float(node[1]), float(node[2])) * g.dx
+    V = mat_s3(0.0)
+    G = mat_s3(0.0)
+    m = vec_s(0.0)
+    b = vec_s(0.0)
+    frag = vec_si(-1)
+    frag[0] = (g.owner[n] & OWNER_MASK) - 1
+    m[0] = g.mp[n][3]
+    V[0] = g.vel[n]
+    for s in range(g.slots):
+        b[s] = g.band[r * g.slots + s]
+        G[s] = g.grad[r * g.slots + s]
+        if s > 0:
+            i = g.n_nodes + r * (g.slots - 1) + s - 1
+            frag[s] = g.pool_owner[r * (g.slots - 1) + s - 1]
+            q = g.mp[i]
+            m[s] = q[3]
+            V[s] = normalized(q, eps_m, dt, gravity)
+    if gate != 0:
+        for a in range(g.slots):
+            for c in range(a + 1, g.slots):
+                if frag[a] >= 0 and frag[c] >= 0 and m[a] > eps_m and m[c] > eps_m and b[a] > eps_b and b[c] > eps_b:
+                    lo = a
+                    hi = c
+                    if frag[c] < frag[a]:
+                        lo = c
+                        hi = a
+                    nrm = contact_normal(normal_mode, latched, G[lo], G[hi], centroids[frag[lo]], centroids[frag[hi]])
+                    v0 = V[lo]
+                    v1 = V[hi]
+                    if wp.dot(v1 - v0, nrm) < 0.0:
+                        w0 = v0
+                        w1 = v1
+                        if project != 0:
+                            w0, w1 = contact_projection(v0, v1, m[lo], m[hi], nrm, restitution, friction)
+                        if record != 0:
+                            pair = -1
+                            if frag[hi] < n_fragments:
+                                pair = frag[lo] * n_fragments + frag[hi]
+                            record_contact(stats, pair_stats, pair, t, v0, v1, w0, w1, m[lo], m[hi], nrm, project)
+                        V[lo] = w0
+                        V[hi] = w1
+    for s in range(g.slots):
+        v = V[s]
+        if m[s] > eps_m:
+            v = apply_boundaries(v, node, xi, t, colliders)
+        if s == 0:
+            g.vel[n] = v
+        else:
+            g.vel[g.n_nodes + r * (g.slots - 1) + s - 1] = v
+
+
+@wp.kernel
+def g2p(
+    x: wp.array(dtype=wp.vec3),
+    v: wp.array(dtype=wp.vec3),
+    C: wp.array(dtype=wp.mat33),
+    F: wp.array(dtype=wp.mat33),
+    fragment: wp.array(dtype=wp.int32),
+    multifield: int,
+    only_fragment: int,
+    dt: float,
+    g: GridView,
+    lower: wp.vec3,  # particles are clamped into [lower, upper] and counted
+    upper: wp.vec3,
+    counts: wp.array(dtype=wp.int32),
+):
+    """Eqs. field_g2p, field_apic, field_deformation from the particle's own field only (no fallback):
+    v = Σ w v_i; C = 4/Δx² Σ w v_i (x_i − x_p)ᵀ; F ← (I + Δt Σ v_i ∇wᵀ) F; x ← x + Δt v."""
+    p = wp.tid()
+    k = routed_field(fragment[p], only_fragment, multifield)
+    if k < 0:
+        return
+    base, f, w, dw = stencil(x[p], g.origin, g.inv_dx, g.shape)
+    vp = wp.vec3(0.0)
+    B = wp.mat33(0.0)
+    gradv = wp.mat33(0.0)
+    for i in range(3):
+        for j in range(3):
+            for l in range(3):  # noqa: E741
+                weight, grad, dpos = node_terms(i, j, l, f, w, dw, g.dx, g.inv_dx)
+                n = flat(wp.vec3i(base[0] + i, base[1] + j, base[2] + l), wp.vec3i(0, 0, 0), g.shape)
+                idx = n
+                if multifield != 0:
+                    idx = read_index(g, n, k)
+                vi = g.vel[idx]
+                vp = vp + weight * vi
+                B = B + weight * wp.outer(vi, dpos)
+                gradv = gradv + wp.outer(vi, grad)
+    v[p] = vp
+    C[p] = B * (4.0 * g.inv_dx * g.inv_dx)
+    F[p] = (wp.identity(n=3, dtype=float) + dt * gradv) * F[p]
+    xn = x[p] + dt * vp
+    xc = wp.vec3(wp.clamp(xn[0], lower[0], upper[0]), wp.clamp(xn[1], lower[1], upper[1]),
+                 wp.clamp(xn[2], lower[2], upper[2]))
+    if xc[0] != xn[0] or xc[1] != xn[1] or xc[2] != xn[2]:
+        wp.atomic_add(counts, COUNT_CLAMPED, 1)
+    x[p] = xc
