@@ -19,7 +19,7 @@ MaterialName = Literal["fixed_corotated", "neo_hookean", "stvk_hencky_vm", "druc
 PlaneMode = Literal["sticky", "slip", "friction"]
 RegionKind = Literal["impulse", "velocity"]
 GridKind = Literal["explicit", "auto"]
-ProviderName = Literal["none", "oracle", "stress"]
+ProviderName = Literal["none", "oracle", "stress", "voronoi"]
 RenderMode = Literal["classic", "antialiased"]
 RenderBackend = Literal["auto", "gsplat", "torch"]
 Preset = Literal["small", "paper"]
@@ -206,11 +206,26 @@ class SimConfig:
 
 
 @dataclass
+class OraclePlane:
+    """One timed cut of the oracle provider: every fragment the plane crosses is split."""
+
+    point: Vec3 = (0.0, 0.0, 0.0)
+    """A point on the plane [m]."""
+    normal: Vec3 = (1.0, 0.0, 0.0)
+    """Plane normal; the new fragment of each cut lies on its positive side [unitless, normalized on load]."""
+    latch_frame: int = 0
+    """Frame at whose end the plane cuts (0 = before the first substep)."""
+    latch_time: Optional[float] = None
+    """Cut at the first frame end at or after this time [s] (overrides latch_frame)."""
+
+
+@dataclass
 class TopologyConfig:
     """Fracture event provider (DESIGN.md "Fracture event providers")."""
 
     provider: ProviderName = "none"
-    """`none`, `oracle` (analytic plane) or `stress` (stress-guided detection)."""
+    """`none`, `oracle` (analytic planes), `stress` (stress-guided detection) or `voronoi` (pre-fracture
+    into cells)."""
     point: Vec3 = (0.0, 0.0, 0.0)
     """Oracle plane point [m]."""
     normal: Vec3 = (1.0, 0.0, 0.0)
@@ -229,6 +244,25 @@ class TopologyConfig:
     """Interface pairs: nearest opposite-band particle within pair_radius·Δx."""
     direction_agreement: float = 0.7
     """Stress: mean |cos| between principal directions below which the normal falls back to PCA."""
+    planes: list = field(default_factory=list)
+    """Oracle: OraclePlane list of timed cuts (`[[topology.planes]]`); empty = the single plane above."""
+    max_events: int = 1
+    """Stress: how many fracture events may latch (1 = the paper's single latch; more = repeated
+    fracture, every over-stressed fragment cut again)."""
+    split_components: bool = True
+    """After every event, give each disconnected piece of a fragment its own id."""
+    min_fragment_particles: int = 8
+    """Pieces with fewer particles stay with their parent fragment."""
+    cells: int = 8
+    """Voronoi: number of cells (seeded at particles)."""
+    seed: int = 0
+    """Voronoi: random seed of the cell sites."""
+    impact_point: Optional[Vec3] = None
+    """Voronoi: concentrate the cells around this point [m] (None = uniform over the object)."""
+    impact_radius: float = 0.1
+    """Voronoi: spread of the sites around impact_point (standard deviation) [m]."""
+    latch_on_contact: bool = False
+    """Voronoi: shatter at the first contact with a plane collider (instead of latch_frame / latch_time)."""
 
 
 @dataclass

@@ -9,7 +9,7 @@ from __future__ import annotations
 import copy
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Iterator, Optional
+from typing import Iterator, Optional, Union
 
 import torch
 
@@ -68,8 +68,8 @@ def check_inside_grid(sim: Simulator, source: str) -> None:
 
 
 def make_simulator(cfg: SceneConfig, gs: GaussianSet, variant: str, device: str,
-                   topology: Optional[Topology] = None) -> Simulator:
-    """A simulator for one variant. `topology` (a saved one) is replayed at its latch frame instead
+                   topology: Union[Topology, list, None] = None) -> Simulator:
+    """A simulator for one variant. `topology` (a saved one, or a run's history of them) is replayed at its latch frame instead
     of running the event provider, so every variant uses the same topology; `baseline` runs no
     provider but still receives the saved labels for its diagnostics (its transfer ignores them)."""
     sim_cfg = copy.deepcopy(cfg.sim)

@@ -24,6 +24,7 @@ from .render.camera import from_config
 from .render.gaussians import exposed_interior_colors, sh_colors
 from .render.splat import render
 from .sim import SimulationDiverged, Topology
+from .sim.topology import save_history
 
 
 class Painter:
@@ -148,8 +149,8 @@ def run_variant(cfg, gs, variant, device, out_dir: Path, painter: Painter, topol
         metrics_file.write(json.dumps({"variant": variant, "frame": err.frame, "diverged": str(err)}) + "\n")
     finally:
         bar.close()
-    if sim.topology is not None and topology is None:
-        topology = sim.topology
+    if sim.topologies and topology is None:
+        topology = list(sim.topologies)
     return summarize(variant, rows, status, time.perf_counter() - t0), topology
 
 
@@ -165,6 +166,8 @@ def compose_comparison(cfg, variants, frame_lists, topology: Optional[Topology],
     """Side-by-side video at matched frames with captions and, after the latch, circular insets
     around the latched interface projected into each panel."""
     n = min(len(f) for f in frame_lists)
+    if isinstance(topology, list):  # a history: the inset follows the first event's interface
+        topology = topology[0]
     latch_frame = topology.latch_frame if topology is not None else None
     with VideoWriter(out_dir / "comparison.mp4", fps=cfg.render.fps) as video:
         for i in range(n):
@@ -201,7 +204,7 @@ def run_render_sim(cfg: SceneConfig, variants, device: str, out_dir, progress: b
                 summaries[variant], topology = run_variant(cfg, gs, variant, device, out_dir, painter, topology,
                                                            metrics_file, frames[variant])
                 if topology is not None and not (out_dir / "topology.npz").exists():
-                    topology.save(out_dir / "topology.npz")
+                    save_history(out_dir / "topology.npz", topology)
         except KeyboardInterrupt:
             interrupted = True
     done = [v for v in variants if v in summaries]

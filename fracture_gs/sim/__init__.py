@@ -13,7 +13,7 @@ from .providers import OracleProvider, ReplayProvider, StressProvider, make_prov
 from .topology import Topology
 
 __all__ = [
-    "ContactConfig", "CuboidBoundary", "Grid", "MaterialConfig", "MULTIFIELD_VARIANTS", "OracleProvider", "ParticleRegion", "Particles",
+    "layout", "ContactConfig", "CuboidBoundary", "Grid", "MaterialConfig", "MULTIFIELD_VARIANTS", "OracleProvider", "ParticleRegion", "Particles",
     "PlaneBoundary", "RELEASE_VARIANTS", "ReplayProvider", "StressProvider", "SimConfig", "SimulationDiverged", "SimulationError", "Simulator", "Topology",
     "TopologyConfig", "fit_grid", "make_provider",
 ]

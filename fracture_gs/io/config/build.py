@@ -11,7 +11,8 @@ import math
 import typing
 from typing import Any, Iterable, Literal, Sequence, Union
 
-from ...config import BOUNDARY_TYPES, MaterialMapEntry, PlaneBoundary, SceneConfig, SimConfig
+from ...config import (BOUNDARY_TYPES, MaterialMapEntry, OraclePlane, PlaneBoundary, SceneConfig, SimConfig,
+                       TopologyConfig)
 from ...errors import ConfigError
 from .dump import to_plain_value, toml_value
 
@@ -195,7 +196,14 @@ def _build_variants(value: Any, dotted: str, src: str) -> list:
     return items
 
 
+def _build_planes(value: Any, dotted: str, src: str) -> list:
+    """`[[topology.planes]]` tables → OraclePlane list."""
+    items = _array(value, dotted, src, "tables", "[[topology.planes]] tables with point, normal and latch_time")
+    return [_build(OraclePlane, item, f"{dotted}[{i}]", src) for i, item in enumerate(items)]
+
+
 _SPECIAL = {
+    (TopologyConfig, "planes"): _build_planes,
     (SimConfig, "boundaries"): _build_boundaries,
     (SceneConfig, "material_map"): _build_material_map,
     (SceneConfig, "variants"): _build_variants,
@@ -232,6 +240,8 @@ def _unit(v: tuple) -> tuple:
 
 def _normalize_normals(cfg: SceneConfig) -> None:
     cfg.topology.normal = _unit(cfg.topology.normal)
+    for plane in cfg.topology.planes:
+        plane.normal = _unit(plane.normal)
     for b in cfg.sim.boundaries:
         if isinstance(b, PlaneBoundary):
             b.normal = _unit(b.normal)

@@ -11,6 +11,8 @@ from ...config import (BUILTIN_SCENES, GRID_KINDS, MATERIALS, PLANE_MODES, PRESE
 from ...errors import ConfigError
 from ...variants import variant_spec
 
+MAX_FIELD_SLOTS = 8  # sim.layout.MAX_SLOTS (io does not import sim)
+
 
 class _Checker:
     """Collects nothing: raises on the first problem, naming source and field."""
@@ -121,6 +123,11 @@ def _check_sim(c: _Checker, s: SimConfig, frame_dt: float) -> None:
     c.at_least("sim.eps_mass", s.eps_mass, 0.0, "use a non-negative threshold, e.g. eps_mass = 1e-3")
     c.at_least("sim.eps_band", s.eps_band, 0.0, "use a non-negative threshold, e.g. eps_band = 1e-3")
     c.at_least("sim.max_substeps_per_frame", s.max_substeps_per_frame, 1, "use a positive bound")
+    c.within("sim.field_slots", s.field_slots, 2, MAX_FIELD_SLOTS, f"use 2 to {MAX_FIELD_SLOTS} fields per node")
+    c.within("sim.max_fragments", s.max_fragments, 2, 4096, "use 2 to 4096 fragments")
+    c.at_least("sim.contact.friction", s.contact.friction, 0.0, "use a non-negative Coulomb coefficient")
+    if not math.isfinite(s.contact.friction):
+        c.fail("sim.contact.friction", f"sim.contact.friction = {s.contact.friction} is not finite", "use e.g. 0.3")
     for i, b in enumerate(s.boundaries):
         _check_boundary(c, f"sim.boundaries[{i}]", b)
 
@@ -187,6 +194,20 @@ def _check_topology(c: _Checker, t: TopologyConfig, frames: int) -> None:
     c.positive("topology.band_width", t.band_width, "give the band half-width in Δx, e.g. band_width = 1.0")
     c.positive("topology.pair_radius", t.pair_radius, "give the pair radius in Δx, e.g. pair_radius = 1.5")
     c.within("topology.direction_agreement", t.direction_agreement, 0.0, 1.0, "use a |cos| threshold in [0, 1]")
+    c.at_least("topology.max_events", t.max_events, 1, "allow at least one fracture event")
+    c.at_least("topology.min_fragment_particles", t.min_fragment_particles, 1, "use a positive particle count")
+    c.at_least("topology.cells", t.cells, 1, "shatter into at least one cell")
+    c.positive("topology.impact_radius", t.impact_radius, "give the spread of the cells in metres, e.g. 0.1")
+    if t.impact_point is not None and not all(math.isfinite(v) for v in t.impact_point):
+        c.fail("topology.impact_point", f"topology.impact_point = {list(t.impact_point)} is not finite", "give a point in metres")
+    for i, plane in enumerate(t.planes):
+        p = f"topology.planes[{i}]"
+        c.nonzero(f"{p}.normal", plane.normal, "give the plane normal, e.g. normal = [1, 0, 0]")
+        if not all(math.isfinite(v) for v in plane.point):
+            c.fail(f"{p}.point", f"{p}.point = {list(plane.point)} is not finite", "give a point in metres")
+        c.at_least(f"{p}.latch_frame", plane.latch_frame, 0, "use a frame index >= 0")
+        if plane.latch_time is not None:
+            c.at_least(f"{p}.latch_time", plane.latch_time, 0.0, "use a time in seconds >= 0")
 
 
 def _check_render(c: _Checker, r: RenderConfig) -> None:

@@ -2,8 +2,9 @@
 
 A provider is a callable `provider(sim) -> Topology | None`, asked once per frame after the
 frame's substeps. The simulator latches the topology it returns (`Simulator.latch`); latching is
-impulse-free. Providers: `oracle` (an analytic plane from the config), `stress` (stress-guided
-detection), `replay` (a saved topology, so every variant of a run shares one).
+impulse-free, and a provider may return a newer topology later (repeated fracture). Providers:
+`oracle` (timed analytic planes), `stress` (stress-guided detection, optionally repeated),
+`voronoi` (a shatter into cells), `replay` (a saved history, so every variant of a run shares one).
 """
 from __future__ import annotations
 
@@ -14,6 +15,7 @@ from ..topology import Topology
 from .oracle import OracleProvider
 from .replay import ReplayProvider
 from .stress import StressProvider
+from .voronoi import VoronoiProvider
 
 
 class Provider(Protocol):
@@ -30,7 +32,9 @@ def make_provider(cfg: TopologyConfig) -> Optional[Provider]:
         return OracleProvider(cfg)
     if cfg.provider == "stress":
         return StressProvider(cfg)
-    raise ValueError(f"topology.provider '{cfg.provider}' is unknown; use none, oracle or stress")
+    if cfg.provider == "voronoi":
+        return VoronoiProvider(cfg)
+    raise ValueError(f"topology.provider '{cfg.provider}' is unknown; use none, oracle, stress or voronoi")
 
 
-__all__ = ["OracleProvider", "Provider", "ReplayProvider", "StressProvider", "make_provider"]
+__all__ = ["OracleProvider", "Provider", "ReplayProvider", "StressProvider", "VoronoiProvider", "make_provider"]

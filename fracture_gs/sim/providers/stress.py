@@ -12,12 +12,14 @@ The simulator latches the first topology a provider returns and never calls it a
 """
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Optional
 
 import torch
 
 from ...config import TopologyConfig
-from ..topology import Topology
+from ..topology import FractureEvent, Topology
+from .cuts import finish_event, plane_cut
 
 
 EIGH_CHUNK = 32768  # batched CUDA eigh (cusolver) fails for batches of ≥ 65,536 in torch 2.11 + CUDA 13
@@ -89,6 +91,8 @@ class StressProvider:
         self.agreement: Optional[float] = None
         self.topology: Optional[Topology] = None
         self._last_frame: Optional[int] = None
+        self.events = 0  # fracture events latched so far
+        self.fragment_streak: dict[int, int] = {}  # repeated fracture: frames each fragment stayed over-stressed
 
     def _buffer(self, sim) -> torch.Tensor:
         """The Kirchhoff stress buffer, allocated once (the particle count never changes)."""
@@ -127,9 +131,12 @@ class StressProvider:
         self._last_frame = frame
 
     def __call__(self, sim) -> Optional[Topology]:
-        """Evaluate this frame; return the latched Topology once the condition has persisted."""
+        """Evaluate this frame; return a new Topology once the condition has persisted: the first
+        latch, then (with `max_events` > 1) each repeated cut."""
+        if self.events >= self.cfg.max_events:
+            return None
         if self.topology is not None:
-            return None  # a binary run latches once
+            return self._repeat(sim)
         over, d, ratio = self.over_stressed(sim)
         count, self.max_ratio = torch.stack([over.sum().double(), ratio]).tolist()  # one host sync per frame
         count = self.over_count = int(count)
@@ -154,15 +161,60 @@ class StressProvider:
         x = sim.particles.x.double()
         point, normal = self.plane(x[over], d[over])
         self.latch_frame = sim.frame
-        self.topology = Topology.from_plane(
+        t = Topology.from_plane(
             sim.particles.x, point.tolist(), normal.tolist(), self.cfg.band_width * sim.grid.dx,
             latch_time=sim.time, latch_frame=sim.frame, pair_radius=self.cfg.pair_radius)
-        return self.topology
+        if self.cfg.split_components:
+            first, t = t.events[0], replace(t, events=[])
+            t = finish_event(sim, self.cfg, t, t.fragment, t.band, first)
+        self.topology = t
+        self.events = 1
+        return t
+
+    def _repeat(self, sim) -> Optional[Topology]:
+        """Repeated fracture: every fragment holding ≥ `min_particles` over-stressed particles (outside
+        the band, where stress is already released) for `persist_frames` frames is cut by the plane
+        through them; only that fragment's particles change id. One host read per frame."""
+        t = self.topology
+        over, d, ratio = self.over_stressed(sim)
+        fragment = sim.particles.fragment.long()
+        over = over & (sim.particles.band == 0)
+        K = sim.cfg.max_fragments
+        counts = torch.bincount(fragment[over], minlength=K)[:K]
+        host = torch.cat([counts.double(), ratio.double()[None]]).tolist()
+        counts, self.max_ratio = [int(c) for c in host[:K]], host[K]
+        self.peak_ratio = max(self.peak_ratio, self.max_ratio)
+        due = []
+        for f, c in enumerate(counts):
+            self.fragment_streak[f] = self.fragment_streak.get(f, 0) + 1 if c >= self.cfg.min_particles else 0
+            if self.fragment_streak[f] >= self.cfg.persist_frames:
+                due.append(f)
+        if not due:
+            return None
+        x = sim.particles.x
+        width = self.cfg.band_width * sim.grid.dx
+        frag, band = t.fragment.to(x.device), t.band.to(x.device)
+        for f in due[: self.cfg.max_events - self.events]:
+            sel = over & (fragment == f)
+            point, normal = self.plane(x[sel].double(), d[sel])
+            frag, band, parents, children = plane_cut(x, frag, band, point.tolist(), normal.tolist(), width, K, [f])
+            if not children:
+                continue
+            event = FractureEvent("plane", sim.time, sim.frame, tuple(parents), tuple(children),
+                                  tuple(point.tolist()), tuple(normal.tolist()))
+            t = finish_event(sim, self.cfg, t, frag, band, event)
+            frag, band = t.fragment, t.band
+            self.events += 1
+            self.fragment_streak.clear()
+        if t is self.topology:
+            return None
+        self.topology = t
+        return t
 
     def summary(self) -> dict:
         """Run-summary record: latch frame/time, plane, per-fragment and band counts, detection stats."""
         out = {
-            "provider": "stress", "latched": self.topology is not None, "latch_frame": self.latch_frame,
+            "provider": "stress", "latched": self.topology is not None, "latch_frame": self.latch_frame, "events": self.events,
             "first_exceed_frame": self.first_exceed_frame, "over_stressed": self.over_count,
             "min_particles": self.cfg.min_particles, "persist_frames": self.cfg.persist_frames,
             "used_pca": self.used_pca, "direction_agreement": self.agreement, "max_ratio": self.max_ratio,
