@@ -184,6 +184,7 @@ class Diagnostics:
                "clamped": sim.clamped_count(), "frame_redos": sim.frame_redos, "momentum": mom.tolist(),
                "kinetic_energy": float(0.5 * (P.mass.double() * (P.v.double() ** 2).sum(1)).sum())}
         if sim.latched:
+            row.update(fragments=sim.n_fragments, slot_overflow=sim.slot_overflow, pool_rows=sim.pool_rows)
             if self.latch_info is None:
                 self.on_latch()
             row.update(self._transfer_metrics())

@@ -129,3 +129,40 @@ def g2p(x, F, gv, field, origin, dx, dt):
     gradv = torch.einsum("nki,nkj->nij", vi, grad)
     F_new = (torch.eye(3, dtype=torch.float64) + dt * gradv) @ F.double()
     return x.double() + dt * v, v, C, F_new
+
+
+def contact_fields(v, m, frag, band, eps_m, eps_b, normals, e=0.0, mu=0.0):
+    """Pairwise contact at M nodes with S fields each (v [M,S,3], m [M,S], frag [M,S] (−1: empty),
+    band [M,S], normals(a_slot, b_slot, lo_slot, hi_slot) → [M,3] unit normals from lo into hi):
+    slot pairs a < b in order, each oriented by fragment id, approach-only normal impulse with
+    restitution e, then Coulomb friction capped at μ·J (contact.py, float64)."""
+    v = v.double().clone()
+    M, S = m.shape
+    for a in range(S):
+        for b in range(a + 1, S):
+            ok = (frag[:, a] >= 0) & (frag[:, b] >= 0) & (m[:, a] > eps_m) & (m[:, b] > eps_m) \
+                & (band[:, a] > eps_b) & (band[:, b] > eps_b)
+            swap = frag[:, b] < frag[:, a]
+            lo = torch.where(swap, b, a)
+            hi = torch.where(swap, a, b)
+            rows = torch.arange(M)
+            n = normals(a, b, lo, hi).double()
+            v_lo, v_hi = v[rows, lo], v[rows, hi]
+            m_lo, m_hi = m[rows, lo].double(), m[rows, hi].double()
+            un = ((v_hi - v_lo) * n).sum(1)
+            go = ok & (un < 0)
+            inv = 1 / m_lo.clamp_min(1e-300) + 1 / m_hi.clamp_min(1e-300)
+            J = torch.where(go, -(1 + e) * un / inv, torch.zeros_like(un))
+            w_lo = v_lo - (J / m_lo.clamp_min(1e-300))[:, None] * n
+            w_hi = v_hi + (J / m_hi.clamp_min(1e-300))[:, None] * n
+            if mu > 0:
+                u = w_hi - w_lo
+                ut = u - (u * n).sum(1, keepdim=True) * n
+                s = ut.norm(dim=1)
+                Jt = torch.where(go & (s > 0), torch.minimum(s / inv, mu * J), torch.zeros_like(s))
+                t = ut / s.clamp_min(1e-300)[:, None]
+                w_lo = w_lo + (Jt / m_lo.clamp_min(1e-300))[:, None] * t
+                w_hi = w_hi - (Jt / m_hi.clamp_min(1e-300))[:, None] * t
+            v[rows[go], lo[go]] = w_lo[go]
+            v[rows[go], hi[go]] = w_hi[go]
+    return v
