@@ -93,6 +93,11 @@ def summarize(variant: str, rows: list, status: str, seconds: float) -> dict:
         out["stringing"] = float(np.mean(_post(post, "stringing")))
         out["penetration_max"] = float(max(_post(post, "penetration")))
         out["identity_crossing_max"] = int(max(_post(post, "identity_crossing")))
+        out["fragments"] = int(max(_post(post, "fragments") or [2]))
+        out["fragment_crossing_max"] = int(max(_post(post, "fragment_crossing") or [0]))
+        out["fragment_penetration_max"] = float(max(_post(post, "fragment_penetration") or [0.0]))
+        out["collider_crossing_max"] = int(max(_post(post, "collider_crossing") or [0]))
+        out["slot_overflow"] = int(sum(_post(post, "slot_overflow")))
         for k in ("first_contact_time", "cp_momentum_residual", "rel_normal_velocity_after", "max_delta_vt"):
             out[k] = last.get(k)
     if rows and "plane_penetration" in rows[-1]:
@@ -106,7 +111,9 @@ def summary_markdown(summaries: list) -> str:
     cols = [("variant", "variant"), ("status", "status"), ("latch frame", None), ("opening/Δx", "opening"),
             ("re-approach", "reapproach"), ("stringing", "stringing"), ("separated", "separated"),
             ("E_mix cf mean", "mixing_counterfactual_mean"), ("E_mix real mean", "mixing_realized_mean"),
-            ("max E_m", "mass_residual_max"), ("pen./Δx", "penetration_max"), ("substeps/s", "substeps_per_s")]
+            ("max E_m", "mass_residual_max"), ("pen./Δx", "penetration_max"), ("fragments", "fragments"),
+            ("fragment crossing", "fragment_crossing_max"), ("slot overflow", "slot_overflow"),
+            ("substeps/s", "substeps_per_s")]
 
     def fmt(v):
         if v is None:
@@ -141,7 +148,8 @@ def run_variant(cfg, gs, variant, device, out_dir: Path, painter: Painter, topol
                 frames_store.append(img)
                 if out.frame > 0:
                     elapsed = time.perf_counter() - t0
-                    bar.set_postfix(substeps_per_s=f"{sim.substeps / elapsed:.0f}", latched=sim.latched)
+                    bar.set_postfix(substeps_per_s=f"{sim.substeps / elapsed:.0f}", fragments=sim.n_fragments,
+                                    overflow=sim.slot_overflow_total)
                     bar.update(1)
     except SimulationDiverged as err:
         status = f"diverged at frame {err.frame}"

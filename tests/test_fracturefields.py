@@ -214,6 +214,9 @@ def test_recontact_full_vs_local_multifield(device):
     assert last["rel_normal_velocity_after"] < 1e-3 * 0.6
     assert last["max_delta_vt"] < 1e-5
     assert max(r["penetration"] for r in free) > 1.0, "without contact the blocks pass through each other"
+    assert max(r["fragment_crossing"] for r in full) == 0, "no particle inside the other block (fragment-aware)"
+    assert max(r["fragment_crossing"] for r in free) > 0 and max(r["fragment_penetration"] for r in free) >= 0.6
+    assert last["pairs"]["0-1"]["cp_momentum_residual"] < 1e-5
     assert free[-1]["rel_normal_velocity_after"] == pytest.approx(0.6, rel=0.2)
 
 

@@ -17,10 +17,13 @@ import warp as wp
 
 from ..config import PlaneBoundary
 from .grid import Grid
-from .layout import COUNT_POOL_OVERFLOW, N_COUNTS, NEVER, STAT_DPX, STAT_DPZ, STAT_DVT, STAT_FIRST_T, STAT_GATED, STAT_PNORM, STAT_UN_AFTER
+from .layout import (COUNT_POOL_OVERFLOW, N_COUNTS, N_PAIR_STATS, NEVER, PAIR_DPX, PAIR_DPY, PAIR_DPZ, PAIR_FIRST_T,
+                     PAIR_GATED, PAIR_PNORM, STAT_DPX, STAT_DPZ, STAT_DVT, STAT_FIRST_T, STAT_GATED, STAT_PNORM, STAT_UN_AFTER)
+from .penetration import collider_crossing, fragment_overlap
 
 EPS = 1e-30
 SEPARATION = 0.1  # Δx: an interface whose opening exceeds this has separated (DESIGN.md)
+VOXEL = 0.6  # Δx: voxel edge of the fragment-aware occupied volume (`penetration.py`)
 
 
 def reapproach_ratio(open_max: float, opening: float) -> float:
@@ -135,6 +138,8 @@ class Diagnostics:
         self.P0 = (P.mass.double()[:, None] * P.v.double()).sum(0)
         self.t0 = sim.time
         self.planes = [b for b in sim.cfg.boundaries if isinstance(b, PlaneBoundary)]
+        self.fragment_penetration = 0.0  # deepest fragment-aware penetration so far [Δx]
+        self.pair_penetration: dict = {}  # (a, b) → deepest penetration of a into b so far [Δx]
         self.plane_stats = {"first_contact": [None, None], "penetration": 0.0, "max_vt_near": 0.0, "max_vn_post": 0.0}
         if sim.latched:
             self.on_latch()
@@ -237,8 +242,15 @@ class Diagnostics:
         x = P.x.double()
         pen = penetration(x, P.fragment, P.band, self.n, 2.0 * dx) / dx
         crossing = identity_crossing(x, P.fragment, P.band, self.n)
+        overlap = fragment_overlap(P.x, P.fragment, VOXEL * dx)
+        self.fragment_penetration = max(self.fragment_penetration, overlap["depth"] / dx)
+        for pair, depth in overlap["pairs"].items():
+            self.pair_penetration[pair] = max(self.pair_penetration.get(pair, 0.0), depth / dx)
+        below, depth = collider_crossing(P.x, self.planes, SEPARATION * dx)
         return {"opening": opening, "reapproach": self.reapproach, "stringing": stringing(P.F, P.band),
-                "separated": opening > SEPARATION, "penetration": pen, "identity_crossing": crossing}
+                "separated": opening > SEPARATION, "penetration": pen, "identity_crossing": crossing,
+                "fragment_crossing": overlap["crossing"], "fragment_penetration": overlap["depth"] / dx,
+                "collider_crossing": below, "collider_depth": depth / dx}
 
     def _contact_metrics(self) -> dict:
         stats = self.sim.grid.contact_stats.double().cpu()
@@ -254,6 +266,25 @@ class Diagnostics:
             cm["rel_normal_velocity_after"] = max(cm["rel_normal_velocity_after"], float(stats[STAT_UN_AFTER]))
             cm["max_delta_vt"] = max(cm["max_delta_vt"], float(stats[STAT_DVT]))
         out.update(self.contact_max)
+        out["pairs"] = self._pair_metrics()
+        return out
+
+    def _pair_metrics(self) -> dict:
+        """Per fragment pair "a-b": first contact time, contact-projection momentum residual over the
+        run, deepest fragment-aware penetration/Δx (pairs that touched or overlapped only)."""
+        g = self.sim.grid
+        K = g.max_fragments
+        stats = g.pair_stats.view(K * K, N_PAIR_STATS).double()
+        touched = torch.nonzero(stats[:, PAIR_GATED] > 0).flatten()
+        rows = stats[touched].cpu().tolist()
+        out = {}
+        for k, r in zip(touched.tolist(), rows):
+            resid = (r[PAIR_DPX] ** 2 + r[PAIR_DPY] ** 2 + r[PAIR_DPZ] ** 2) ** 0.5 / max(r[PAIR_PNORM], 1e-30)
+            out[f"{k // K}-{k % K}"] = {"first_contact_time": r[PAIR_FIRST_T], "cp_momentum_residual": resid,
+                                        "contact_nodes": r[PAIR_GATED]}
+        for (a, b), depth in self.pair_penetration.items():
+            key = f"{min(a, b)}-{max(a, b)}"
+            out.setdefault(key, {})["penetration"] = max(out.get(key, {}).get("penetration", 0.0), depth)
         return out
 
     def _plane_metrics(self, mom) -> dict:
