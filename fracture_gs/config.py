@@ -35,7 +35,7 @@ RENDER_BACKENDS = get_args(RenderBackend)
 PRESETS: dict[str, float] = {"small": 1.0 / 64, "paper": 1.0 / 128}
 """Scene preset → the grid spacing Δx it selects: the size of a built-in scene and its grid."""
 assert tuple(PRESETS) == get_args(Preset)
-BUILTIN_SCENES = ("bread", "ficus", "recontact", "beam", "plane_drop")
+BUILTIN_SCENES = ("bread", "ficus", "recontact", "beam", "plane_drop", "plate_drop")
 
 
 @dataclass
@@ -150,9 +150,13 @@ class ContactConfig:
     friction: float = 0.0
     """Coulomb coefficient μ between fragments [unitless]; 0 = the paper's frictionless projection."""
     normal: ContactNormal = "auto"
-    """Contact normal: `latched` (the first event's plane normal n_Π, the paper), `mass_gradient` (per node
-    n_ab ∝ ∇m_b − ∇m_a of the fragments' band masses) or `auto` (latched for one plane cut into two
-    fragments, mass gradient otherwise)."""
+    """Contact normal and gate: `latched` (the first event's plane normal n_Π; fields touch where both
+    carry interface-band mass: the paper), `mass_gradient` (per node n_ab ∝ ∇m_b − ∇m_a from the
+    fields' nodal masses; fields touch where together they fill the node, see `fill`) or `auto`
+    (latched for one plane cut into two fragments, mass gradient otherwise)."""
+    fill: float = 0.5
+    """Mass-gradient mode: two fields are in contact at a node where m_a + m_b ≥ fill · ρ̄Δx³ (ρ̄Δx³ a
+    full node); 0.5 fires at gaps under ≈ 0.6 Δx (quadratic B-splines), 1 only on full overlap."""
 
 
 @dataclass

@@ -49,16 +49,16 @@ def skew(w):
     return torch.tensor([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
 
 
-def fill_slots(grid, m, v, band=None, grad=None):
-    """Write K random fields straight into a multi-field grid's slot storage: at every node fragment 0
-    in slot 0 and fragments 1 … K−1 in pool slots 1 … K−1 of a row (rows in node order: the pool
-    pass visits every row, wherever it sits). m [K, X, Y, Z], v [K, X, Y, Z, 3], band [K, …] (default:
-    m), grad [K, …, 3] (default 0): velocities are stored as (p, m) like P2G leaves them."""
+def fill_slots(grid, m, v, band=None):
+    """Write K fields straight into a multi-field grid's slot storage: at every node fragment 0 in
+    slot 0 and fragments 1 … K−1 in pool slots 1 … K−1 of the node's row, inserted at its hash
+    position like P2G would (so neighbour lookups find it). m [K, X, Y, Z], v [K, X, Y, Z, 3], band
+    [K, …] (default: m); velocities are stored as (p, m) like P2G leaves them."""
     from fracture_gs.sim.layout import ROW_FLAG
 
     K = m.shape[0]
     n = grid.n_nodes
-    assert K <= grid.slots and grid.capacity >= n, "grid too small for the fields"
+    assert K <= grid.slots and grid.capacity >= 2 * n, "grid too small for the fields"
     band = m if band is None else band
     dev = grid.device
     grid.clear()
@@ -66,16 +66,21 @@ def fill_slots(grid, m, v, band=None, grad=None):
     mm = m.reshape(K, n).to(dev, torch.float32)
     grid._mp[:n] = torch.cat([p[0], mm[0, :, None]], 1)
     grid._owner[:] = 1 | ROW_FLAG
-    rows = torch.arange(n, device=dev)
-    grid.key[:n] = rows.to(torch.int32)
+    mask, key = grid.capacity - 1, [-1] * grid.capacity
+    rows = []
+    for node in range(n):  # linear probing from layout.row_hash
+        h = ((node * 1640531527) & 0x7FFFFFFF) & mask
+        while key[h] != -1:
+            h = (h + 1) & mask
+        key[h] = node
+        rows.append(h)
+    grid.key.copy_(torch.tensor(key, dtype=torch.int32))
+    rows = torch.tensor(rows, device=dev)
     s1 = grid.slots - 1
     for k in range(1, K):
         idx = n + rows * s1 + (k - 1)
         grid._mp[idx] = torch.cat([p[k], mm[k, :, None]], 1)
         grid.pool_owner[rows * s1 + (k - 1)] = k
     b = band.reshape(K, n).to(dev, torch.float32)
-    bv = grid.band.view(grid.capacity, grid.slots)
-    bv[:n, :K] = b.T
-    if grad is not None:
-        grid.grad.view(grid.capacity, grid.slots, 3)[:n, :K] = grad.reshape(K, n, 3).transpose(0, 1).to(dev, torch.float32)
+    grid.band.view(grid.capacity, grid.slots)[rows, :K] = b.T
     grid.n_fields = K

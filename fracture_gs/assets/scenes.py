@@ -1,4 +1,4 @@
-"""The five built-in scenes (metres, z up, inside the unit cube). Configs rely on these exact
+"""The six built-in scenes (metres, z up, inside the unit cube). Configs rely on these exact
 geometries and labels:
 
 bread       loaf x∈[0.25,0.75], y∈[0.39,0.61], z∈[0.15,0.33]: rounded-rectangle footprint (corner
@@ -16,6 +16,8 @@ beam        0 = box x∈[0.2,0.8], y∈[0.45,0.55], z∈[0.30,0.36] (wood).
 plane_drop  capsule of total length 0.3 (segment x∈[0.40,0.60] of radius 0.05 in its rest frame)
             centred at (0.5,0.5,0.4), rotated +15° about y (its +x end lower: the rest-frame point
             (x,y,z) maps to c + R_y(15°)(p - c)); 0 = rest-frame x < 0.5, 1 = x ≥ 0.5.
+plate_drop  a glazed plate: disc of radius 0.14 and thickness 0.03 centred at (0.5,0.5,0.30), tilted
+            6° about y (+x edge lower); one label 0 (ceramic).
 """
 from __future__ import annotations
 
@@ -240,4 +242,36 @@ PLANE_DROP = SceneSpec("plane_drop", *_drop_box(), 170_000, _drop_sdf,
                        lambda p, d, h: torch.where(_drop_rest(p)[:, 0] < DROP_CENTER[0], 0, 1),
                        _drop_colors)
 
-SCENES = {s.name: s for s in (BREAD, FICUS, RECONTACT, BEAM, PLANE_DROP)}
+# ----------------------------------------------------------------------------- plate drop
+
+PLATE_CENTER, PLATE_RADIUS, PLATE_THICK, PLATE_TILT = (0.5, 0.5, 0.30), 0.14, 0.03, 6.0
+
+
+def _plate_sdf(p):
+    cx, cy, cz = PLATE_CENTER
+    q = S.rotate_y(p, PLATE_CENTER, -PLATE_TILT)
+    return S.capped_cone_z(q, (cx, cy), cz - PLATE_THICK / 2, cz + PLATE_THICK / 2, PLATE_RADIUS, PLATE_RADIUS)
+
+
+def _plate_colors(p, labels, normals, surface, gen):
+    m = len(p)
+    r = torch.linalg.vector_norm(p[:, :2] - torch.tensor(PLATE_CENTER[:2]), dim=-1)
+    glaze = _vary(_rgb((0.93, 0.92, 0.88), m), p, gen, 10.0, 0.02, 0.02)
+    rim = (r > PLATE_RADIUS - 0.025) & (r < PLATE_RADIUS - 0.012)
+    ang = torch.atan2(p[:, 1] - PLATE_CENTER[1], p[:, 0] - PLATE_CENTER[0])
+    motif = (r > 0.04) & (r < 0.06) & (torch.sin(8 * ang) > 0.3)
+    return torch.where((rim | motif)[:, None], _rgb((0.16, 0.30, 0.62), m), glaze)
+
+
+def _plate_box():
+    t = math.radians(PLATE_TILT)
+    ex = PLATE_RADIUS * math.cos(t) + PLATE_THICK / 2 * math.sin(t)
+    ez = PLATE_RADIUS * math.sin(t) + PLATE_THICK / 2 * math.cos(t)
+    c = PLATE_CENTER
+    return (c[0] - ex, c[1] - PLATE_RADIUS, c[2] - ez), (c[0] + ex, c[1] + PLATE_RADIUS, c[2] + ez)
+
+
+PLATE = SceneSpec("plate_drop", *_plate_box(), 170_000, _plate_sdf,
+                  lambda p, d, h: torch.zeros(len(p), dtype=torch.int32), _plate_colors, view_std=0.05)
+
+SCENES = {s.name: s for s in (BREAD, FICUS, RECONTACT, BEAM, PLANE_DROP, PLATE)}

@@ -24,6 +24,7 @@ from .penetration import collider_crossing, fragment_overlap
 EPS = 1e-30
 SEPARATION = 0.1  # Δx: an interface whose opening exceeds this has separated (DESIGN.md)
 VOXEL = 0.6  # Δx: voxel edge of the fragment-aware occupied volume (`penetration.py`)
+COLLIDER_TOLERANCE = 0.5  # Δx: a node-based plane collider holds particles to within half a cell of the plane
 
 
 def reapproach_ratio(open_max: float, opening: float) -> float:
@@ -246,7 +247,7 @@ class Diagnostics:
         self.fragment_penetration = max(self.fragment_penetration, overlap["depth"] / dx)
         for pair, depth in overlap["pairs"].items():
             self.pair_penetration[pair] = max(self.pair_penetration.get(pair, 0.0), depth / dx)
-        below, depth = collider_crossing(P.x, self.planes, SEPARATION * dx)
+        below, depth = collider_crossing(P.x, self.planes, COLLIDER_TOLERANCE * dx)
         return {"opening": opening, "reapproach": self.reapproach, "stringing": stringing(P.F, P.band),
                 "separated": opening > SEPARATION, "penetration": pen, "identity_crossing": crossing,
                 "fragment_crossing": overlap["crossing"], "fragment_penetration": overlap["depth"] / dx,

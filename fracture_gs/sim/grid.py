@@ -87,7 +87,6 @@ class Grid:
         self.key = torch.full((cap,), EMPTY_KEY, dtype=torch.int32, device=self.device)
         self.pool_owner = torch.full((max(1, extra),), -1, dtype=torch.int32, device=self.device)
         self.band = torch.zeros(cap * self.slots, dtype=torch.float32, device=self.device)
-        self.grad = torch.zeros((cap * self.slots, 3), dtype=torch.float32, device=self.device)
         self._owner.zero_()
         self.mp = self._mp[:self.n_nodes].view(*self.shape, 4)
         self.vel = self._vel[:self.n_nodes].view(*self.shape, 3)
@@ -98,7 +97,6 @@ class Grid:
         v.key = wp.from_torch(self.key)
         v.pool_owner = wp.from_torch(self.pool_owner)
         v.band = wp.from_torch(self.band)
-        v.grad = wp.from_torch(self.grad, dtype=wp.vec3)
         v.shape = wp.vec3i(*self.shape)
         v.n_nodes = self.n_nodes
         v.slots = self.slots
@@ -120,7 +118,6 @@ class Grid:
         self.key.fill_(EMPTY_KEY)
         self.pool_owner.fill_(-1)
         self.band.zero_()
-        self.grad.zero_()
 
     def zero(self) -> None:
         """Reset accumulators and velocities (after a box change no stale node may survive)."""
@@ -223,7 +220,7 @@ class Grid:
     @property
     def nbytes(self) -> int:
         """Grid-buffer footprint (dense slot 0, owners and the pool, as allocated) in bytes."""
-        ts = (self._mp, self._vel, self.key, self.pool_owner, self.band, self.grad)
+        ts = (self._mp, self._vel, self.key, self.pool_owner, self.band)
         owner = self._owner.numel() * 4 if self.multi else 0
         pool = sum(t.numel() * t.element_size() for t in ts[2:]) if self.multi else 0
         return sum(t.numel() * t.element_size() for t in ts[:2]) + owner + pool

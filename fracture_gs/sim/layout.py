@@ -4,8 +4,8 @@ Fields live in *slots* (DESIGN.md "Many fragments"). Slot 0 is dense: one (p, m)
 per node, for whichever fragment reached the node first in this substep's P2G (`owner`, the
 fragment id + 1 in the low bits of a per-node word, 0 = free). A node that a second fragment
 reaches gets a *row* of a compact pool, an open-addressing hash table keyed by the node's flat
-index: the row holds slots 1 … S−1 (their owners, (p, m), velocities) plus the band mass and
-band-mass gradient of all S slots, which the contact gate and the contact normals read. Only
+index: the row holds slots 1 … S−1 (their owners, (p, m), velocities) plus the band mass of all S
+slots, which the paper's contact gate reads. Only
 nodes touched by two or more fragments (or by an interface-band particle) have a row, so memory
 grows with the fractured surface, not with the grid or with K. `ROW_FLAG` in the owner word tells
 the dense grid update that the node's fields finish in the pool pass (contact before boundaries).
@@ -177,7 +177,6 @@ class GridView:
     key: wp.array(dtype=wp.int32)  # [C] node of each pool row, EMPTY_KEY if free
     pool_owner: wp.array(dtype=wp.int32)  # [C·(S−1)] fragment of pool slots 1 … S−1, −1 if free
     band: wp.array(dtype=float)  # [C·S] band mass of slots 0 … S−1 of each row
-    grad: wp.array(dtype=wp.vec3)  # [C·S] band-mass gradient Σ m_p ∇w of slots 0 … S−1
     shape: wp.vec3i  # nodes per axis
     n_nodes: int  # X·Y·Z
     slots: int  # S = sim.field_slots (1 for a single-field grid)

@@ -1,13 +1,14 @@
 """Fragment-aware penetration, measured between the pieces themselves (DESIGN.md "Many fragments").
 
 The paper's columns measure crossing along the latched normal n_Π, which misreads a piece that
-tumbles (Table 4, Panel A). Here a fragment's *occupied volume* is the set of voxels (edge
-h ≈ 0.6 Δx, a little over the particle spacing) that hold its particles, eroded once: a voxel
-counts only when its six face neighbours are occupied by the same fragment too, so the ragged
-surface layer (where touching pieces legitimately interleave) is excluded. A particle of fragment
-a inside b's occupied volume is an identity crossing; its depth is the number of erosions its
-voxel survives in b, times h (a lower bound on how far it is inside b). Everything is vectorised
-torch on the particles' device (unique keys and binary searches, no dense grid).
+tumbles (Table 4, Panel A). Here space is cut into voxels of edge h ≈ 0.6 Δx (a little over the
+particle spacing); each voxel belongs to the fragment that has most particles in it, and a
+fragment's *occupied volume* is its voxels eroded once (a voxel counts when its six face
+neighbours belong to the same fragment), so the ragged surface layer, where touching pieces and
+oblique cuts interleave, is excluded. A particle of fragment a inside b's occupied volume is an
+identity crossing; its depth is the number of erosions its voxel survives, times h (a lower bound
+on how far it is inside b). Vectorised torch on the particles' device (sorted keys and binary
+searches, no dense grid).
 """
 from __future__ import annotations
 
@@ -38,7 +39,15 @@ def fragment_overlap(x: torch.Tensor, fragment: torch.Tensor, h: float, max_dept
     dims = cell.max(0).values + 2
     stride = torch.stack([dims[1] * dims[2], dims[2], torch.ones_like(dims[2])])
     vox = (cell * stride).sum(1)  # [N]
-    occ = torch.unique(vox * K + frag)  # sorted (voxel, fragment) keys
+    pairs, counts = torch.unique(vox * K + frag, return_counts=True)  # sorted (voxel, fragment) keys
+    vox_of = pairs // K
+    voxels, inverse = torch.unique_consecutive(vox_of, return_inverse=True)
+    best = torch.zeros(voxels.numel(), dtype=counts.dtype, device=x.device).scatter_reduce(0, inverse, counts, "amax")
+    top = counts == best[inverse]
+    # the owner of each voxel: its most numerous fragment (ties: the lowest id, the first key of the run)
+    winner = torch.zeros(voxels.numel(), dtype=torch.long, device=x.device).scatter_reduce(
+        0, inverse[top], torch.arange(pairs.numel(), device=x.device)[top], "amin", include_self=False)
+    occ = pairs[winner]  # one (voxel, owner) key per voxel, sorted
     level = torch.zeros(occ.numel(), dtype=torch.long, device=x.device)
     alive = torch.arange(occ.numel(), device=x.device)
     current = occ

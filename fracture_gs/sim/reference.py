@@ -131,17 +131,18 @@ def g2p(x, F, gv, field, origin, dx, dt):
     return x.double() + dt * v, v, C, F_new
 
 
-def contact_fields(v, m, frag, band, eps_m, eps_b, normals, e=0.0, mu=0.0):
+def contact_fields(v, m, frag, band, eps_m, eps_b, normals, e=0.0, mu=0.0, touching=None):
     """Pairwise contact at M nodes with S fields each (v [M,S,3], m [M,S], frag [M,S] (−1: empty),
-    band [M,S], normals(a_slot, b_slot, lo_slot, hi_slot) → [M,3] unit normals from lo into hi):
+    band [M,S], normals(a_slot, b_slot, lo_slot, hi_slot) → [M,3] unit normals from lo into hi,
+    touching(a_slot, b_slot) → [M] bool contact gate, default: both band-supported):
     slot pairs a < b in order, each oriented by fragment id, approach-only normal impulse with
     restitution e, then Coulomb friction capped at μ·J (contact.py, float64)."""
     v = v.double().clone()
     M, S = m.shape
     for a in range(S):
         for b in range(a + 1, S):
-            ok = (frag[:, a] >= 0) & (frag[:, b] >= 0) & (m[:, a] > eps_m) & (m[:, b] > eps_m) \
-                & (band[:, a] > eps_b) & (band[:, b] > eps_b)
+            gate = (band[:, a] > eps_b) & (band[:, b] > eps_b) if touching is None else touching(a, b)
+            ok = (frag[:, a] >= 0) & (frag[:, b] >= 0) & (m[:, a] > eps_m) & (m[:, b] > eps_m) & gate
             swap = frag[:, b] < frag[:, a]
             lo = torch.where(swap, b, a)
             hi = torch.where(swap, a, b)

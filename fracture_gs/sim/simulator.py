@@ -247,10 +247,9 @@ class Simulator:
         else:
             g.clear()
             lo, hi = wp.vec3i(0, 0, 0), wp.vec3i(*g.shape)
-        gradients = int(multi and self.normal_mode == NORMAL_MASS_GRADIENT)
         wp.launch(p2g, dim=len(self.particles), device=self.device,
                   inputs=[w["x"], w["v"], w["C"], w["mass"], w["volume"], w["stress"] if stress is None else stress,
-                          w["fragment"], w["band"], multi, only_fragment, gradients, dt, g.view, lo, hi,
+                          w["fragment"], w["band"], multi, only_fragment, dt, g.view, lo, hi,
                           w["counts"] if counts is None else counts])
 
     def update_grid(self, dt: float) -> None:
@@ -264,7 +263,8 @@ class Simulator:
         if multi:
             c = self.cfg.contact
             wp.launch(grid_update_pool, dim=g.capacity, device=self.device,
-                      inputs=[g.view, self.eps_m, self.eps_b, multi, int(self.spec.contact), self.normal_mode,
+                      inputs=[g.view, self.eps_m, self.eps_b, c.fill * self.node_mass, multi, int(self.spec.contact),
+                              self.normal_mode,
                               self._normal, self.wp["centroids"], float(self.cfg.restitution), float(c.friction), dt,
                               self._gravity, self.time, self.boundaries.colliders, int(self.record_contact),
                               g.wp["stats"], g.wp["pair_stats"], g.max_fragments])

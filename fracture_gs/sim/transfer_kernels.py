@@ -13,7 +13,7 @@ from __future__ import annotations
 import warp as wp
 
 from .boundary import Colliders, apply_boundaries
-from .contact import contact_normal, contact_projection, record_contact
+from .contact import NORMAL_MASS_GRADIENT, contact_normal, contact_projection, record_contact
 from .layout import (COUNT_CLAMPED, COUNT_ESCAPED, COUNT_POOL_OVERFLOW, COUNT_SLOT_OVERFLOW, EMPTY_KEY, MAX_SLOTS,
                      OWNER_MASK, ROW_FLAG, GridView, claim_pool_slot, claim_row, claim_slot0, field_index, find_pool_slot,
                      find_row, flat, inside, unflat)
@@ -139,7 +139,6 @@ def p2g(
     band: wp.array(dtype=wp.int32),  # [N] γ_p
     multifield: int,
     only_fragment: int,  # ≥ 0: skip every particle of another fragment (global fragment pass)
-    gradients: int,  # accumulate band-mass gradients (mass-gradient contact normals)
     dt: float,
     g: GridView,
     lo: wp.vec3i,  # active box [lo, hi): a stencil outside it is counted (the frame is redone)
@@ -147,7 +146,7 @@ def p2g(
     counts: wp.array(dtype=wp.int32),  # [N_COUNTS] running counters
 ):
     """m_i^k += w m_p;  p_i^k += w m_p (v_p + C_p(x_i − x_p)) − Δt V⁰ τ_p ∇w  (k = routed field);
-    band particles add w m_p (and m_p ∇w) to their slot's band mass at the node (Eq. band_mass)."""
+    band particles add w m_p to their slot's band mass at the node (Eq. band_mass)."""
     p = wp.tid()
     k = routed_field(fragment[p], only_fragment, multifield)
     if k < 0:
@@ -171,8 +170,6 @@ def p2g(
                     idx, row, s = deposit_index(g, n, k, in_band, counts)
                     if in_band != 0 and row >= 0:
                         wp.atomic_add(g.band, row * g.slots + s, weight * m)
-                        if gradients != 0:
-                            wp.atomic_add(g.grad, row * g.slots + s, m * grad)
                 atomic_add_vec4(g.mp, idx, wp.vec4(mom[0], mom[1], mom[2], weight * m))
 
 
@@ -193,7 +190,6 @@ def clear_pool(g: GridView):
     g.key[r] = EMPTY_KEY
     for s in range(g.slots):
         g.band[r * g.slots + s] = 0.0
-        g.grad[r * g.slots + s] = wp.vec3(0.0)
         if s > 0:
             g.pool_owner[r * (g.slots - 1) + s - 1] = -1
             g.mp[g.n_nodes + r * (g.slots - 1) + s - 1] = wp.vec4(0.0)
@@ -234,11 +230,43 @@ def grid_update_dense(
     g.vel[n] = v
 
 
+@wp.func
+def field_mass(g: GridView, node: wp.vec3i, k: int):
+    """Mass of fragment k's field at `node` (0 if absent; the node is clamped into the grid)."""
+    c = wp.vec3i(wp.clamp(node[0], 0, g.shape[0] - 1), wp.clamp(node[1], 0, g.shape[1] - 1),
+                 wp.clamp(node[2], 0, g.shape[2] - 1))
+    n = flat(c, wp.vec3i(0, 0, 0), g.shape)
+    word = g.owner[n]
+    if (word & OWNER_MASK) == k + 1:
+        return g.mp[n][3]
+    if (word & ROW_FLAG) == 0:
+        return 0.0
+    row = find_row(g.key, n, g.mask)
+    if row < 0:
+        return 0.0
+    j = find_pool_slot(g.pool_owner, row, g.slots, k)
+    if j == 0:
+        return 0.0
+    return g.mp[field_index(n, row, j, g.n_nodes, g.slots)][3]
+
+
+@wp.func
+def mass_gradient(g: GridView, node: wp.vec3i, k: int):
+    """∇m^k at `node` by central differences of fragment k's nodal masses [kg/m]."""
+    out = wp.vec3(0.0)
+    for a in range(3):
+        e = wp.vec3i(0, 0, 0)
+        e[a] = 1
+        out[a] = (field_mass(g, node + e, k) - field_mass(g, node - e, k)) * (0.5 * g.inv_dx)
+    return out
+
+
 @wp.kernel
 def grid_update_pool(
     g: GridView,
     eps_m: float,
     eps_b: float,  # absolute ε_band
+    fill_mass: float,  # mass-gradient mode: two fields touch where m_a + m_b ≥ this [kg]
     gate: int,  # evaluate the contact gate (multi-field after a latch)
     project: int,  # apply the contact projection (FractureFields)
     normal_mode: int,  # contact.NORMAL_LATCHED or NORMAL_MASS_GRADIENT
@@ -256,7 +284,9 @@ def grid_update_pool(
     n_fragments: int,  # K (pair rows of pair_stats)
 ):
     """Nodes with a pool row: every field normalized, the contact projection between every pair of
-    active, band-supported, approaching fields (ordered by fragment id), then the boundaries."""
+    active, approaching fields in contact (ordered by fragment id), then the boundaries. In contact:
+    both band-supported (latched normal, the paper's gate), or together filling the node
+    (m_a + m_b ≥ fill_mass, mass-gradient normals from the fields' nodal masses)."""
     r = wp.tid()
     n = g.key[r]
     if n == EMPTY_KEY:
@@ -273,17 +303,23 @@ def grid_update_pool(
     V[0] = g.vel[n]
     for s in range(g.slots):
         b[s] = g.band[r * g.slots + s]
-        G[s] = g.grad[r * g.slots + s]
         if s > 0:
             i = g.n_nodes + r * (g.slots - 1) + s - 1
             frag[s] = g.pool_owner[r * (g.slots - 1) + s - 1]
             q = g.mp[i]
             m[s] = q[3]
             V[s] = normalized(q, eps_m, dt, gravity)
+    if gate != 0 and normal_mode == NORMAL_MASS_GRADIENT:
+        for s in range(g.slots):
+            if frag[s] >= 0 and m[s] > eps_m:
+                G[s] = mass_gradient(g, node, frag[s])
     if gate != 0:
         for a in range(g.slots):
             for c in range(a + 1, g.slots):
-                if frag[a] >= 0 and frag[c] >= 0 and m[a] > eps_m and m[c] > eps_m and b[a] > eps_b and b[c] > eps_b:
+                touching = b[a] > eps_b and b[c] > eps_b
+                if normal_mode == NORMAL_MASS_GRADIENT:
+                    touching = m[a] + m[c] >= fill_mass
+                if frag[a] >= 0 and frag[c] >= 0 and m[a] > eps_m and m[c] > eps_m and touching:
                     lo = a
                     hi = c
                     if frag[c] < frag[a]:

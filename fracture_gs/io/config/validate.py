@@ -126,6 +126,7 @@ def _check_sim(c: _Checker, s: SimConfig, frame_dt: float) -> None:
     c.within("sim.field_slots", s.field_slots, 2, MAX_FIELD_SLOTS, f"use 2 to {MAX_FIELD_SLOTS} fields per node")
     c.within("sim.max_fragments", s.max_fragments, 2, 4096, "use 2 to 4096 fragments")
     c.at_least("sim.contact.friction", s.contact.friction, 0.0, "use a non-negative Coulomb coefficient")
+    c.positive("sim.contact.fill", s.contact.fill, "use a fraction of a full node's mass, e.g. fill = 0.5")
     if not math.isfinite(s.contact.friction):
         c.fail("sim.contact.friction", f"sim.contact.friction = {s.contact.friction} is not finite", "use e.g. 0.3")
     for i, b in enumerate(s.boundaries):
