@@ -14,7 +14,7 @@ from fracture_gs.assets import fill_interior
 from fracture_gs.assets.gaussians import C0, quat_z_to
 from fracture_gs.io import GaussianSet
 
-NAMES = ["bread", "ficus", "recontact", "beam", "plane_drop"]
+NAMES = ["bread", "ficus", "recontact", "beam", "plane_drop", "plate_drop"]
 BOUNDS = {  # the geometries configs rely on
     "bread": ((0.25, 0.39, 0.15), (0.75, 0.61, 0.33)),
     "ficus": ((0.30, 0.30, 0.05), (0.70, 0.70, 0.75)),

@@ -24,7 +24,7 @@ from fracture_gs.io.config import (
 )
 
 REPO = Path(__file__).resolve().parent.parent
-SCENES = ("bread", "ficus", "recontact", "beam", "plane_drop")
+SCENES = ("bread", "ficus", "recontact", "beam", "plane_drop", "plate_drop")
 
 
 def write(tmp_path: Path, text: str, name: str = "x.toml") -> Path:
