@@ -22,6 +22,8 @@ GridKind = Literal["explicit", "auto"]
 ProviderName = Literal["none", "oracle", "stress", "voronoi"]
 RenderMode = Literal["classic", "antialiased"]
 RenderBackend = Literal["auto", "gsplat", "torch"]
+ColorBy = Literal["appearance", "fragment"]
+BandRelease = Literal["first", "all", "none"]
 Preset = Literal["small", "paper"]
 
 VARIANTS = VARIANT_NAMES
@@ -253,6 +255,10 @@ class TopologyConfig:
     max_events: int = 1
     """Stress: how many fracture events may latch (1 = the paper's single latch; more = repeated
     fracture, every over-stressed fragment cut again)."""
+    release: BandRelease = "first"
+    """Which bands get the stress release of the releasing variants: `first` (the first event's, the
+    paper), `all` (every event's) or `none` (bands only mark crack faces: for shatters, where the bands
+    of many cuts would cover most of the object and leave it stress-free)."""
     split_components: bool = True
     """After every event, give each disconnected piece of a fragment its own id."""
     min_fragment_particles: int = 8
@@ -301,6 +307,9 @@ class RenderConfig:
     """gsplat rasterization mode: `classic` or `antialiased`."""
     backend: RenderBackend = "auto"
     """`auto` (gsplat on CUDA, torch on CPU), `gsplat` or `torch`."""
+    color_by: ColorBy = "appearance"
+    """`appearance` (the Gaussians' own colours) or `fragment` (each fragment in its own colour, shaded by
+    the Gaussian's brightness, once the object has broken)."""
     show_exposed_interior: bool = True
     """Draw interior fill particles once a fracture exposes them (coloured like the nearest surface)."""
     inset_radius: int = 40

@@ -39,6 +39,7 @@ class Painter:
         self.interior = gs.interior.to(device)
         self.surface_dc = (gs.sh[:, 0, :] * 0.28209479177387814 + 0.5).clamp(0, 1).to(device, torch.float32)
         self.exposed_rgb: Optional[torch.Tensor] = None
+        self.exposed_count = 0
         self.width, self.height = int(cfg.render.width), int(cfg.render.height)
 
     def camera(self, frame: int):
@@ -48,11 +49,22 @@ class Painter:
         if not self.cfg.show_exposed_interior or not bool((out.fragment >= 0).any()):
             return torch.zeros_like(self.interior)
         exposed = self.interior & (out.band != 0)
-        if self.exposed_rgb is None and bool(exposed.any()) and bool((~self.interior).any()):
-            # colour of the nearest surface Gaussian at the latch (computed once)
-            self.exposed_rgb = exposed_interior_colors(out.means[exposed], out.means[~self.interior], self.surface_dc[~self.interior])
+        count = int(exposed.sum())
+        if count != self.exposed_count and count > 0 and bool((~self.interior).any()):
+            # colour of the nearest surface Gaussian, computed when a fracture exposes new interior
+            self.exposed_rgb = exposed_interior_colors(out.means[exposed], out.means[~self.interior],
+                                                       self.surface_dc[~self.interior])
             self.exposed_idx = torch.nonzero(exposed).flatten()
+            self.exposed_count = count
         return exposed
+
+    def _fragment_colors(self, colors: torch.Tensor, fragment: torch.Tensor) -> torch.Tensor:  # [N,3] -> [N,3]
+        """Each fragment in its own hue (golden-ratio spacing), shaded by the Gaussian's own brightness."""
+        k = fragment.clamp_min(0).to(torch.float32)
+        hue = torch.remainder(0.61803398875 * k + 0.08, 1.0)
+        rgb = (0.5 + 0.45 * torch.cos(2 * torch.pi * (hue[:, None] + torch.tensor([0.0, 1 / 3, 2 / 3], device=k.device))))
+        shade = 0.55 + 0.45 * colors.mean(1, keepdim=True).clamp(0, 1)
+        return torch.where((fragment >= 0)[:, None], rgb * shade, colors)
 
     def __call__(self, out: FrameOutput) -> np.ndarray:
         cam = self.camera(out.frame)
@@ -60,6 +72,8 @@ class Painter:
         colors = sh_colors(self.sh, out.means, cam.campos.to(out.means), out.rotations)
         if self.exposed_rgb is not None:
             colors[self.exposed_idx] = self.exposed_rgb
+        if self.cfg.color_by == "fragment":
+            colors = self._fragment_colors(colors, out.fragment)
         keep = ~self.interior | exposed
         img = render(out.means[keep], out.covars[keep], colors[keep], self.opacities[keep], cam.to(out.means.device),
                      background=self.cfg.background, backend=self.cfg.backend, mode=self.cfg.mode).image

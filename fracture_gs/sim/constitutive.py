@@ -110,11 +110,12 @@ def compute_stress(
     hardening: wp.array(dtype=float),  # [N]
     alpha: wp.array(dtype=float),  # [N] Drucker–Prager cone slope
     band: wp.array(dtype=wp.int32),  # [N] γ_p
-    release: int,  # 1: band stress release (Eq. stress_release) is on
+    release: int,  # band stress release (Eq. stress_release) for particles banded by events 1 … release (0: off)
     commit: int,  # 1: write the plastic projection back into F (0 for shadow diagnostics)
     stress: wp.array(dtype=wp.mat33),  # [N] out: Kirchhoff stress used by P2G
 ):
-    """Plastic return (models 2, 3), then τ; band particles get (1 − γ_p)τ after the latch."""
+    """Plastic return (models 2, 3), then τ; band particles get (1 − γ_p)τ after the latch (γ_p = the
+    1-based index of the event that banded the particle; released up to event `release`)."""
     p = wp.tid()
     Fp = F[p]
     model = material[p]
@@ -136,6 +137,6 @@ def compute_stress(
         tau = hencky_kirchhoff(U, eps, mu, lam)
     else:
         tau = kirchhoff_stress(Fp, model, mu, lam)
-    if release != 0 and band[p] != 0:
+    if band[p] != 0 and band[p] <= release:
         tau = wp.mat33(0.0)
     stress[p] = tau

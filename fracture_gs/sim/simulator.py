@@ -221,7 +221,7 @@ class Simulator:
         out_wp = w["stress"] if out is self.stress else wp.from_torch(out, dtype=wp.mat33)
         wp.launch(compute_stress, dim=len(self.particles), device=self.device,
                   inputs=[w["F"], w["material"], w["E"], w["nu"], w["yield_stress"], w["hardening"], w["alpha"],
-                          w["band"], int(self.release), int(commit), out_wp])
+                          w["band"], self.topology.release_events if self.release else 0, int(commit), out_wp])
 
     def _grid_pass(self, dt: float, only_fragment: int) -> None:
         """Grid reset, P2G, grid update, G2P over all particles or one fragment's."""

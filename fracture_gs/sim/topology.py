@@ -36,13 +36,14 @@ class Topology:
     """O = {o_p, γ_p, n_Π, t_latch} plus the plane's point (paper Section 4.1) and the event history."""
 
     fragment: torch.Tensor  # [N] int32 persistent fragment id o_p ∈ {0, …, K − 1}
-    band: torch.Tensor  # [N] bool/int interface-band flag γ_p (near any cut)
+    band: torch.Tensor  # [N] int γ_p: 0, or the 1-based index of the event whose cut the particle lies near
     normal: tuple  # n_Π of the first event (unit, fragment 1 on its positive side)
     point: tuple  # a point on the first event's plane
     latch_time: float = 0.0  # t_latch of this snapshot [s]
     latch_frame: int = 0
     pair_radius: float = 1.5  # interface pairs: nearest opposite band particle within this many Δx
     events: list = field(default_factory=list)  # FractureEvent list, oldest first
+    release_events: int = 1  # band particles of events 1 … release_events get stress release (0: none)
 
     @staticmethod
     def from_plane(x: torch.Tensor, point, normal, band_width: float, latch_time: float = 0.0, latch_frame: int = 0,
@@ -85,7 +86,7 @@ class Topology:
         return dict(fragment=self.fragment.cpu().numpy().astype(np.int32), band=self.band.cpu().numpy().astype(np.uint8),
                     normal=np.asarray(self.normal), point=np.asarray(self.point), latch_time=self.latch_time,
                     latch_frame=self.latch_frame, pair_radius=self.pair_radius,
-                    events=json.dumps([asdict(e) for e in self.events]))
+                    events=json.dumps([asdict(e) for e in self.events]), release_events=self.release_events)
 
     def save(self, path) -> None:
         np.savez_compressed(path, **self._arrays())
@@ -99,6 +100,7 @@ class Topology:
             normal=tuple(float(a) for a in z["normal" + suffix]), point=tuple(float(a) for a in z["point" + suffix]),
             latch_time=float(z["latch_time" + suffix]), latch_frame=int(z["latch_frame" + suffix]),
             pair_radius=float(z["pair_radius" + suffix]) if "pair_radius" + suffix in z else 1.5,
+            release_events=int(z["release_events" + suffix]) if "release_events" + suffix in z else 1,
             events=[FractureEvent(**{k: (tuple(v) if isinstance(v, list) and k != "seeds" else v) for k, v in e.items()})
                     for e in events],
         )

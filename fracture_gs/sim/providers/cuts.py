@@ -18,11 +18,11 @@ _STRUCTURE = np.ones((3, 3, 3), dtype=bool)  # 26-connectivity
 
 
 def plane_cut(x: torch.Tensor, fragment: torch.Tensor, band: torch.Tensor, point, normal, band_width: float,
-              max_fragments: int, targets=None) -> tuple[torch.Tensor, torch.Tensor, list, list]:
+              max_fragments: int, targets=None, tag: int = 1) -> tuple[torch.Tensor, torch.Tensor, list, list]:
     """Cut the `targets` fragments (all when None) by the plane through `point` with `normal`: in each
     fragment with particles on both sides, the positive side gets a new id. The band grows by the
-    cut fragments' particles within `band_width` [m] of the plane. Returns (fragment [N], band [N],
-    parents, children)."""
+    cut fragments' particles within `band_width` [m] of the plane, tagged with `tag` (the event's
+    1-based index) where they had no band yet. Returns (fragment [N], band [N], parents, children)."""
     n = torch.as_tensor(normal, dtype=torch.float64, device=x.device)
     n = n / n.norm()
     d = (x.double() - torch.as_tensor(point, dtype=torch.float64, device=x.device)) @ n  # [N]
@@ -35,7 +35,7 @@ def plane_cut(x: torch.Tensor, fragment: torch.Tensor, band: torch.Tensor, point
         pos = mine & (d >= 0)
         if not bool(pos.any()) or not bool((mine & (d < 0)).any()):
             continue
-        band |= (mine & (d.abs() < band_width)).to(band.dtype)
+        band = torch.where(mine & (d.abs() < band_width) & (band == 0), torch.full_like(band, tag), band)
         if next_id >= max_fragments:
             continue
         fragment[pos] = next_id
@@ -92,6 +92,9 @@ def split_components(x: torch.Tensor, fragment: torch.Tensor, h: float, max_frag
     return torch.from_numpy(out.astype(np.int32)).to(fragment.device), parents, children
 
 
+RELEASE_EVENTS = {"first": 1, "all": 1 << 30, "none": 0}  # TopologyConfig.release → Topology.release_events
+
+
 def finish_event(sim, cfg, base, fragment: torch.Tensor, band: torch.Tensor, event):
     """The snapshot after `event`: labels split into connected components when the config asks for
     it (the new ids join the event's children), appended to `base` (None: the first event, whose
@@ -104,5 +107,7 @@ def finish_event(sim, cfg, base, fragment: torch.Tensor, band: torch.Tensor, eve
         event.parents = tuple(event.parents) + tuple(p for p in parents if p not in event.parents)
         event.children = tuple(event.children) + tuple(children)
     if isinstance(base, Topology):
-        return base.refined(fragment, band, event)
+        out = base.refined(fragment, band, event)
+        out.release_events = RELEASE_EVENTS[cfg.release]
+        return out
     raise TypeError("finish_event needs the previous Topology")

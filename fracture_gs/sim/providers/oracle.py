@@ -10,7 +10,7 @@ from typing import Optional
 
 from ...config import OraclePlane, TopologyConfig
 from ..topology import FractureEvent, Topology
-from .cuts import finish_event, plane_cut
+from .cuts import RELEASE_EVENTS, finish_event, plane_cut
 
 
 class OracleProvider:
@@ -43,12 +43,13 @@ class OracleProvider:
             if t is None:
                 t = Topology.from_plane(x, plane.point, plane.normal, width, latch_time=sim.time, latch_frame=sim.frame,
                                         pair_radius=cfg.pair_radius)
+                t.release_events = RELEASE_EVENTS[cfg.release]
                 if cfg.split_components:
                     first, t = t.events[0], Topology(**{**t.__dict__, "events": []})
                     t = finish_event(sim, cfg, t, t.fragment, t.band, first)
                 continue
             fragment, band, parents, children = plane_cut(x, t.fragment, t.band, plane.point, plane.normal, width,
-                                                          sim.cfg.max_fragments)
+                                                          sim.cfg.max_fragments, tag=len(t.events) + 1)
             event = FractureEvent("plane", sim.time, sim.frame, tuple(parents), tuple(children), tuple(plane.point),
                                   tuple(plane.normal))
             t = finish_event(sim, cfg, t, fragment, band, event)

@@ -19,7 +19,7 @@ import torch
 
 from ...config import TopologyConfig
 from ..topology import FractureEvent, Topology
-from .cuts import finish_event, plane_cut
+from .cuts import RELEASE_EVENTS, finish_event, plane_cut
 
 
 EIGH_CHUNK = 32768  # batched CUDA eigh (cusolver) fails for batches of ≥ 65,536 in torch 2.11 + CUDA 13
@@ -164,6 +164,7 @@ class StressProvider:
         t = Topology.from_plane(
             sim.particles.x, point.tolist(), normal.tolist(), self.cfg.band_width * sim.grid.dx,
             latch_time=sim.time, latch_frame=sim.frame, pair_radius=self.cfg.pair_radius)
+        t.release_events = RELEASE_EVENTS[self.cfg.release]
         if self.cfg.split_components:
             first, t = t.events[0], replace(t, events=[])
             t = finish_event(sim, self.cfg, t, t.fragment, t.band, first)
@@ -197,7 +198,8 @@ class StressProvider:
         for f in due[: self.cfg.max_events - self.events]:
             sel = over & (fragment == f)
             point, normal = self.plane(x[sel].double(), d[sel])
-            frag, band, parents, children = plane_cut(x, frag, band, point.tolist(), normal.tolist(), width, K, [f])
+            frag, band, parents, children = plane_cut(x, frag, band, point.tolist(), normal.tolist(), width, K, [f],
+                                                     tag=len(t.events) + 1)
             if not children:
                 continue
             event = FractureEvent("plane", sim.time, sim.frame, tuple(parents), tuple(children),

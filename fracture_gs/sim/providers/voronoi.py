@@ -15,7 +15,7 @@ import torch
 
 from ...config import PlaneBoundary, TopologyConfig
 from ..topology import FractureEvent, Topology
-from .cuts import finish_event, voronoi_labels
+from .cuts import RELEASE_EVENTS, finish_event, voronoi_labels
 
 
 def voronoi_sites(x: torch.Tensor, cells: int, seed: int, impact_point=None, impact_radius: float = 0.1) -> torch.Tensor:
@@ -63,7 +63,8 @@ class VoronoiProvider:
         k = int(fragment.max()) + 1
         first = FractureEvent("voronoi", sim.time, sim.frame, (-1,), tuple(range(k)), seeds=self.sites.tolist())
         base = Topology(fragment=fragment, band=band, normal=(1.0, 0.0, 0.0), point=tuple(self.sites[0].tolist()),
-                        latch_time=sim.time, latch_frame=sim.frame, pair_radius=cfg.pair_radius)
+                        latch_time=sim.time, latch_frame=sim.frame, pair_radius=cfg.pair_radius,
+                        release_events=RELEASE_EVENTS[cfg.release])
         self.topology = finish_event(sim, cfg, base, fragment, band, first) if cfg.split_components else \
             base.refined(fragment, band, first)
         return self.topology
