@@ -19,7 +19,7 @@ import torch
 
 from ...config import TopologyConfig
 from ..topology import FractureEvent, Topology
-from .cuts import RELEASE_EVENTS, finish_event, plane_cut
+from .cuts import RELEASE_EVENTS, finish_event, plane_cut, split_components
 
 
 EIGH_CHUNK = 32768  # batched CUDA eigh (cusolver) fails for batches of ≥ 65,536 in torch 2.11 + CUDA 13
@@ -65,6 +65,23 @@ def least_variance_axis(x: torch.Tensor) -> torch.Tensor:
     c = x - x.mean(0)
     _, axes = torch.linalg.eigh(c.T @ c)  # ascending variance
     return axes[:, 0]
+
+
+def over_stressed_clusters(x: torch.Tensor, over: torch.Tensor, h: float, min_size: int) -> list:
+    """Spatially separate groups of over-stressed particles (cells of size h, 26-connected), each a
+    mask [N], largest first; groups smaller than `min_size` are dropped."""
+    idx = torch.nonzero(over).flatten()
+    if idx.numel() < 2 * min_size:
+        return [over] if idx.numel() else []
+    label = torch.zeros(len(x), dtype=torch.int32, device=x.device)
+    labels, _, _ = split_components(x[idx], label[idx], h, 1 << 20, min_particles=1)
+    out = []
+    for c in torch.unique(labels).tolist():
+        mask = torch.zeros_like(over)
+        mask[idx[labels == c]] = True
+        if int(mask.sum()) >= min_size:
+            out.append(mask)
+    return sorted(out, key=lambda m: -int(m.sum())) or [over]
 
 
 class StressProvider:
@@ -146,7 +163,29 @@ class StressProvider:
         self._update_streak(sim.frame, count >= self.cfg.min_particles)
         if self.streak < self.cfg.persist_frames:
             return None
+        if self.cfg.max_events > 1:
+            groups = over_stressed_clusters(sim.particles.x, over, sim.grid.dx, self.cfg.min_particles)
+            if len(groups) > 1:  # several cracks at once: one cut each, largest first
+                t = self._latch(sim, groups[0], d)
+                return self._cut_clusters(sim, t, groups[1:self.cfg.max_events], d)
         return self._latch(sim, over, d)
+
+    def _cut_clusters(self, sim, t: Topology, groups: list, d: torch.Tensor) -> Topology:
+        """Further cuts in the frame of the first latch: each cluster cuts the fragment holding most of it."""
+        x, width = sim.particles.x, self.cfg.band_width * sim.grid.dx
+        for sel in groups:
+            f = int(torch.mode(t.fragment.to(x.device)[sel].long()).values)
+            point, normal = self.plane(x[sel].double(), d[sel])
+            frag, band, parents, children = plane_cut(x, t.fragment.to(x.device), t.band.to(x.device), point.tolist(),
+                                                      normal.tolist(), width, sim.cfg.max_fragments, [f],
+                                                      tag=len(t.events) + 1)
+            if children:
+                event = FractureEvent("plane", sim.time, sim.frame, tuple(parents), tuple(children),
+                                      tuple(point.tolist()), tuple(normal.tolist()))
+                t = finish_event(sim, self.cfg, t, frag, band, event)
+                self.events += 1
+        self.topology = t
+        return t
 
     def plane(self, x: torch.Tensor, d: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """(point, unit normal) from the over-stressed positions x [M,3] and directions d [M,3]."""
@@ -192,6 +231,7 @@ class StressProvider:
                 due.append(f)
         if not due:
             return None
+        due.sort(key=lambda f: -counts[f])  # the most over-stressed piece first (events may run out)
         x = sim.particles.x
         width = self.cfg.band_width * sim.grid.dx
         frag, band = t.fragment.to(x.device), t.band.to(x.device)
