@@ -2,7 +2,7 @@
 
 These classes are the contract between the TOML files (`fracture_gs.io.config` loads them), the
 simulator (`fracture_gs.sim` re-exports `SimConfig`), the renderer and the CLI. They live in a leaf
-module so that `io` can build them without importing `sim` (DESIGN.md: io imports neither sim nor
+module so that `io` can build them without importing `sim` (docs/DESIGN.md: io imports neither sim nor
 render). Units are SI throughout: metres, seconds, kilograms, pascals.
 """
 from __future__ import annotations
