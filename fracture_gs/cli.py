@@ -130,6 +130,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--particles", metavar="N", type=_positive_int,
                    help="built-in scenes only: override the preset's particle count (quick looks)")
     p.add_argument("--resolution", metavar="WxH", help="image size, e.g. 640x480 (default: the config's)")
+    p.add_argument("--profile", action="store_true",
+                   help="print where the wall time goes by phase (simulate, diagnostics, render, compose, encode, io); "
+                        "also written to profile.md")
     _add_common_run_flags(p, "output folder (default: runs/<config name>)")
 
     p = sub.add_parser("bench", help="time the transfer branches (paper Table 2)", formatter_class=fmt,
@@ -252,10 +255,12 @@ def cmd_render_sim(args: argparse.Namespace) -> int:
     if getattr(args, "particles", None):
         cfg.particles = args.particles
     print(f"render-sim: {cfg.name} ({cfg.scene}, preset {cfg.preset}), {cfg.frames} frames, variants {', '.join(cfg.variants)}, device {device} -> {out_dir}")
-    summary = run(cfg, list(cfg.variants), device, out_dir) or {}
+    summary = run(cfg, list(cfg.variants), device, out_dir, profile=args.profile) or {}
     table = out_dir / "summary.md"
     print(table.read_text() if table.exists() else json.dumps(summary, indent=2, default=str))
     print(f"outputs in {out_dir}: comparison.mp4, one <variant>.mp4 each, frames/, metrics.jsonl, summary.json, topology.npz, config.toml")
+    if summary.get("profile"):
+        print(summary["profile"], end="")
     failed = [f"{v['variant']} {v['status']}" for v in summary.get("variants", []) if v.get("status", "ok") != "ok"]
     if failed:
         print(f"fracture-gs: error: {'; '.join(failed)}; every frame and metric written before that is in {out_dir}", file=sys.stderr)

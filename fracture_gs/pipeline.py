@@ -7,7 +7,7 @@ the fragment ids, as tensors on the simulation device (no host copies).
 from __future__ import annotations
 
 import copy
-from dataclasses import dataclass, field
+import functools
 from pathlib import Path
 from typing import Iterator, Optional, Union
 
@@ -15,23 +15,35 @@ import torch
 
 from . import assets
 from .config import SceneConfig
+from .profiling import phases
 from .io import GaussianSet
 from .render.gaussians import deform_covariances, polar_rotation
 from .sim import Particles, Simulator, SimulationError, Topology
 from .sim.providers import ReplayProvider, make_provider
 
 
-@dataclass
 class FrameOutput:
-    frame: int
-    time: float
-    means: torch.Tensor  # [N, 3]
-    covars: torch.Tensor  # [N, 3, 3]
-    rotations: torch.Tensor  # [N, 3, 3] R(F)
-    fragment: torch.Tensor  # [N] int32, −1 before the latch
-    band: torch.Tensor  # [N] int32
-    metrics: dict = field(default_factory=dict)
-    substeps: int = 0
+    """One frame of one run: particle means, fragment ids and metrics, read off the simulator; the
+    covariances Σ = F Σ⁰ Fᵀ and the polar rotations R(F) (for SH) are computed when first asked for,
+    so a renderer on another thread pays for them there."""
+
+    def __init__(self, frame: int, time: float, means: torch.Tensor, F: torch.Tensor, cov0: torch.Tensor,
+                 fragment: torch.Tensor, band: torch.Tensor, metrics: Optional[dict] = None, substeps: int = 0):
+        self.frame, self.time, self.substeps = frame, time, substeps
+        self.means = means  # [N, 3]
+        self.F = F  # [N, 3, 3]
+        self.cov0 = cov0  # [N, 3, 3] rest covariances
+        self.fragment = fragment  # [N] int32, −1 before the latch
+        self.band = band  # [N] int32
+        self.metrics = metrics if metrics is not None else {}
+
+    @functools.cached_property
+    def covars(self) -> torch.Tensor:  # [N, 3, 3]
+        return deform_covariances(self.F, self.cov0)
+
+    @functools.cached_property
+    def rotations(self) -> torch.Tensor:  # [N, 3, 3] R(F)
+        return polar_rotation(self.F)
 
 
 def load_scene(cfg: SceneConfig, device="cpu") -> GaussianSet:
@@ -88,9 +100,8 @@ def make_simulator(cfg: SceneConfig, gs: GaussianSet, variant: str, device: str,
 
 def frame_output(sim: Simulator, cov0: torch.Tensor, metrics: dict, substeps: int = 0) -> FrameOutput:
     P = sim.particles
-    return FrameOutput(frame=sim.frame, time=sim.time, means=P.x.clone(), covars=deform_covariances(P.F, cov0),
-                       rotations=polar_rotation(P.F), fragment=P.fragment.clone(), band=P.band.clone(),
-                       metrics=metrics, substeps=substeps)
+    return FrameOutput(frame=sim.frame, time=sim.time, means=P.x.clone(), F=P.F.clone(), cov0=cov0,
+                       fragment=P.fragment.clone(), band=P.band.clone(), metrics=metrics, substeps=substeps)
 
 
 def simulate(sim: Simulator, cov0: torch.Tensor, frames: int, frame_dt: float,
@@ -99,7 +110,11 @@ def simulate(sim: Simulator, cov0: torch.Tensor, frames: int, frame_dt: float,
     `SimulationDiverged` at the frame that diverged (everything yielded before stays valid).
     Without `diagnostics` nothing is read back to the host but the per-frame divergence check."""
     tracker = sim.diagnostics_tracker() if diagnostics else None
-    yield frame_output(sim, cov0, tracker.snapshot() if tracker else {})
+    with phases.section("diagnostics"):
+        first = tracker.snapshot() if tracker else {}
+    yield frame_output(sim, cov0, first)
     for _ in range(frames):
-        n = sim.advance(frame_dt)
-        yield frame_output(sim, cov0, tracker.history[-1] if tracker else {}, n)
+        with phases.section("simulate"):
+            n = sim.advance(frame_dt)
+            out = frame_output(sim, cov0, tracker.history[-1] if tracker else {}, n)
+        yield out

@@ -7,6 +7,9 @@ Ctrl-C or a divergence keeps every frame and metric already written.
 from __future__ import annotations
 
 import json
+import queue
+import sys
+import threading
 import time
 from pathlib import Path
 from typing import Optional
@@ -19,10 +22,11 @@ from .config import SceneConfig
 from .io.config import dump_config
 from .io.video import VideoWriter, save_png
 from .pipeline import FrameOutput, load_scene, make_simulator, simulate
+from .profiling import phases
 from .render import compose
 from .render.camera import from_config
 from .render.gaussians import exposed_interior_colors, sh_colors
-from .render.splat import render
+from .render.splat import gsplat_needs_compile, render
 from .sim import SimulationDiverged, Topology
 from .sim.topology import save_history
 
@@ -145,35 +149,87 @@ def summary_markdown(summaries: list) -> str:
     return "\n".join(lines) + "\n"
 
 
+class FrameSink:
+    """Renders, encodes and keeps the frames of one variant on a worker thread, so frame n is drawn
+    while the solver runs frame n + 1 (Warp's and torch's kernels release the GIL). A bounded queue
+    keeps at most two frames in flight; an error on the worker is raised in the caller at the next
+    `put` or at `close`. Closing always drains what was queued (Ctrl-C and divergences keep every
+    frame simulated so far)."""
+
+    def __init__(self, painter: Painter, video_path: Path, fps: int, store: list):
+        self.painter, self.store = painter, store
+        self.video = VideoWriter(video_path, fps=fps)
+        self.error: Optional[BaseException] = None
+        self.queue: queue.Queue = queue.Queue(maxsize=2)
+        self.thread = threading.Thread(target=self._work, name="fgs-render", daemon=True)
+        self.thread.start()
+
+    def _work(self) -> None:
+        while True:
+            out = self.queue.get()
+            if out is None:
+                return
+            if self.error is not None:
+                continue
+            try:
+                with phases.section("render"):
+                    img = self.painter(out)
+                with phases.section("encode"):
+                    self.video.write(img)
+                self.store.append(img)
+            except BaseException as exc:  # noqa: BLE001 - handed to the caller
+                self.error = exc
+
+    def put(self, out: FrameOutput) -> None:
+        if self.error is not None:
+            raise self.error
+        self.queue.put(out)
+
+    def close(self) -> None:
+        self.queue.put(None)
+        self.thread.join()
+        with phases.section("encode"):
+            self.video.close()
+        if self.error is not None:
+            raise self.error
+
+
 def run_variant(cfg, gs, variant, device, out_dir: Path, painter: Painter, topology, metrics_file, frames_store: list):
     """Simulate + render one variant; appends frames to `frames_store`; returns (summary, topology)."""
     sim = make_simulator(cfg, gs, variant, device, topology=topology)
     rows, status, t0 = [], "ok", time.perf_counter()
-    bar = tqdm(total=cfg.frames, desc=f"{variant:>20s}", unit="frame", leave=True, dynamic_ncols=True)
+    bar = progress_bar(cfg.frames, f"{variant:>20s}")
+    sink = FrameSink(painter, out_dir / f"{variant}.mp4", cfg.render.fps, frames_store)
     try:
-        with VideoWriter(out_dir / f"{variant}.mp4", fps=cfg.render.fps) as video:
-            for out in simulate(sim, painter.cov0, cfg.frames, cfg.frame_dt):
-                row = {"variant": variant, **out.metrics}
-                metrics_file.write(json.dumps(row, default=_json_default) + "\n")
+        for out in simulate(sim, painter.cov0, cfg.frames, cfg.frame_dt):
+            with phases.section("io"):
+                metrics_file.write(json.dumps({"variant": variant, **out.metrics}, default=_json_default) + "\n")
                 metrics_file.flush()
-                rows.append(out.metrics)
-                img = painter(out)
-                video.write(img)
-                frames_store.append(img)
-                if out.frame > 0:
-                    elapsed = time.perf_counter() - t0
-                    bar.set_postfix(substeps_per_s=f"{sim.substeps / elapsed:.0f}", fragments=sim.n_fragments,
-                                    overflow=sim.slot_overflow_total)
-                    bar.update(1)
+            rows.append(out.metrics)
+            sink.put(out)
+            if out.frame > 0:
+                elapsed = time.perf_counter() - t0
+                bar.set_postfix(substeps_per_s=f"{sim.substeps / elapsed:.0f}", fragments=sim.n_fragments,
+                                overflow=sim.slot_overflow_total, refresh=False)
+                bar.update(1)
     except SimulationDiverged as err:
         status = f"diverged at frame {err.frame}"
         tqdm.write(f"{variant}: {err}")
         metrics_file.write(json.dumps({"variant": variant, "frame": err.frame, "diverged": str(err)}) + "\n")
     finally:
         bar.close()
+        sink.close()
     if sim.topologies and topology is None:
         topology = list(sim.topologies)
     return summarize(variant, rows, status, time.perf_counter() - t0), topology
+
+
+def progress_bar(total: int, desc: str) -> tqdm:
+    """A tqdm bar; in a non-interactive log (stderr not a terminal) it prints a line every few
+    seconds instead of every update."""
+    interactive = sys.stderr.isatty()
+    return tqdm(total=total, desc=desc, unit="frame", leave=True, dynamic_ncols=True,
+                mininterval=0.1 if interactive else 5.0, maxinterval=10.0 if interactive else 30.0)
 
 
 def _json_default(o):
@@ -193,28 +249,38 @@ def compose_comparison(cfg, variants, frame_lists, topology: Optional[Topology],
     latch_frame = topology.latch_frame if topology is not None else None
     with VideoWriter(out_dir / "comparison.mp4", fps=cfg.render.fps) as video:
         for i in range(n):
-            panels = []
-            for variant, frames in zip(variants, frame_lists):
-                img = frames[i]
-                if latch_frame is not None and i >= latch_frame:
-                    cx, cy, r = compose.interface_region(topology.point, topology.normal, 0.04, painter.camera(i))
-                    if 0 <= cx < img.shape[1] and 0 <= cy < img.shape[0]:
-                        r = float(np.clip(r, 8, cfg.render.inset_radius))
-                        img = compose.add_inset(img, (cx, cy), r, cfg.render.inset_zoom)
-                panels.append(img)
-            caps = [compose.caption_text(v, i * cfg.frame_dt, i) for v in variants]
-            frame = compose.side_by_side(panels, caps)
-            video.write(frame)
-            save_png(out_dir / "frames" / f"compare_{i:04d}.png", frame)
+            with phases.section("compose"):
+                panels = []
+                for variant, frames in zip(variants, frame_lists):
+                    img = frames[i]
+                    if latch_frame is not None and i >= latch_frame:
+                        cx, cy, r = compose.interface_region(topology.point, topology.normal, 0.04, painter.camera(i))
+                        if 0 <= cx < img.shape[1] and 0 <= cy < img.shape[0]:
+                            r = float(np.clip(r, 8, cfg.render.inset_radius))
+                            img = compose.add_inset(img, (cx, cy), r, cfg.render.inset_zoom)
+                    panels.append(img)
+                caps = [compose.caption_text(v, i * cfg.frame_dt, i) for v in variants]
+                frame = compose.side_by_side(panels, caps)
+            with phases.section("encode"):
+                video.write(frame)
+            with phases.section("io"):
+                save_png(out_dir / "frames" / f"compare_{i:04d}.png", frame)
 
 
-def run_render_sim(cfg: SceneConfig, variants, device: str, out_dir, progress: bool = True) -> dict:
-    """The main job. Returns the summary dict (also written to summary.json / summary.md)."""
+def run_render_sim(cfg: SceneConfig, variants, device: str, out_dir, progress: bool = True,
+                   profile: bool = False) -> dict:
+    """The main job. Returns the summary dict (also written to summary.json / summary.md); with
+    `profile`, the time per phase is in summary["profile"] and profile.md."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
+    if profile:
+        phases.enable(sync_device=device if device.startswith("cuda") else None)
+    if device.startswith("cuda") and cfg.render.backend != "torch" and gsplat_needs_compile():
+        tqdm.write("compiling gsplat's CUDA kernels once, about a minute (cached for later runs) ...")
     (out_dir / "config.toml").write_text(dump_config(cfg))
-    gs = load_scene(cfg, device)
-    painter = Painter(gs, cfg, device)
+    with phases.section("setup"):
+        gs = load_scene(cfg, device)
+        painter = Painter(gs, cfg, device)
     # a variant with a provider runs first; its latched topology is replayed by all the others
     order = sorted(variants, key=lambda v: v == "baseline")
     frames, summaries, topology = {}, {}, None
@@ -238,6 +304,10 @@ def run_render_sim(cfg: SceneConfig, variants, device: str, out_dir, progress: b
     (out_dir / "summary.json").write_text(json.dumps(summary, indent=2, default=_json_default))
     (out_dir / "summary.md").write_text(f"# {cfg.name}: {cfg.scene} ({cfg.preset}, {len(gs)} particles, {device})\n\n"
                                         + summary_markdown(summary["variants"]))
+    if profile:
+        summary["profile"] = phases.report()
+        (out_dir / "profile.md").write_text(f"# where the time went: {cfg.name} ({device})\n\n" + summary["profile"])
+        phases.disable()
     if interrupted:
         raise KeyboardInterrupt(f"interrupted; partial outputs (frames, metrics, videos so far) are in {out_dir}")
     return summary

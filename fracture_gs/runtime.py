@@ -47,3 +47,32 @@ def torch_stream(device: str):
     if key not in _streams:
         _streams[key] = wp.stream_from_torch(ts)
     return wp.ScopedStream(_streams[key], sync_enter=False)
+
+
+_pool = None
+
+
+def cpu_ranges(n: int, min_chunk: int = 8192) -> list[tuple[int, int]]:
+    """Ranges that split n particles over this machine's cores for a per-particle CPU kernel (Warp runs
+    CPU kernels on one thread; a kernel with no atomics and no cross-particle reads can run as one
+    launch per range, from several threads, with bitwise the same result)."""
+    import os
+
+    parts = max(1, min(os.cpu_count() or 1, 8, n // min_chunk))
+    step = -(-n // parts)
+    return [(a, min(n, a + step)) for a in range(0, n, step)]
+
+
+def run_ranges(fn, ranges: list) -> None:
+    """fn(a, b) for every range, concurrently when there are several (Warp's CPU launches release the GIL)."""
+    global _pool
+    if len(ranges) <= 1:
+        for a, b in ranges:
+            fn(a, b)
+        return
+    if _pool is None:
+        from concurrent.futures import ThreadPoolExecutor
+
+        _pool = ThreadPoolExecutor(max_workers=8, thread_name_prefix="fgs-cpu")
+    for f in [_pool.submit(fn, a, b) for a, b in ranges]:
+        f.result()

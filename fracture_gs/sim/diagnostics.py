@@ -16,6 +16,7 @@ import torch
 import warp as wp
 
 from ..config import PlaneBoundary
+from ..profiling import phases
 from .grid import Grid
 from .layout import (COUNT_POOL_OVERFLOW, N_COUNTS, N_PAIR_STATS, NEVER, PAIR_DPX, PAIR_DPY, PAIR_DPZ, PAIR_FIRST_T,
                      PAIR_GATED, PAIR_PNORM, STAT_DPX, STAT_DPZ, STAT_DVT, STAT_FIRST_T, STAT_GATED, STAT_PNORM, STAT_UN_AFTER)
@@ -165,6 +166,10 @@ class Diagnostics:
                            "normal": list(topo.normal), **counts, "interface_pairs": int(self.pairs[0].numel())}
 
     def on_frame(self):
+        with phases.section("diagnostics"):
+            self._on_frame()
+
+    def _on_frame(self):
         row = self.snapshot()
         if self.latch_info is not None and not any("latch" in r for r in self.history):
             row["latch"] = self.latch_info  # the first frame row after the latch reports it

@@ -18,12 +18,12 @@ import warp as wp
 from ..errors import SimulationDiverged
 from ..config import MATERIALS, SimConfig
 from ..variants import VARIANTS, variant_spec
-from ..runtime import ensure_warp, torch_stream
+from ..runtime import cpu_ranges, ensure_warp, run_ranges, torch_stream
 from .boundary import Boundaries
 from .constitutive import compute_stress, lame
 from .contact import NORMAL_LATCHED, NORMAL_MASS_GRADIENT
 from .grid import Grid, fit_grid
-from .layout import (COUNT_CLAMPED, COUNT_ESCAPED, COUNT_POOL_OVERFLOW, COUNT_SLOT_OVERFLOW, MAX_SLOTS, N_COUNTS)
+from .layout import COUNT_CLAMPED, COUNT_ESCAPED, COUNT_POOL_OVERFLOW, COUNT_SLOT_OVERFLOW, MAX_SLOTS, N_COUNTS
 from .particles import Particles, SimulationError
 from .topology import Topology
 from .transfer_kernels import clear_dense, clear_pool, g2p, grid_update_dense, grid_update_pool, p2g
@@ -113,6 +113,8 @@ class Simulator:
         self._diagnostics = None
         self._saved = None  # frame-start state for a redo (`advance`)
         self.record_contact = True  # contact statistics for the diagnostics (off when timing)
+        self._ranges = cpu_ranges(n) if self.device == "cpu" else None  # per-particle kernels over the CPU's cores
+        self._range_counts = None  # G2P's clamp counter per range (CPU)
         self._bind()
 
     # ---- set-up -------------------------------------------------------------------------------
@@ -216,12 +218,22 @@ class Simulator:
         self.substeps += 1
 
     def compute_stress(self, out: torch.Tensor, commit: bool) -> None:
-        """Kirchhoff stress into `out` ([N,3,3]); `commit` writes the plastic return into F."""
+        """Kirchhoff stress into `out` ([N,3,3]); `commit` writes the plastic return into F. A per-particle
+        kernel: on the CPU it runs as one launch per core's share of the particles (bitwise the same)."""
         w = self.wp
         out_wp = w["stress"] if out is self.stress else wp.from_torch(out, dtype=wp.mat33)
-        wp.launch(compute_stress, dim=len(self.particles), device=self.device,
-                  inputs=[w["F"], w["material"], w["E"], w["nu"], w["yield_stress"], w["hardening"], w["alpha"],
-                          w["band"], self.topology.release_events if self.release else 0, int(commit), out_wp])
+        arrays = [w["F"], w["material"], w["E"], w["nu"], w["yield_stress"], w["hardening"], w["alpha"], w["band"]]
+        release = self.topology.release_events if self.release else 0
+
+        def launch(a: int, b: int) -> None:
+            wp.launch(compute_stress, dim=b - a, device=self.device,
+                      inputs=[t[a:b] for t in arrays] + [release, int(commit), out_wp[a:b]])
+
+        n = len(self.particles)
+        if self.device == "cpu":
+            run_ranges(launch, self._ranges if self._ranges is not None else [(0, n)])
+        else:
+            launch(0, n)
 
     def _grid_pass(self, dt: float, only_fragment: int) -> None:
         """Grid reset, P2G, grid update, G2P over all particles or one fragment's."""
@@ -270,11 +282,27 @@ class Simulator:
                               g.wp["stats"], g.wp["pair_stats"], g.max_fragments])
 
     def g2p(self, dt: float, only_fragment: int = -1) -> None:
-        """Gather v, C, F's update and x from each particle's own field (Eq. field_g2p)."""
+        """Gather v, C, F's update and x from each particle's own field (Eq. field_g2p). Per particle but
+        for the clamp counter: on the CPU one launch per core's share, each with its own counter."""
         g, w = self.grid, self.wp
-        wp.launch(g2p, dim=len(self.particles), device=self.device,
-                  inputs=[w["x"], w["v"], w["C"], w["F"], w["fragment"], int(self.multifield), only_fragment, dt,
-                          g.view, self._lower, self._upper, w["counts"]])
+        arrays = [w["x"], w["v"], w["C"], w["F"], w["fragment"]]
+        multi = int(self.multifield)
+
+        def launch(a: int, b: int, counts) -> None:
+            wp.launch(g2p, dim=b - a, device=self.device,
+                      inputs=[t[a:b] for t in arrays] + [multi, only_fragment, dt, g.view, self._lower, self._upper,
+                                                         counts])
+
+        ranges = self._ranges or [(0, len(self.particles))]
+        if len(ranges) == 1:
+            launch(*ranges[0], w["counts"])
+            return
+        if self._range_counts is None:
+            self._range_counts = torch.zeros(len(ranges), N_COUNTS, dtype=torch.int32, device=self.device)
+            self._range_counts_wp = [wp.from_torch(c) for c in self._range_counts]
+        self._range_counts.zero_()
+        run_ranges(lambda a, b: launch(a, b, self._range_counts_wp[ranges.index((a, b))]), ranges)
+        self.counts += self._range_counts.sum(0, dtype=torch.int32)
 
     # ---- frames -------------------------------------------------------------------------------
     def frame_substeps(self, frame_dt: float, vmax: Optional[float] = None) -> tuple[int, float]:

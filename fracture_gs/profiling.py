@@ -1,0 +1,81 @@
+"""Where a run spends its time, by phase (`fracture-gs render-sim --profile`).
+
+`phases.section("render")` times a block into the named phase, from any thread; with profiling off
+it costs one attribute test. Phases run concurrently (the renderer works on frame n while the
+solver runs frame n + 1), so their busy times can add up to more than the wall time; the report
+shows both. On CUDA, `enable(sync_device=...)` synchronises the device at every section boundary
+so GPU work is charged to the phase that launched it (a profiled run is a little slower).
+"""
+from __future__ import annotations
+
+import contextlib
+import threading
+import time
+
+PHASES = ("setup", "simulate", "diagnostics", "render", "compose", "encode", "io")
+
+
+class PhaseTimer:
+    """Busy seconds per phase, summed over threads, plus the wall time of the whole run."""
+
+    def __init__(self):
+        self.enabled = False
+        self.sync_device = None
+        self._lock = threading.Lock()
+        self._local = threading.local()
+        self.seconds: dict[str, float] = {}
+        self.calls: dict[str, int] = {}
+        self._t0 = None
+
+    def enable(self, sync_device=None) -> None:
+        self.enabled, self.sync_device = True, sync_device
+        self.seconds, self.calls = {}, {}
+        self._t0 = time.perf_counter()
+
+    def disable(self) -> None:
+        self.enabled = False
+
+    def _sync(self) -> None:
+        if self.sync_device is not None:
+            import torch
+
+            torch.cuda.synchronize(self.sync_device)
+
+    @contextlib.contextmanager
+    def section(self, name: str):
+        """Charge the block's time to `name`; a section inside another is charged to itself only."""
+        if not self.enabled:
+            yield
+            return
+        stack = getattr(self._local, "stack", None)
+        if stack is None:
+            stack = self._local.stack = []
+        self._sync()
+        frame = [time.perf_counter(), 0.0]
+        stack.append(frame)
+        try:
+            yield
+        finally:
+            self._sync()
+            stack.pop()
+            dt = time.perf_counter() - frame[0]
+            if stack:
+                stack[-1][1] += dt
+            with self._lock:
+                self.seconds[name] = self.seconds.get(name, 0.0) + dt - frame[1]
+                self.calls[name] = self.calls.get(name, 0) + 1
+
+    def report(self) -> str:
+        """A Markdown table: phase, busy seconds, share of the wall time, calls."""
+        wall = time.perf_counter() - self._t0 if self._t0 is not None else 0.0
+        names = [p for p in PHASES if p in self.seconds] + sorted(set(self.seconds) - set(PHASES))
+        lines = [f"wall time {wall:.2f} s (phases overlap: rendering runs beside the solver)", "",
+                 "| phase | busy s | % of wall | calls |", "|---|---:|---:|---:|"]
+        for p in names:
+            share = 100.0 * self.seconds[p] / wall if wall > 0 else 0.0
+            lines.append(f"| {p} | {self.seconds[p]:.2f} | {share:.0f} | {self.calls[p]} |")
+        return "\n".join(lines) + "\n"
+
+
+phases = PhaseTimer()
+"""The process's phase timer (off until `phases.enable()`)."""
