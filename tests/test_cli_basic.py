@@ -130,8 +130,8 @@ def test_resolve_device(monkeypatch):
 def test_render_sim_dispatches_to_runner(monkeypatch, tmp_path, capsys):
     calls = {}
 
-    def fake_run(cfg, variants, device, out_dir):
-        calls.update(cfg=cfg, variants=variants, device=device, out_dir=out_dir)
+    def fake_run(cfg, variants, device, out_dir, profile=False):
+        calls.update(cfg=cfg, variants=variants, device=device, out_dir=out_dir, profile=profile)
         return {"video": str(out_dir / "compare.mp4")}
 
     monkeypatch.setattr(cli, "_import_first", lambda candidates, what: fake_run)
