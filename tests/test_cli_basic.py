@@ -144,7 +144,7 @@ def test_render_sim_dispatches_to_runner(monkeypatch, tmp_path, capsys):
 
 
 def test_keyboard_interrupt_reports_partial_outputs(monkeypatch, tmp_path, capsys):
-    def interrupted(cfg, variants, device, out_dir):
+    def interrupted(cfg, variants, device, out_dir, profile=False):
         raise KeyboardInterrupt
 
     monkeypatch.setattr(cli, "_import_first", lambda candidates, what: interrupted)
@@ -158,7 +158,7 @@ def test_missing_module_is_one_line(capsys):
 
 
 def test_bugs_keep_their_traceback(monkeypatch):
-    def broken(cfg, variants, device, out_dir):
+    def broken(cfg, variants, device, out_dir, profile=False):
         raise RuntimeError("bug")
 
     monkeypatch.setattr(cli, "_import_first", lambda candidates, what: broken)
