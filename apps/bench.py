@@ -72,6 +72,7 @@ def make_sim(cfg, P, topo, variant, device, sort):
     sim.latch(topo)
     sim.compute_stress(sim.stress, commit=True)
     sim.fit_active_box(HORIZON)
+    sim.set_clock(cfg.sim.dt)
     return sim
 
 
@@ -79,12 +80,9 @@ HORIZON = 0.05  # s: covers the motion during every timed substep (≤ 1,000 sub
 
 
 def transfer_step(sim: Simulator, dt: float):
-    """Table 2 scope: reset + P2G, normalization (+contact) + boundaries, G2P (one or two passes)."""
-    if sim.cfg.variant == "global_fragment_pass":
-        for k in (0, 1):
-            sim._grid_pass(dt, only_fragment=k)
-    else:
-        sim._grid_pass(dt, only_fragment=-1)
+    """Table 2 scope: reset + P2G, normalization (+contact) + boundaries, G2P (one pass per fragment
+    for the global fragment pass). Δt is the clock's (`sim.set_clock`, set before timing)."""
+    sim.transfer()
 
 
 class Timer:
@@ -252,6 +250,7 @@ def baseline_rows(cfg, P, topo, device, steps, warmup, trials, graph) -> list[di
         if use_graph and not (graph and device.startswith("cuda")):
             continue
         sim = Simulator(_variant(cfg.sim, "baseline"), P.clone(), device=device)
+        sim.set_clock(dt)
         if sort == "random":
             sim.particles.permute(torch.randperm(len(sim.particles), device=sim.particles.x.device))
         elif sort:
@@ -261,7 +260,7 @@ def baseline_rows(cfg, P, topo, device, steps, warmup, trials, graph) -> list[di
 
         def step():
             sim.compute_stress(sim.stress, commit=True)
-            sim._grid_pass(dt, only_fragment=-1)
+            sim.transfer()
 
         ms = time_fn(sim, step, steps, warmup, trials, use_graph)
         row = {"setting": label, "median_ms": statistics.median(ms), "trials_ms": ms}

@@ -310,3 +310,25 @@ def test_reapproach_is_relative_to_a_real_opening():
     assert reapproach_ratio(2.0, -1.0) == pytest.approx(1.5), "closing past the latch state reads > 1"
     noisy = reapproach_ratio(0.001, -0.009)  # never opened: a 0.01 Δx drop below 0.001 Δx of noise
     assert noisy == pytest.approx(0.01 / SEPARATION) and noisy < 1
+
+
+def test_recorded_substeps_replay_like_launches(device, seed):
+    """A frame's substeps replayed from one recorded substep (a CUDA graph reading Δt, t and the timed
+    regions from the device clock) give the launches' result: same time, substeps and redos, and the
+    same state (bitwise on the CPU, where both run launches; to float32 atomics order on CUDA)."""
+    push = S.ParticleRegion(kind="impulse", lower=(0.0, 0.0, 0.0), upper=(0.5, 1.0, 1.0), delta_v=(0.5, 0.0, 0.0),
+                            start=0.004, end=0.012)
+    runs = []
+    for graphs in (False, True):
+        sim, topo = split_state(seed, device, "full", boundaries=[push])
+        sim.use_graphs = graphs
+        sim.cfg.adaptive_dt = True
+        for frame in range(4):
+            sim.advance(0.005)
+            if frame == 1:
+                sim.latch(topo)
+        runs.append(sim)
+    a, b = runs
+    assert (a.time, a.substeps, a.frame_redos) == (b.time, b.substeps, b.frame_redos)
+    for k in ("x", "v", "C", "F"):
+        assert rel_err(getattr(a.particles, k), getattr(b.particles, k)) <= (0 if device == "cpu" else 1e-4), k

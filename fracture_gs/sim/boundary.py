@@ -11,6 +11,7 @@ import warp as wp
 
 from ..runtime import ensure_warp
 from ..config import CuboidBoundary, ParticleRegion, PlaneBoundary
+from .clock import Clock
 
 wp.set_module_options({"enable_backward": False})  # forward-only kernels compile in half the time
 
@@ -90,11 +91,18 @@ def apply_particle_region(
     lower: wp.vec3,
     upper: wp.vec3,
     kind: int,  # 0 impulse: v += dv; 1 override: v = value
-    value: wp.vec3,
+    r: int,  # region index: its activity and value this substep come from the clock's table
+    clock: Clock,
 ):
+    """Timed particle region r on the particles inside [lower, upper], if active this substep."""
+    i = clock.step[0] * clock.regions + r
+    if clock.region_on[i] == 0:
+        return
+    value = clock.region_value[i]
     p = wp.tid()
     xp = x[p]
-    if xp[0] >= lower[0] and xp[0] <= upper[0] and xp[1] >= lower[1] and xp[1] <= upper[1] and xp[2] >= lower[2] and xp[2] <= upper[2]:
+    if (xp[0] >= lower[0] and xp[0] <= upper[0] and xp[1] >= lower[1] and xp[1] <= upper[1]
+            and xp[2] >= lower[2] and xp[2] <= upper[2]):
         if kind == 0:
             v[p] = v[p] + value
         else:
@@ -139,18 +147,30 @@ class Boundaries:
         self.colliders.shape = wp.vec3i(*shape)
         self.colliders.wall_cells = int(wall_cells)
 
-    def apply_regions(self, x_wp, v_wp, n: int, t: float, dt: float, device: str):
-        """Timed particle regions active at time t (decided on the host: no device sync)."""
-        for r in self.regions:
-            if r.kind == "impulse":
-                duration = max(r.end - r.start, dt)
-                if not (r.start <= t < r.start + duration):
-                    continue
-                dv = wp.vec3(*[float(c) * dt / duration for c in r.delta_v])
-                wp.launch(apply_particle_region, dim=n, inputs=[x_wp, v_wp, wp.vec3(*r.lower), wp.vec3(*r.upper), 0, dv], device=device)
-            elif r.kind == "velocity":
-                if not (r.start <= t <= r.end + 0.5 * dt):
-                    continue
-                wp.launch(apply_particle_region, dim=n, inputs=[x_wp, v_wp, wp.vec3(*r.lower), wp.vec3(*r.upper), 1, wp.vec3(*r.velocity)], device=device)
-            else:
-                raise ValueError(f"sim.boundaries: region kind '{r.kind}' is not 'impulse' or 'velocity'")
+    def region_table(self, times: list, dt: float) -> tuple[list, list]:
+        """Per substep of a frame (start times `times`), per region: active (0/1) and its value, the
+        velocity change spread over the region's duration (impulse) or the velocity (override),
+        decided on the host in double precision (no device sync)."""
+        on, value = [], []
+        for t in times:
+            for r in self.regions:
+                if r.kind == "impulse":
+                    duration = max(r.end - r.start, dt)
+                    on.append(int(r.start <= t < r.start + duration))
+                    value.append([float(c) * dt / duration for c in r.delta_v])
+                elif r.kind == "velocity":
+                    on.append(int(r.start <= t <= r.end + 0.5 * dt))
+                    value.append([float(c) for c in r.velocity])
+                else:
+                    raise ValueError(f"sim.boundaries: region kind '{r.kind}' is not 'impulse' or 'velocity'")
+        return on, value
+
+    def apply_regions(self, x_wp, v_wp, n: int, clock, device: str, active=None):
+        """Launch every timed particle region (each checks its activity in the clock's table); with
+        `active` (this substep's on-flags, known on the host) only the active ones."""
+        for i, r in enumerate(self.regions):
+            if active is not None and not active[i]:
+                continue
+            wp.launch(apply_particle_region, dim=n, device=device,
+                      inputs=[x_wp, v_wp, wp.vec3(*r.lower), wp.vec3(*r.upper), 0 if r.kind == "impulse" else 1, i,
+                              clock])

@@ -22,6 +22,7 @@ from ..runtime import cpu_ranges, ensure_warp, run_ranges, torch_stream
 from .boundary import Boundaries
 from .constitutive import compute_stress, lame
 from .contact import NORMAL_LATCHED, NORMAL_MASS_GRADIENT
+from .clock import FrameClock, tick
 from .grid import Grid, fit_grid
 from .layout import COUNT_CLAMPED, COUNT_ESCAPED, COUNT_POOL_OVERFLOW, COUNT_SLOT_OVERFLOW, MAX_SLOTS, N_COUNTS
 from .particles import Particles, SimulationError
@@ -83,6 +84,10 @@ class Simulator:
         slots = cfg.field_slots if self.spec.multifield else 1
         self.grid = Grid(origin, dx, shape, self.device, slots, cfg.max_fragments)
         self.boundaries = Boundaries(cfg.boundaries, self.device, shape, cfg.wall_cells)
+        self.clock = FrameClock(self.device, len(self.boundaries.regions))
+        self.use_graphs = True  # CUDA: replay one recorded substep per substep of a frame
+        self._graph = None
+        self._graph_key_value = None
         self.provider = provider
         self.topology: Optional[Topology] = None
         self.topologies: list[Topology] = []  # every latched topology, in order (repeated fracture)
@@ -206,16 +211,75 @@ class Simulator:
     def substep(self, dt: Optional[float] = None) -> None:
         """Advance by one substep Δt (default `cfg.dt`). Never syncs and allocates nothing."""
         dt = float(self.dt if dt is None else dt)
+        on = self._set_clock(dt, [self.time])
         with self._stream_scope():
-            self.boundaries.apply_regions(self.wp["x"], self.wp["v"], len(self.particles), self.time, dt, self.device)
-            self.compute_stress(self.stress, commit=True)
-            if self.latched and self.spec.per_fragment_pass:
-                for k in range(self.n_fragments):
-                    self._grid_pass(dt, only_fragment=k)
-            else:
-                self._grid_pass(dt, only_fragment=-1)
+            self._substep_launches(on)
         self.time += dt
         self.substeps += 1
+
+    def set_clock(self, dt: float) -> None:
+        """Set the substep Δt the kernels read (for `transfer` and recorded graphs of it, e.g. benchmarks)."""
+        self._set_clock(float(dt), [self.time])
+
+    def transfer(self) -> None:
+        """One substep's transfer with the clock's Δt: grid reset, P2G, grid update, G2P (once per
+        fragment for the global fragment pass). Launches only: safe inside a graph capture."""
+        if self.latched and self.spec.per_fragment_pass:
+            for k in range(self.n_fragments):
+                self._grid_pass(only_fragment=k)
+        else:
+            self._grid_pass(only_fragment=-1)
+
+    def _set_clock(self, dt: float, times: list) -> list:
+        """Write a frame's clock table (Δt, substep times, region activity); returns the activity flags."""
+        on, value = self.boundaries.region_table(times, dt)
+        if self.clock.set(dt, times, on, value):
+            self._graph = None
+        return on
+
+    def _substep_launches(self, on: Optional[list], step: int = 0) -> None:
+        """Every launch of one substep, the clock's tick last. `on`: the frame's region flags (only the
+        regions active in substep `step` are launched), or None to launch them all (graph capture:
+        each checks the clock's table itself)."""
+        R = len(self.boundaries.regions)
+        active = None if on is None else on[step * R:(step + 1) * R]
+        self.boundaries.apply_regions(self.wp["x"], self.wp["v"], len(self.particles), self.clock.view, self.device,
+                                      active)
+        self.compute_stress(self.stress, commit=True)
+        self.transfer()
+        wp.launch(tick, dim=1, device=self.device, inputs=[self.clock.view])
+
+    def _graph_key(self) -> tuple:
+        """Everything a recorded substep bakes in besides the clock: a change means recording again."""
+        g = self.grid
+        return (self.box, g.capacity, id(g.view), self.multifield, self.latched, self.n_fragments, self.normal_mode,
+                self.topology.release_events if self.topology else 0, self.record_contact, self.cfg.wall_cells,
+                self.clock.capacity)
+
+    def _frame_substeps_run(self, n: int, dt: float, start: float) -> None:
+        """The frame's n substeps: on CUDA one recorded substep (a CUDA graph on the simulator's own
+        stream) replayed n times, recorded again when something it bakes in changed; else launches."""
+        times, t = [], start
+        for _ in range(n):
+            times.append(t)
+            t += dt
+        on = self._set_clock(dt, times)
+        graphs = self.use_graphs and self.device.startswith("cuda") and self.frame > 0
+        if graphs and (self._graph is None or self._graph_key() != self._graph_key_value):
+            with self._stream_scope():
+                with wp.ScopedCapture(device=self.device, stream=wp.get_stream(self.device),
+                                      force_module_load=False) as capture:
+                    self._substep_launches(None)
+            self._graph, self._graph_key_value = capture.graph, self._graph_key()
+        with self._stream_scope():
+            for i in range(n):
+                if graphs:
+                    wp.capture_launch(self._graph)
+                else:
+                    self._substep_launches(on, i)
+        for _ in range(n):
+            self.time += dt
+            self.substeps += 1
 
     def compute_stress(self, out: torch.Tensor, commit: bool) -> None:
         """Kirchhoff stress into `out` ([N,3,3]); `commit` writes the plastic return into F. A per-particle
@@ -235,18 +299,32 @@ class Simulator:
         else:
             launch(0, n)
 
-    def _grid_pass(self, dt: float, only_fragment: int) -> None:
-        """Grid reset, P2G, grid update, G2P over all particles or one fragment's."""
-        self.p2g(dt, only_fragment)
-        self.update_grid(dt)
-        self.g2p(dt, only_fragment)
+    def _grid_pass(self, only_fragment: int) -> None:
+        """Grid reset, P2G, grid update, G2P over all particles or one fragment's (Δt from the clock)."""
+        self._p2g(only_fragment)
+        self._update_grid()
+        self._g2p(only_fragment)
 
     def p2g(self, dt: float, only_fragment: int = -1, target=None, multifield=None, stress=None, counts=None) -> None:
-        """Reset the active fields and scatter particles into them (Eq. multifield_p2g).
+        """Reset the active fields and scatter particles into them (Eq. multifield_p2g), with substep Δt.
 
         `target` (a Grid), `multifield`, `stress` (a Warp view) and `counts` (a Warp int32 array)
         override the destination, the routing, the stress and the counters; the diagnostics use
         them for the per-fragment shadow transfer."""
+        self._set_clock(float(dt), [self.time])
+        self._p2g(only_fragment, target, multifield, stress, counts)
+
+    def update_grid(self, dt: float) -> None:
+        """Normalize + gravity per active field, contact projection (full), boundaries, with substep Δt."""
+        self._set_clock(float(dt), [self.time])
+        self._update_grid()
+
+    def g2p(self, dt: float, only_fragment: int = -1) -> None:
+        """Gather v, C, F's update and x from each particle's own field (Eq. field_g2p), with substep Δt."""
+        self._set_clock(float(dt), [self.time])
+        self._g2p(only_fragment)
+
+    def _p2g(self, only_fragment: int = -1, target=None, multifield=None, stress=None, counts=None) -> None:
         g, w = target or self.grid, self.wp
         multi = int(self.multifield if multifield is None else multifield)
         if target is None:
@@ -261,37 +339,36 @@ class Simulator:
             lo, hi = wp.vec3i(0, 0, 0), wp.vec3i(*g.shape)
         wp.launch(p2g, dim=len(self.particles), device=self.device,
                   inputs=[w["x"], w["v"], w["C"], w["mass"], w["volume"], w["stress"] if stress is None else stress,
-                          w["fragment"], w["band"], multi, only_fragment, dt, g.view, lo, hi,
+                          w["fragment"], w["band"], multi, only_fragment, self.clock.view, g.view, lo, hi,
                           w["counts"] if counts is None else counts])
 
-    def update_grid(self, dt: float) -> None:
-        """Normalize + gravity per active field, contact projection (full), boundaries."""
+    def _update_grid(self) -> None:
         g, multi = self.grid, int(self.multifield)
         self.boundaries.colliders.wall_cells = int(self.cfg.wall_cells)  # the config may change between calls
         b = self.box
         wp.launch(grid_update_dense, dim=(b[3] - b[0], b[4] - b[1], b[5] - b[2]), device=self.device,
-                  inputs=[g.view, self._box_lo, multi, self.eps_m, dt, self._gravity, self.time,
+                  inputs=[g.view, self._box_lo, multi, self.eps_m, self.clock.view, self._gravity,
                           self.boundaries.colliders])
         if multi:
             c = self.cfg.contact
             wp.launch(grid_update_pool, dim=g.capacity, device=self.device,
                       inputs=[g.view, self.eps_m, self.eps_b, c.fill * self.node_mass, multi, int(self.spec.contact),
                               self.normal_mode,
-                              self._normal, self.wp["centroids"], float(self.cfg.restitution), float(c.friction), dt,
-                              self._gravity, self.time, self.boundaries.colliders, int(self.record_contact),
+                              self._normal, self.wp["centroids"], float(self.cfg.restitution), float(c.friction),
+                              self.clock.view, self._gravity, self.boundaries.colliders, int(self.record_contact),
                               g.wp["stats"], g.wp["pair_stats"], g.max_fragments])
 
-    def g2p(self, dt: float, only_fragment: int = -1) -> None:
-        """Gather v, C, F's update and x from each particle's own field (Eq. field_g2p). Per particle but
-        for the clamp counter: on the CPU one launch per core's share, each with its own counter."""
+    def _g2p(self, only_fragment: int = -1) -> None:
+        """Per particle but for the clamp counter: on the CPU one launch per core's share, each with its
+        own counter."""
         g, w = self.grid, self.wp
         arrays = [w["x"], w["v"], w["C"], w["F"], w["fragment"]]
         multi = int(self.multifield)
 
         def launch(a: int, b: int, counts) -> None:
             wp.launch(g2p, dim=b - a, device=self.device,
-                      inputs=[t[a:b] for t in arrays] + [multi, only_fragment, dt, g.view, self._lower, self._upper,
-                                                         counts])
+                      inputs=[t[a:b] for t in arrays] + [multi, only_fragment, self.clock.view, g.view, self._lower,
+                                                         self._upper, counts])
 
         ranges = self._ranges or [(0, len(self.particles))]
         if len(ranges) == 1:
@@ -346,8 +423,7 @@ class Simulator:
             n, dt = self.frame_substeps(frame_dt, vmax)
             self.dt = dt
             self.counts[COUNT_ESCAPED:] = 0
-            for _ in range(n):
-                self.substep(dt)
+            self._frame_substeps_run(n, dt, start)
             bad, escaped, slot_overflow, pool_overflow, rows = self._frame_check(dt)
             self.pool_rows = max(rows, self.pool_rows // 2)
             if (escaped == 0 and pool_overflow == 0) or attempt == self.MAX_TRIES - 1:

@@ -13,6 +13,7 @@ from __future__ import annotations
 import warp as wp
 
 from .boundary import Colliders, apply_boundaries
+from .clock import Clock, clock_dt, clock_time
 from .contact import NORMAL_MASS_GRADIENT, contact_normal, contact_projection, record_contact
 from .layout import (COUNT_CLAMPED, COUNT_ESCAPED, COUNT_POOL_OVERFLOW, COUNT_SLOT_OVERFLOW, EMPTY_KEY, MAX_SLOTS,
                      OWNER_MASK, ROW_FLAG, GridView, claim_pool_slot, claim_row, claim_slot0, field_index, find_pool_slot,
@@ -139,7 +140,7 @@ def p2g(
     band: wp.array(dtype=wp.int32),  # [N] γ_p
     multifield: int,
     only_fragment: int,  # ≥ 0: skip every particle of another fragment (global fragment pass)
-    dt: float,
+    clock: Clock,  # Δt
     g: GridView,
     lo: wp.vec3i,  # active box [lo, hi): a stencil outside it is counted (the frame is redone)
     hi: wp.vec3i,
@@ -157,7 +158,7 @@ def p2g(
     m = mass[p]
     vp = v[p]
     Cp = C[p]
-    force = -dt * volume[p] * stress[p]
+    force = -clock_dt(clock) * volume[p] * stress[p]
     in_band = band[p]
     for i in range(3):
         for j in range(3):
@@ -209,9 +210,8 @@ def grid_update_dense(
     box_origin: wp.vec3i,  # the launch covers the active box starting at this node
     multifield: int,
     eps_m: float,  # absolute ε_m
-    dt: float,
+    clock: Clock,  # Δt and t
     gravity: wp.vec3,
-    t: float,
     colliders: Colliders,
 ):
     """Slot 0 of every node: v = p/m + Δt g where m > ε_m, else 0; then the boundaries, except at
@@ -220,13 +220,13 @@ def grid_update_dense(
     node = wp.vec3i(ti + box_origin[0], tj + box_origin[1], tl + box_origin[2])
     n = flat(node, wp.vec3i(0, 0, 0), g.shape)
     q = g.mp[n]
-    v = normalized(q, eps_m, dt, gravity)
+    v = normalized(q, eps_m, clock_dt(clock), gravity)
     deferred = False
     if multifield != 0:
         deferred = (g.owner[n] & ROW_FLAG) != 0
     if q[3] > eps_m and not deferred:
         xi = g.origin + wp.vec3(float(node[0]), float(node[1]), float(node[2])) * g.dx
-        v = apply_boundaries(v, node, xi, t, colliders)
+        v = apply_boundaries(v, node, xi, clock_time(clock), colliders)
     g.vel[n] = v
 
 
@@ -274,9 +274,8 @@ def grid_update_pool(
     centroids: wp.array(dtype=wp.vec3),  # [K] fragment centroids (normal fallback)
     restitution: float,
     friction: float,  # Coulomb μ between fragments
-    dt: float,
+    clock: Clock,  # Δt and t
     gravity: wp.vec3,
-    t: float,
     colliders: Colliders,
     record: int,  # accumulate contact statistics (off when timing the transfer)
     stats: wp.array(dtype=float),  # [N_STATS]
@@ -291,6 +290,8 @@ def grid_update_pool(
     n = g.key[r]
     if n == EMPTY_KEY:
         return
+    dt = clock_dt(clock)
+    t = clock_time(clock)
     node = unflat(n, g.shape)
     xi = g.origin + wp.vec3(float(node[0]), float(node[1]), float(node[2])) * g.dx
     V = mat_s3(0.0)
@@ -359,7 +360,7 @@ def g2p(
     fragment: wp.array(dtype=wp.int32),
     multifield: int,
     only_fragment: int,
-    dt: float,
+    clock: Clock,  # Δt
     g: GridView,
     lower: wp.vec3,  # particles are clamped into [lower, upper] and counted
     upper: wp.vec3,
@@ -371,6 +372,7 @@ def g2p(
     k = routed_field(fragment[p], only_fragment, multifield)
     if k < 0:
         return
+    dt = clock_dt(clock)
     base, f, w, dw = stencil(x[p], g.origin, g.inv_dx, g.shape)
     vp = wp.vec3(0.0)
     B = wp.mat33(0.0)
