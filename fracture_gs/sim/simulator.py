@@ -88,6 +88,7 @@ class Simulator:
         self.use_graphs = True  # CUDA: replay one recorded substep per substep of a frame
         self._graph = None
         self._graph_key_value = None
+        self._cuda_stream = None
         self.provider = provider
         self.topology: Optional[Topology] = None
         self.topologies: list[Topology] = []  # every latched topology, in order (repeated fracture)
@@ -405,7 +406,21 @@ class Simulator:
         The frame runs on an active box fitted at its start. If a particle's stencil left the box
         (P2G counts it) or the pool of multi-fragment nodes filled up, the frame is rolled back and
         redone: with more box slack (the second escape runs on the whole grid, where nothing can
-        escape) or with a pool twice as large. One host read per try."""
+        escape) or with a pool twice as large. One host read per try. On CUDA the frame runs on the
+        simulator's own stream (graphs are recorded on a non-default stream), ordered after the
+        caller's current stream and before it again at the end."""
+        if not self.device.startswith("cuda"):
+            return self._advance(frame_dt)
+        if self._cuda_stream is None:
+            self._cuda_stream = torch.cuda.Stream(self.device)
+        caller = torch.cuda.current_stream(self.device)
+        self._cuda_stream.wait_stream(caller)
+        with torch.cuda.stream(self._cuda_stream):
+            n = self._advance(frame_dt)
+        caller.wait_stream(self._cuda_stream)
+        return n
+
+    def _advance(self, frame_dt: float) -> int:
         if self.substeps == 0:
             self._poll_provider()  # an oracle may latch before the first substep
         start, substeps0 = self.time, self.substeps
