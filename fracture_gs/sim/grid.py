@@ -181,40 +181,49 @@ class Grid:
         return out.view(K, *self.shape)
 
     def fragment_mass(self, K: int) -> torch.Tensor:
-        """Σ_i m_i^k per fragment k < K, in float64 ([K]); a single-field grid holds field 0 only."""
+        """Σ_i m_i^k per fragment k < K, float64 [K], on the device (no host read); a single-field grid
+        holds field 0 only."""
         m = self._mp[:, 3].double()
         out = torch.zeros(K, dtype=torch.float64, device=self.device)
         f0 = self._slot0_fragment()
         ok = (f0 >= 0) & (f0 < K)
-        out.index_add_(0, f0[ok], m[:self.n_nodes][ok])
+        out.index_add_(0, f0.clamp(0, K - 1), torch.where(ok, m[:self.n_nodes], 0.0))
         if self.multi:
-            _, frag, index, _ = self._pool()
-            ok = (frag >= 0) & (frag < K)
-            out.index_add_(0, frag[ok], m[index[ok]])
+            frag, index, used = self._pool_all()
+            ok = used[:, None] & (frag >= 0) & (frag < K)
+            out.index_add_(0, frag.clamp(0, K - 1).reshape(-1), torch.where(ok, m[index], 0.0).reshape(-1))
         return out
 
-    def mixing(self, eps_m: float) -> tuple[float, float]:
-        """(E_mix counterfactual, shared-support %) of the stored fields (Eq. mixing): at every node
-        Σ_k m^k ‖v̄ − v^k‖² with v̄ = Σ_k p^k / Σ_k m^k, over Σ m; shared = nodes with ≥ 2 active fields
-        over nodes with ≥ 1."""
+    def _pool_all(self):
+        """(pool fragment [C, S−1], buffer index [C, S−1], row used [C]) over every row (no host read)."""
+        s1, C = self.slots - 1, self.capacity
+        frag = self.pool_owner[:C * s1].view(C, s1).long()
+        index = self.n_nodes + torch.arange(C * s1, device=self.device).view(C, s1)
+        return frag, index, self.key >= 0
+
+    def mixing(self, eps_m: float) -> tuple[torch.Tensor, torch.Tensor]:
+        """(E_mix counterfactual, shared-support %) of the stored fields (Eq. mixing), 0-d float64
+        tensors on the device: at every node Σ_k m^k ‖v̄ − v^k‖² with v̄ = Σ_k p^k / Σ_k m^k, over Σ m;
+        shared = nodes with ≥ 2 active fields over nodes with ≥ 1. Only pool rows can hold two fields."""
         m = self._mp[:, 3].double()
-        p = self._mp[:, :3].double()
-        total = float(m.sum()) + EPS
-        active = (m[:self.n_nodes] > eps_m).long()
+        zero = torch.zeros((), dtype=torch.float64, device=self.device)
         if not self.multi:
-            return 0.0, 0.0
-        nodes, frag, index, _ = self._pool()
-        if nodes.numel() == 0:
-            return 0.0, 0.0
-        mm = torch.cat([m[nodes][:, None], torch.where(frag >= 0, m[index], 0.0)], 1)  # [R, S]
-        pp = torch.cat([p[nodes][:, None], torch.where((frag >= 0)[..., None], p[index], 0.0)], 1)  # [R, S, 3]
+            return zero, zero
+        p = self._mp[:, :3].double()
+        total = m.sum() + EPS
+        frag, index, used = self._pool_all()
+        nodes = self.key.long().clamp_min(0)
+        on_pool = used[:, None] & (frag >= 0)
+        mm = torch.cat([torch.where(used, m[nodes], 0.0)[:, None], torch.where(on_pool, m[index], 0.0)], 1)  # [C, S]
+        pp = torch.cat([torch.where(used[:, None], p[nodes], 0.0)[:, None],
+                        torch.where(on_pool[..., None], p[index], 0.0)], 1)  # [C, S, 3]
         on = mm > eps_m
         vbar = pp.sum(1) / mm.sum(1).clamp_min(EPS)[:, None]
         v = torch.where(on[..., None], pp / mm.clamp_min(EPS)[..., None], torch.zeros_like(pp))
-        cf = float((mm * on * ((vbar[:, None] - v) ** 2).sum(-1)).sum()) / total
-        count = active.clone()
-        count.index_add_(0, nodes, on[:, 1:].sum(1))
-        shared = 100.0 * float((count >= 2).sum()) / max(1, int((count >= 1).sum()))
+        cf = (mm * on * ((vbar[:, None] - v) ** 2).sum(-1)).sum() / total
+        count = (m[:self.n_nodes] > eps_m).long()
+        count.index_add_(0, nodes, torch.where(used, on[:, 1:].sum(1), 0))
+        shared = 100.0 * (count >= 2).sum().double() / (count >= 1).sum().clamp_min(1).double()
         return cf, shared
 
     @property

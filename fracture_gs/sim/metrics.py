@@ -1,0 +1,118 @@
+"""The per-frame metrics as device tensors (docs/DESIGN.md "Diagnostics"): each function returns 0-d
+(or small) float64 tensors and never reads back to the host, so the tracker (`diagnostics.py`)
+packs a whole frame's numbers into one tensor and reads it once.
+"""
+from __future__ import annotations
+
+import torch
+
+EPS = 1e-30
+SEPARATION = 0.1  # Δx: an interface whose opening exceeds this has separated (docs/DESIGN.md)
+
+
+def reapproach_ratio(open_max: float, opening: float) -> float:
+    """Drop of the opening below its running maximum, over that maximum, with the maximum floored at
+    the separation threshold: an interface that never opened past noise level would otherwise
+    divide by noise (a 0.01 Δx drop below a 0.001 Δx maximum reads 10)."""
+    return max(0.0, open_max - opening) / max(open_max, SEPARATION)
+
+
+def interface_pairs(x, fragment, band, radius: float, chunk: int = 2048):
+    """Each band particle of fragment 0 paired with its nearest band particle of fragment 1 within
+    `radius` [m]; returns index tensors (p, q). Once per latch (it reads sizes back)."""
+    a = torch.nonzero((fragment == 0) & (band != 0)).flatten()
+    b = torch.nonzero((fragment == 1) & (band != 0)).flatten()
+    if a.numel() == 0 or b.numel() == 0:
+        return a[:0], b[:0]
+    xb = x[b].double()
+    ps, qs = [], []
+    for start in range(0, a.numel(), chunk):
+        ia = a[start:start + chunk]
+        d, j = torch.cdist(x[ia].double(), xb).min(dim=1)
+        keep = d < radius
+        ps.append(ia[keep])
+        qs.append(b[j[keep]])
+    return torch.cat(ps), torch.cat(qs)
+
+
+def raw_opening(x, pairs, n) -> torch.Tensor:  # -> []
+    """Mean over interface pairs of (x_q − x_p)·n [m] (0 without pairs)."""
+    p, q = pairs
+    if p.numel() == 0:
+        return torch.zeros((), dtype=torch.float64, device=x.device)
+    x = x.double()
+    return ((x[q] - x[p]) @ n).mean()
+
+
+def band_members(fragment, band):
+    """(fragment 0's band particles, fragment 1's) as index tensors: fixed after a latch, so the
+    tracker computes them once per latch (they read sizes back)."""
+    a = torch.nonzero((fragment == 0) & (band != 0)).flatten()
+    b = torch.nonzero((fragment == 1) & (band != 0)).flatten()
+    return a, b
+
+
+def penetration(x, members, n, radius: float, chunk: int = 2048) -> torch.Tensor:  # -> [] [m]
+    """Largest overlap along n near the interface: for every band particle p of fragment 0, how far
+    its current neighbours q of fragment 1 (band, within `radius`) lie behind it, max(0, (x_p − x_q)·n).
+    Current neighbours follow tangential sliding."""
+    a, b = members
+    worst = torch.zeros((), dtype=torch.float64, device=x.device)
+    if a.numel() == 0 or b.numel() == 0:
+        return worst
+    x = x.double()
+    xb, sb = x[b], x[b] @ n
+    for start in range(0, a.numel(), chunk):
+        xa = x[a[start:start + chunk]]
+        near = torch.cdist(xa, xb) < radius
+        depth = (xa @ n)[:, None] - sb[None, :]
+        worst = torch.maximum(worst, torch.where(near, depth, torch.zeros_like(depth)).max())
+    return worst
+
+
+def identity_crossing(x, fragment, members, n) -> torch.Tensor:  # -> [] count
+    """Particles on the other fragment's side of the separating plane: normal n_Π, placed midway
+    between the facing band fronts (max s over fragment 0's band, min s over fragment 1's) as they
+    move. While the fronts have not passed each other no particle crosses; a fixed plane would count
+    particles of a fragment that merely moved past where the interface used to be."""
+    a, b = members
+    if a.numel() == 0 or b.numel() == 0:
+        return torch.zeros((), dtype=torch.float64, device=x.device)
+    s = x.double() @ n
+    mid = 0.5 * (s[a].max() + s[b].min())
+    return (((fragment == 0) & (s > mid)).sum() + ((fragment == 1) & (s < mid)).sum()).double()
+
+
+def stringing(F, band_index) -> torch.Tensor:  # -> []
+    """Mean over band particles of ln(s_max / s_min) of F's singular values."""
+    if band_index.numel() == 0:
+        return torch.zeros((), dtype=torch.float64, device=F.device)
+    s = torch.linalg.svdvals(F[band_index].double())
+    return torch.log(s[:, 0] / s[:, 2].clamp_min(1e-12)).mean()
+
+
+def momentum(P) -> torch.Tensor:  # -> [3]
+    return (P.mass.double()[:, None] * P.v.double()).sum(0)
+
+
+def kinetic_energy(P) -> torch.Tensor:  # -> []
+    return 0.5 * (P.mass.double() * (P.v.double() ** 2).sum(1)).sum()
+
+
+def plane_state(x, v, fragment, plane, dx: float, K: int) -> dict:
+    """Fragment–plane numbers of this frame for one plane collider: per fragment whether it is within
+    Δx of the plane [K], deepest penetration behind it [m], max tangential speed within Δx, max
+    normal speed within 2Δx."""
+    n = torch.tensor(plane.normal, dtype=torch.float64, device=x.device)
+    n = n / n.norm()
+    d = (x.double() - torch.tensor(plane.point, dtype=torch.float64, device=x.device)) @ n
+    vd = v.double()
+    vn = vd @ n
+    vt = (vd - vn[:, None] * n).norm(dim=1)
+    near = d < dx
+    ok = (fragment >= 0) & (fragment < K)
+    k = fragment.long().clamp(0, K - 1)
+    touch = torch.zeros(K, dtype=torch.float64, device=x.device).index_add_(0, k, (near & ok).double())
+    zero = torch.zeros((), dtype=torch.float64, device=x.device)
+    return {"touch": touch > 0, "penetration": (-d).clamp_min(0).max(),
+            "vt_near": torch.where(near, vt, zero).max(), "vn_close": torch.where(d < 2 * dx, vn.abs(), zero).max()}
