@@ -89,13 +89,13 @@ class Diagnostics:
         sim = self.sim
         P, topo = sim.particles, sim.topology
         self._n_topologies = len(sim.topologies)
+        self.latch_substeps = sim.substeps  # the realized grid holds the new labels only after a substep
         self.members = M.band_members(P.fragment, P.band)
         self.band_index = torch.nonzero(P.band != 0).flatten()
         if self.latch_info is not None:
             return
         self.pairs = M.interface_pairs(P.x, P.fragment, P.band, topo.pair_radius * sim.grid.dx)
         self.n = torch.tensor(topo.normal, dtype=torch.float64, device=P.x.device)
-        self.latch_substeps = sim.substeps
         self.opening0 = float(M.raw_opening(P.x, self.pairs, self.n))
         self.open_max = 0.0
         g = sim.grid
