@@ -209,6 +209,9 @@ class SimConfig:
     into its first field and counts a slot overflow."""
     contact: ContactConfig = field(default_factory=ContactConfig)
     """Fragment–fragment contact: friction and normals."""
+    max_grid_cells: int = 16_777_216
+    """Most grid nodes a run may allocate (256³ by default, ≈ 0.5 GiB of grid buffers); an automatic grid
+    stretched by a far-away particle stops here with one sentence instead of exhausting memory."""
 
 
 @dataclass

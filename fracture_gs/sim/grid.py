@@ -14,6 +14,7 @@ import torch
 import warp as wp
 
 from ..config import SimConfig
+from ..errors import SimulationError
 from ..runtime import ensure_warp
 from .layout import (EMPTY_KEY, N_PAIR_STATS, N_STATS, NEVER, OWNER_MASK, PAIR_FIRST_T, STAT_FIRST_T, GridView,
                      pool_capacity)
@@ -28,7 +29,9 @@ def fit_grid(cfg: SimConfig, x: torch.Tensor) -> tuple[tuple, float, tuple]:
     dx = float(cfg.dx)
     if cfg.grid == "explicit":
         origin = tuple(math.floor(o / dx + 1e-6) * dx for o in cfg.grid_origin)
-        return origin, dx, tuple(int(s) for s in cfg.grid_shape)
+        shape = tuple(int(s) for s in cfg.grid_shape)
+        check_grid_size(shape, dx, cfg.max_grid_cells, "sim.grid_shape")
+        return origin, dx, shape
     if cfg.grid != "auto":
         raise ValueError(f"sim.grid must be 'explicit' or 'auto', not '{cfg.grid}'")
     lo = x.min(dim=0).values.double().cpu()
@@ -38,9 +41,29 @@ def fit_grid(cfg: SimConfig, x: torch.Tensor) -> tuple[tuple, float, tuple]:
     if cfg.grid_bounds is not None:
         lo = torch.minimum(lo, torch.tensor(cfg.grid_bounds[0], dtype=torch.float64) - (cfg.wall_cells + 2) * dx)
         hi = torch.maximum(hi, torch.tensor(cfg.grid_bounds[1], dtype=torch.float64) + (cfg.wall_cells + 2) * dx)
+    if not bool(torch.isfinite(lo).all() and torch.isfinite(hi).all()):
+        raise SimulationError("sim.grid = \"auto\": the particles' bounds are not finite; remove NaN or inf positions")
     origin = tuple(math.floor(float(a) / dx) * dx for a in lo)
     shape = tuple(int(math.ceil((float(b) - o) / dx)) + 1 for o, b in zip(origin, hi))
+    check_grid_size(shape, dx, cfg.max_grid_cells, "an automatic grid fitted to the particles")
     return origin, dx, shape
+
+
+BYTES_PER_NODE = 32  # dense slot 0: (p, m) 16 B + velocity 12 B + owner word 4 B
+
+
+def check_grid_size(shape, dx: float, cap: int, what: str) -> None:
+    """One sentence, before anything is allocated, when a grid would exceed `sim.max_grid_cells` nodes."""
+    nodes = 1
+    for s in shape:
+        nodes *= int(s)
+    if nodes > cap:
+        dims = "×".join(str(int(s)) if s < 1e9 else f"{float(s):.3g}" for s in shape)
+        count = f"{nodes:,}" if nodes < 1e15 else f"{float(nodes):.3g}"
+        raise SimulationError(
+            f"{what} would be {dims} = {count} nodes (≈ {nodes * BYTES_PER_NODE / 2**30:.3g} GiB at Δx = {dx:g} m), "
+            f"over sim.max_grid_cells = {cap:,}; remove far-away particles (floaters), lower sim.grid_margin, "
+            f"raise sim.dx, or raise sim.max_grid_cells if the memory is there")
 
 
 class Grid:

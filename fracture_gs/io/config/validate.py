@@ -114,6 +114,12 @@ def _check_sim(c: _Checker, s: SimConfig, frame_dt: float) -> None:
         if n < max(4, 2 * s.wall_cells + 2):
             c.fail(f"sim.grid_shape[{i}]", f"sim.grid_shape[{i}] = {n} is too small for the B-spline stencil and {s.wall_cells} wall cells", f"use at least {max(4, 2 * s.wall_cells + 2)} nodes per axis")
     c.at_least("sim.grid_margin", s.grid_margin, 0.0, "use a non-negative fraction, e.g. grid_margin = 0.5")
+    c.at_least("sim.max_grid_cells", s.max_grid_cells, 125, "allow at least 5×5×5 nodes")
+    nodes = s.grid_shape[0] * s.grid_shape[1] * s.grid_shape[2]
+    if s.grid == "explicit" and nodes > s.max_grid_cells:
+        c.fail("sim.grid_shape", f"sim.grid_shape = {list(s.grid_shape)} is {nodes:,} nodes, over sim.max_grid_cells = "
+               f"{s.max_grid_cells:,} (≈ {nodes * 32 / 2**30:.3g} GiB of grid buffers)",
+               "use a coarser grid (raise sim.dx, fewer nodes) or raise sim.max_grid_cells if the memory is there")
     if s.grid_bounds is not None:
         c.box("sim.grid_bounds", s.grid_bounds[0], s.grid_bounds[1])
     if not all(math.isfinite(g) for g in s.gravity):
