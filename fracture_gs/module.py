@@ -4,8 +4,9 @@
     out = sim(means, opacities, sh, quats=quats, scales=scales)     # Gaussians in
     out["means"][t], out["covars"][t], out["fragment"][t]             # per-frame tensors out
 
-The forward pass is not differentiable (MLS-MPM runs in Warp kernels outside autograd); its
-outputs are plain tensors on the simulation device, ready for gsplat's `rasterization`.
+By default the forward pass runs the plain (fast, forward-only) solver and returns plain tensors on
+the simulation device, ready for gsplat's `rasterization`. `FractureSim(..., differentiable=True)`
+returns tensors with gradients to the Gaussians and to E, ν, density and initial velocity.
 """
 from __future__ import annotations
 
@@ -17,7 +18,6 @@ import torch
 from .config import SceneConfig
 from .io import GaussianSet
 from .pipeline import FrameOutput, make_simulator, simulate
-from .sim import Topology
 
 
 def _quats_from_rotations(R: torch.Tensor) -> torch.Tensor:  # [N,3,3] -> [N,4] wxyz
@@ -52,10 +52,16 @@ def gaussians_from_tensors(means, opacities, sh, quats=None, scales=None, covars
 
 
 class FractureSim(torch.nn.Module):
-    """Gaussians in, per-frame deformed Gaussians and fragment ids out (one configured variant)."""
+    """Gaussians in, per-frame deformed Gaussians and fragment ids out (one configured variant).
+
+    With `differentiable=True` the outputs carry gradients back to the Gaussians' means, quats and
+    scales and to the physical parameters passed to `forward` (E, nu, density, velocity): the
+    simulation runs as `fracture_gs.sim.diff.DiffSimulator` frames (Warp adjoints, one checkpoint
+    per frame). The fracture topology is found once by a plain run (or given as `topology`) and held
+    fixed: gradients flow through each fragment's dynamics on both sides of a latch."""
 
     def __init__(self, cfg: Union[SceneConfig, str], variant: Optional[str] = None, device: Optional[str] = None,
-                 topology: Optional[Topology] = None, diagnostics: bool = True):
+                 topology=None, diagnostics: bool = True, differentiable: bool = False):
         super().__init__()
         if isinstance(cfg, str):
             from .io.config import load_config
@@ -66,17 +72,20 @@ class FractureSim(torch.nn.Module):
         self.device_name = device
         self.topology = topology
         self.diagnostics = diagnostics
+        self.differentiable = differentiable
         self.last_simulator = None
 
     def frames(self, gs: GaussianSet) -> Iterator[FrameOutput]:
         """Stream FrameOutputs (frame 0 = input state) without stacking them."""
-        device = self.device_name or (str(gs.means.device) if gs.means.is_cuda else "cpu")
+        device = self._device(gs)
         sim = make_simulator(self.cfg, gs, self.variant, device, topology=self.topology)
         self.last_simulator = sim
         cov0 = gs.covariances().to(device, torch.float32)
         yield from simulate(sim, cov0, self.cfg.frames, self.cfg.frame_dt, diagnostics=self.diagnostics)
 
-    @torch.no_grad()
+    def _device(self, gs: GaussianSet) -> str:
+        return self.device_name or (str(gs.means.device) if gs.means.is_cuda else "cpu")
+
     def forward(
         self,
         means: torch.Tensor,  # [N, 3]
@@ -87,11 +96,23 @@ class FractureSim(torch.nn.Module):
         covars: Optional[torch.Tensor] = None,  # [N, 3, 3] instead of quats/scales
         interior: Optional[torch.Tensor] = None,  # [N] bool: fill particles
         labels: Optional[torch.Tensor] = None,  # [N] int material labels
+        E: Optional[torch.Tensor] = None,  # scalar or [N] Young's modulus [Pa] (differentiable mode)
+        nu: Optional[torch.Tensor] = None,  # scalar or [N] Poisson ratio
+        density: Optional[torch.Tensor] = None,  # scalar or [N] [kg/m³]
+        velocity: Optional[torch.Tensor] = None,  # [3] or [N, 3] initial velocity [m/s]
     ) -> dict:
         """Runs cfg.frames frames; returns {"means": [T+1,N,3], "covars": [T+1,N,3,3],
         "rotations": [T+1,N,3,3], "fragment": [T+1,N], "time": [T+1], "metrics": list[dict]}."""
         gs = gaussians_from_tensors(means, opacities, sh, quats, scales, covars, interior, labels)
-        outs = list(self.frames(gs))
+        if self.differentiable:
+            from .differentiable import differentiable_forward
+
+            return differentiable_forward(self, gs, E, nu, density, velocity)
+        if any(t is not None for t in (E, nu, density, velocity)):
+            raise ValueError("E, nu, density and velocity are inputs of the differentiable mode; "
+                             "create FractureSim(..., differentiable=True) or set them in the config")
+        with torch.no_grad():
+            outs = list(self.frames(gs))
         return {
             "means": torch.stack([o.means for o in outs]),
             "covars": torch.stack([o.covars for o in outs]),

@@ -176,6 +176,31 @@ def _composite_chunk(tiles, pos, counts, starts, flat_pad, pad_id, ox, oy, ar, m
     T[tiles] = torch.where(stopped, -T_new, T_new)
 
 
+def _composite_chunk_autograd(tiles, pos, counts, starts, flat_pad, pad_id, ox, oy, ar, mx, my, ca, cb, cc,
+                              log_opac, cols, T, acc):
+    """`_composite_chunk` without in-place operations, for autograd: returns the new (T, acc)."""
+    inside = pos[None, :] < counts[tiles, None]
+    g = flat_pad[torch.where(inside, starts[tiles, None] + pos[None, :], pad_id)]
+    u = ox[tiles, None, None] + ar - mx[g][..., None]
+    v = oy[tiles, None, None] + ar - my[g][..., None]
+    row = log_opac[g][..., None] - (0.5 * ca[g])[..., None] * u * u
+    col = (0.5 * cc[g])[..., None] * v * v
+    lin = cb[g][..., None] * u
+    alpha = (row[:, :, None, :] - col[:, :, :, None] - lin[:, :, None, :] * v[:, :, :, None]).exp()
+    alpha = alpha.clamp_max(ALPHA_MAX).flatten(2)
+    alpha = torch.where(alpha < ALPHA_THRESHOLD, torch.zeros_like(alpha), alpha)
+    T0 = T[tiles]
+    incl = torch.cumprod(1.0 - alpha, dim=1) * T0[:, None, :]
+    keep = incl > T_THRESHOLD
+    w = torch.cat([T0[:, None, :], incl[:, :-1]], dim=1) * alpha * keep
+    acc = acc.index_add(0, tiles, torch.bmm(w.transpose(1, 2), cols[g]))
+    n_keep = keep.sum(dim=1, keepdim=True)
+    T_last = torch.gather(incl, 1, (n_keep - 1).clamp_min(0)).squeeze(1)
+    T_new = torch.where(n_keep.squeeze(1) > 0, T_last, T0)
+    stopped = (n_keep.squeeze(1) < keep.shape[1]) & (T0 > T_THRESHOLD)
+    return T.index_copy(0, tiles, torch.where(stopped, -T_new, T_new)), acc
+
+
 def rasterize_tiles(
     proj: Projection,
     colors: Tensor,  # [N, 3]
@@ -216,10 +241,16 @@ def rasterize_tiles(
         max_elems = max_elems or (1 << 26 if dev.type == "cuda" else 1 << 23)
         batch = max(1, max_elems // (chunk * P))  # tiles per kernel call: caps temporaries
         active = torch.nonzero(counts > 0).squeeze(1)
+        grad = torch.is_grad_enabled() and any(t.requires_grad for t in (proj.means2d, proj.conics, proj.opacities,
+                                                                         colors))
         for s in range(n_steps):
             for b0 in range(0, active.numel(), batch):
-                _composite_chunk(active[b0:b0 + batch], s * chunk + steps, counts, starts, flat_pad,
-                                 flat.numel(), ox, oy, ar, mx, my, ca, cb, cc, log_opac, cols, T, acc)
+                args = (active[b0:b0 + batch], s * chunk + steps, counts, starts, flat_pad, flat.numel(), ox, oy, ar,
+                        mx, my, ca, cb, cc, log_opac, cols, T, acc)
+                if grad:  # differentiable (fitting through the renderer): no in-place updates
+                    T, acc = _composite_chunk_autograd(*args)
+                else:
+                    _composite_chunk(*args)
             alive = (counts[active] > (s + 1) * chunk) & (T[active] > 0).any(dim=1)
             active = active[alive]
             if active.numel() == 0:
