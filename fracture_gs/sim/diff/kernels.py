@@ -196,8 +196,9 @@ def contact_pair(
 
 @wp.kernel
 def boundaries(grid_m: wp.array(dtype=float), v_in: wp.array(dtype=wp.vec3), eps_m: float, origin: wp.vec3, dx: float,
-               shape: wp.vec3i, t: float, colliders: Colliders, v_out: wp.array(dtype=wp.vec3)):
-    """Every grid-side boundary operator on every active field (after contact)."""
+               shape: wp.vec3i, lo: wp.vec3i, t: float, colliders: Colliders, v_out: wp.array(dtype=wp.vec3)):
+    """Every grid-side boundary operator on every active field (after contact). The fields cover a box
+    of the grid: `origin` is its node 0, `lo` that node's index in the whole grid (for the walls)."""
     i = wp.tid()
     n_nodes = shape[0] * shape[1] * shape[2]
     n = i % n_nodes
@@ -205,7 +206,7 @@ def boundaries(grid_m: wp.array(dtype=float), v_in: wp.array(dtype=wp.vec3), eps
     v = v_in[i]
     if grid_m[i] > eps_m:
         xi = origin + wp.vec3(float(node[0]), float(node[1]), float(node[2])) * dx
-        v = apply_boundaries(v, node, xi, t, colliders)
+        v = apply_boundaries(v, node + lo, xi, t, colliders)
     v_out[i] = v
 
 

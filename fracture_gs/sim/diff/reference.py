@@ -32,7 +32,8 @@ def frame(sim, plan: FramePlan, x, v, C, F, mu, lam, mass, volume):
     n = torch.tensor(sim._normal(plan), dtype=torch.float64)
     for _ in range(plan.n):
         tau = stress(F, sim.material.cpu(), mu, lam, plan.released.cpu())
-        gm, gp, gb = R.p2g(x, v, C, mass, volume, tau, field, K, sim.shape, sim.origin, sim.dx, plan.dt,
+        origin = tuple(o + i * sim.dx for o, i in zip(sim.origin, plan.lo))
+        gm, gp, gb = R.p2g(x, v, C, mass, volume, tau, field, K, plan.shape, origin, sim.dx, plan.dt,
                            band=plan.band.cpu())
         gv = R.grid_update(gm, gp, gb, eps_m, eps_b, plan.dt, sim.cfg.gravity)
         if sim.spec.contact and K > 1:
@@ -43,5 +44,5 @@ def frame(sim, plan: FramePlan, x, v, C, F, mu, lam, mass, volume):
             vv = R.contact_fields(vv, mm, frag, bb, eps_m, eps_b, lambda a, b, lo, hi: n.expand(M, 3),
                                   e=float(sim.cfg.restitution), mu=float(sim.cfg.contact.friction))
             gv = vv.transpose(0, 1).reshape(gv.shape)
-        x, v, C, F = R.g2p(x, F, gv, field, sim.origin, sim.dx, plan.dt)
+        x, v, C, F = R.g2p(x, F, gv, field, origin, sim.dx, plan.dt)
     return x, v, C, F

@@ -47,6 +47,8 @@ class FramePlan:
     released: torch.Tensor  # [N] float32 1 − γ_p for released band particles, else 1
     band: torch.Tensor  # [N] float32 γ_p for the contact gate
     fields: int  # K
+    lo: tuple = (0, 0, 0)  # the frame's fields cover grid nodes [lo, lo + shape)
+    shape: tuple = (0, 0, 0)
 
 
 class DiffSimulator:
@@ -118,7 +120,22 @@ class DiffSimulator:
             band = (b != 0).float()
             rel = (b != 0) & (b <= topo.release_events) if self.spec.release else torch.zeros_like(b, dtype=torch.bool)
             released = (~rel).float()
-        return FramePlan(n, frame_dt / n, self.time, field.contiguous(), released.contiguous(), band.contiguous(), fields)
+        lo, shape = self._box(v, frame_dt)
+        return FramePlan(n, frame_dt / n, self.time, field.contiguous(), released.contiguous(), band.contiguous(), fields,
+                         lo, shape)
+
+    def _box(self, v: torch.Tensor, frame_dt: float) -> tuple[tuple, tuple]:
+        """Grid nodes the frame's particles can reach: their bounding box plus the stencil, twice their
+        travel (speed and gravity) and two spare cells, inside the grid (the plain solver's active box)."""
+        x = self._x.detach()
+        lo_w, hi_w = x.min(0).values.double().cpu(), x.max(0).values.double().cpu()
+        vmax = float(v.detach().norm(dim=1).max())
+        g = math.sqrt(sum(float(a) ** 2 for a in self.cfg.gravity))
+        pad = 5 + math.ceil(2 * (vmax * frame_dt + 0.5 * g * frame_dt**2) / self.dx)
+        lo = tuple(max(0, int(math.floor((float(lo_w[a]) - o) / self.dx)) - pad) for a, o in enumerate(self.origin))
+        hi = tuple(min(s, int(math.floor((float(hi_w[a]) - o) / self.dx)) + 1 + pad)
+                   for a, (o, s) in enumerate(zip(self.origin, self.shape)))
+        return lo, tuple(h - l for l, h in zip(lo, hi))  # noqa: E741
 
     def substeps(self, p: FramePlan, state: list, params: list, record: bool) -> list:
         """Run a frame's substeps from `state` = [x, v, C, F] (Warp arrays); returns the final state.
@@ -128,11 +145,13 @@ class DiffSimulator:
         N = x.shape[0]
         kw = dict(device=self.device, requires_grad=record)
         field, band, released = (wp.from_torch(t) for t in (p.field, p.band, p.released))
-        KN = p.fields * self.n_nodes
+        nodes = p.shape[0] * p.shape[1] * p.shape[2]
+        KN = p.fields * nodes
         cfg = self.cfg
         eps_m, eps_b = self.eps
         g = wp.vec3(*[float(a) for a in cfg.gravity])
-        origin, shape = wp.vec3(*self.origin), wp.vec3i(*self.shape)
+        origin = wp.vec3(*[o + i * self.dx for o, i in zip(self.origin, p.lo)])
+        shape, lo = wp.vec3i(*p.shape), wp.vec3i(*p.lo)
         normal = wp.vec3(*self._normal(p))
         for i in range(p.n):
             t = p.t0 + i * p.dt
@@ -148,13 +167,14 @@ class DiffSimulator:
                 for a in range(p.fields):
                     for b in range(a + 1, p.fields):
                         out = wp.zeros(KN, dtype=wp.vec3, **kw)
-                        wp.launch(K.contact_pair, dim=self.n_nodes,
-                                  inputs=[gm, gb, gv, a, b, self.n_nodes, p.fields, normal, eps_m, eps_b,
+                        wp.launch(K.contact_pair, dim=nodes,
+                                  inputs=[gm, gb, gv, a, b, nodes, p.fields, normal, eps_m, eps_b,
                                           float(cfg.restitution), float(cfg.contact.friction)],
                                   outputs=[out], device=self.device)
                         gv = out
             gvb = wp.zeros(KN, dtype=wp.vec3, **kw)
-            wp.launch(K.boundaries, dim=KN, inputs=[gm, gv, eps_m, origin, self.dx, shape, t, self.boundaries.colliders],
+            wp.launch(K.boundaries, dim=KN, inputs=[gm, gv, eps_m, origin, self.dx, shape, lo, t,
+                                                    self.boundaries.colliders],
                       outputs=[gvb], device=self.device)
             x1, v1 = wp.zeros(N, dtype=wp.vec3, **kw), wp.zeros(N, dtype=wp.vec3, **kw)
             C1, F1 = wp.zeros(N, dtype=wp.mat33, **kw), wp.zeros(N, dtype=wp.mat33, **kw)
@@ -176,6 +196,7 @@ class DiffSimulator:
         if not self.plans:
             node = float((mass.detach().sum() / volume.detach().sum())) * self.dx**3
             self.eps = (self.cfg.eps_mass * node, self.cfg.eps_band * node)
+        self._x = x
         plan = self.plan(self.frame, v, frame_dt, 0.0)
         self.plans.append(plan)
         out = _Frame.apply(self, plan, x, v, C, F, mu, lam, mass, volume)
