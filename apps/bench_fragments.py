@@ -1,0 +1,145 @@
+"""Table 2 extended with K fragments: the ficus shattered into K Voronoi pieces, Shared field against
+FractureFields, time per transfer substep and grid memory.
+
+    python apps/bench_fragments.py --device cuda:0                     # 171,553 particles, 128³
+    python apps/bench_fragments.py --device cpu --particles 3000 --n 32  # a smoke run
+
+Scope as the paper's Table 2: grid reset, P2G, grid update (normalization, contact, boundaries), G2P
+(no stress, diagnostics or rendering). Each branch runs on its own copy of one latched state; on CUDA
+the substep is a recorded graph timed with CUDA events (medians over `--steps` after warm-up, builds
+round-robin over `--placements` fresh allocations, trials round-robin). Memory: the grid buffers as
+allocated (dense slot 0, owner words, the pool of multi-fragment nodes sized for the state).
+"""
+from __future__ import annotations
+
+import argparse
+import copy
+import gc
+import json
+import statistics
+import sys
+import time
+
+import torch
+import warp as wp
+
+from fracture_gs import assets
+from fracture_gs.config import SceneConfig, SimConfig
+from fracture_gs.sim import Particles, Simulator, Topology
+from fracture_gs.sim.providers.cuts import voronoi_labels
+from fracture_gs.sim.providers.voronoi import voronoi_sites
+
+BRANCHES = (("Shared", "stress_zero"), ("FractureFields", "full"))
+
+
+def state(particles, device: str, n: int):
+    gs = assets.build("ficus", size="paper", n=particles)
+    cfg = SceneConfig(scene="ficus")
+    cfg.sim = SimConfig(dx=1.0 / n, grid_shape=(n, n, n), dt=2e-5, gravity=(0.0, 0.0, -9.8), max_fragments=64)
+    cfg.material.E, cfg.material.density = 2e6, 200.0
+    return cfg, Particles.from_gaussians(gs, cfg)
+
+
+def topology(P: Particles, K: int, dx: float) -> Topology:
+    """K Voronoi cells (sites drawn from the particles, seed 0), band 1.5Δx around the cell faces."""
+    fragment, band = voronoi_labels(P.x, voronoi_sites(P.x, K, 0), 1.5 * dx)
+    return Topology(fragment=fragment, band=band, normal=(0.0, 0.0, 1.0), point=(0.5, 0.5, 0.4))
+
+
+def build(cfg, P, topo, variant, device):
+    c = copy.deepcopy(cfg.sim)
+    c.variant = variant
+    sim = Simulator(c, P.clone(), device=device)
+    sim.record_contact = False
+    sim.latch(topo)
+    sim.fit_active_box(0.05)
+    sim.set_clock(c.dt)
+    with sim._stream_scope():
+        sim.transfer()  # sizes nothing: the pool came from the latch's estimate; count what it needs
+    rows = int(sim.grid.rows_used())
+    sim.pool_rows = rows
+    sim.fit_active_box(0.05)  # a pool sized from the state's own rows, as between frames
+    return sim
+
+
+def time_builds(sims: list, steps: int, warmup: int, trials: int) -> list[float]:
+    cuda = sims[0].device.startswith("cuda")
+    graphs = []
+    for sim in sims:
+        for _ in range(warmup):
+            with sim._stream_scope():
+                sim.transfer()
+        if cuda:
+            with sim._stream_scope():
+                with wp.ScopedCapture(device=sim.device, stream=wp.get_stream(sim.device), force_module_load=False) as cap:
+                    sim.transfer()
+            graphs.append(cap.graph)
+        else:
+            graphs.append(None)
+    samples = []
+    for _ in range(trials):
+        for sim, graph in zip(sims, graphs):
+            gc.disable()
+            try:
+                ms = []
+                for _ in range(steps):
+                    if cuda:
+                        a, b = torch.cuda.Event(enable_timing=True), torch.cuda.Event(enable_timing=True)
+                        with sim._stream_scope():
+                            a.record()
+                            wp.capture_launch(graph)
+                            b.record()
+                        b.synchronize()
+                        ms.append(a.elapsed_time(b))
+                    else:
+                        t = time.perf_counter()
+                        sim.transfer()
+                        ms.append(1e3 * (time.perf_counter() - t))
+                samples.append(statistics.median(ms))
+            finally:
+                gc.enable()
+    return samples
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--device", default="cuda:0" if torch.cuda.is_available() else "cpu")
+    p.add_argument("--particles", type=int, default=None, help="default: the paper's 171,553")
+    p.add_argument("--n", type=int, default=128, help="grid cells per axis")
+    p.add_argument("--K", default="2,4,8,16")
+    p.add_argument("--steps", type=int, default=200)
+    p.add_argument("--warmup", type=int, default=20)
+    p.add_argument("--trials", type=int, default=3)
+    p.add_argument("--placements", type=int, default=3)
+    a = p.parse_args(argv)
+    if not a.device.startswith("cuda"):
+        a.steps, a.warmup, a.placements = min(a.steps, 10), min(a.warmup, 2), 1
+    cfg, P = state(a.particles, a.device, a.n)
+    rows = []
+    for K in (int(k) for k in a.K.split(",")):
+        topo = topology(P, K, cfg.sim.dx)
+        out = {"K": K}
+        for label, variant in BRANCHES:
+            sims = [build(cfg, P, topo, variant, a.device) for _ in range(a.placements)]
+            ms = time_builds(sims, a.steps, a.warmup, a.trials)
+            out[label] = {"median_ms": statistics.median(ms), "min_ms": min(ms), "max_ms": max(ms),
+                          "grid_mib": sims[0].grid.nbytes / 2**20, "pool_rows": int(sims[0].grid.rows_used()),
+                          "slot_overflow": int(sims[0].counts[2])}
+            del sims
+        out["time_ratio"] = out["FractureFields"]["median_ms"] / out["Shared"]["median_ms"]
+        out["memory_ratio"] = out["FractureFields"]["grid_mib"] / out["Shared"]["grid_mib"]
+        rows.append(out)
+        print(json.dumps(out), flush=True)
+    dev = torch.cuda.get_device_name(a.device) if a.device.startswith("cuda") else "cpu"
+    print(f"\n### K fragments ({dev}, {len(P)} particles, {a.n}³)\n")
+    print("| K | Shared ms | FractureFields ms | × Shared | Shared MiB | FF MiB | × memory | pool rows | overflow |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    for r in rows:
+        s, f = r["Shared"], r["FractureFields"]
+        print(f"| {r['K']} | {s['median_ms']:.4f} | {f['median_ms']:.4f} | {r['time_ratio']:.3f} | {s['grid_mib']:.1f} | "
+              f"{f['grid_mib']:.1f} | {r['memory_ratio']:.3f} | {f['pool_rows']} | {f['slot_overflow']} |")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
