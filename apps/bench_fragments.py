@@ -112,7 +112,9 @@ def main(argv=None) -> int:
     p.add_argument("--trials", type=int, default=3)
     p.add_argument("--placements", type=int, default=3)
     a = p.parse_args(argv)
-    if not a.device.startswith("cuda"):
+    if a.device.startswith("cuda"):  # graph capture needs a non-default stream
+        torch.cuda.set_stream(torch.cuda.Stream(a.device))
+    else:
         a.steps, a.warmup, a.placements = min(a.steps, 10), min(a.warmup, 2), 1
     cfg, P = state(a.particles, a.device, a.n)
     rows = []

@@ -171,8 +171,9 @@ class Diagnostics:
         cf, shared = self.shadow.mixing(sim.eps_m)
         dev.add("mixing_cf", cf)
         dev.add("shared", shared)
-        # the realized fields once a fragment-conditioned P2G has run, else the shadow (same kernel)
-        source = sim.grid if sim.multifield and sim.substeps > self.latch_substeps else self.shadow
+        # the shadow: its fragment-conditioned P2G claims every slot (the solver's skips the claims at
+        # nodes only one fragment reaches), and deposits exactly what the realized transfer does
+        source = self.shadow
         K = sim.n_fragments
         P = sim.particles
         mp = torch.zeros(K, dtype=torch.float64, device=P.x.device).index_add_(0, P.fragment.long(), P.mass.double())

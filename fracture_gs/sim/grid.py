@@ -4,7 +4,9 @@ A single-field grid (shared variants, or any run before its first latch) is dens
 multi-field grid adds the owner word per node and a pool of rows for nodes that two or more
 fragments reach, sized between frames from the rows the last frame used (`ensure_pool`). The
 logical fields `mass`, `momentum`, `velocity`, `band_mass` ([K, X, Y, Z, …]) are rebuilt from the
-slots for tests and small diagnostics; `fragment_mass` and `mixing` reduce the slots directly.
+slots for tests and small diagnostics; `fragment_mass` and `mixing` reduce the slots directly. They
+name a node's fragments from its claims, which the solver's "solo" particles skip (`Simulator.solo`):
+read them from a grid filled with claims everywhere (the diagnostics' shadow grid, or solo off).
 """
 from __future__ import annotations
 
@@ -133,6 +135,16 @@ class Grid:
     def rows_used(self) -> torch.Tensor:
         """Pool rows holding a node (a device count, read with the frame's other numbers)."""
         return (self.key >= 0).sum() if self.multi else torch.zeros((), dtype=torch.int64, device=self.device)
+
+    def reset_claims(self) -> None:
+        """Forget every claim (owner words, pool rows, pool slot owners): between frames, or when the
+        routing changes."""
+        if self.multi:
+            self._owner.zero_()
+            self.key.fill_(EMPTY_KEY)
+            self.pool_owner.fill_(-1)
+            self.band.zero_()
+            self._mp[self.n_nodes:].zero_()  # a row claimed anew must start empty (clear_pool skips free rows)
 
     def clear(self) -> None:
         """Reset every accumulator (dense slot 0, owners, the pool)."""

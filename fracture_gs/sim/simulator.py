@@ -99,6 +99,8 @@ class Simulator:
         self.dt = float(cfg.dt)
         n = len(self.particles)
         self.stress = torch.zeros(n, 3, 3, dtype=torch.float32, device=self.device)
+        self.solo = torch.zeros(n, dtype=torch.int32, device=self.device)  # see `_update_solo`
+        self._no_solo = torch.zeros(n, dtype=torch.int32, device=self.device)
         self.counts = torch.zeros(N_COUNTS, dtype=torch.int32, device=self.device)  # see layout.COUNT_*
         self.box_slack = 0  # extra cells on the active box; grows when a frame had to be redone
         self.frame_redos = 0
@@ -133,6 +135,8 @@ class Simulator:
                                                                    "hardening", "alpha", "fragment", "band")})
         self.wp["stress"] = wp.from_torch(self.stress, dtype=wp.mat33)
         self.wp["counts"] = wp.from_torch(self.counts)
+        self.wp["solo"] = wp.from_torch(self.solo)
+        self.wp["no_solo"] = wp.from_torch(self._no_solo)
         self.wp["centroids"] = wp.from_torch(self.centroids, dtype=wp.vec3)
         g = self.grid
         lo = [o + (self.cfg.wall_cells - 1) * g.dx for o in g.origin]
@@ -174,7 +178,34 @@ class Simulator:
             g.zero()
         if self.multifield and self.normal_mode == NORMAL_MASS_GRADIENT:
             self._update_centroids()
+        if self.multifield:
+            self._update_solo(travel)
         return vmax
+
+    def _update_solo(self, travel: float) -> None:
+        """Mark the particles no other fragment can reach this frame ("solo": every node of their stencil
+        holds their fragment only, so P2G and G2P take the dense path with no slot claims; bitwise the
+        same fields). Conservative: no particle of another fragment within 4Δx + twice the travel (and
+        the box slack) — cells of 2Δx, fragment id min and max pooled over that reach."""
+        P, g = self.particles, self.grid
+        h = 2.0 * g.dx
+        r = math.ceil((4.0 * g.dx + 2.0 * travel + self.box_slack * g.dx) / h)
+        if r > 6:  # fast or escaping particles: everybody claims
+            self.solo.zero_()
+            return
+        dims = [int(math.ceil(s * g.dx / h)) + 1 for s in g.shape]
+        cell = torch.floor((P.x - torch.tensor(g.origin, device=P.x.device)) / h).long()
+        cell = torch.minimum(cell.clamp_min(0), torch.tensor(dims, device=P.x.device) - 1)
+        lin = (cell[:, 0] * dims[1] + cell[:, 1]) * dims[2] + cell[:, 2]
+        frag = P.fragment.float()
+        size = dims[0] * dims[1] * dims[2]
+        inf = torch.full((size,), float("inf"), device=P.x.device)
+        lo = inf.scatter_reduce(0, lin, frag, "amin").view(1, 1, *dims)
+        hi = (-inf).scatter_reduce(0, lin, frag, "amax").view(1, 1, *dims)
+        pool = torch.nn.functional.max_pool3d
+        lo = -pool(-lo, 2 * r + 1, stride=1, padding=r).flatten()
+        hi = pool(hi, 2 * r + 1, stride=1, padding=r).flatten()
+        self.solo.copy_((lo[lin] == hi[lin]).to(torch.int32))
 
     def _update_centroids(self) -> None:
         """Mass centroid of every fragment (the contact normal's fallback), on the device."""
@@ -265,6 +296,7 @@ class Simulator:
             times.append(t)
             t += dt
         on = self._set_clock(dt, times)
+        self.grid.reset_claims()  # claims last one frame
         graphs = self.use_graphs and self.device.startswith("cuda") and self.frame > 0
         if graphs and (self._graph is None or self._graph_key() != self._graph_key_value):
             with self._stream_scope():
@@ -331,7 +363,7 @@ class Simulator:
         if target is None:
             b = self.box
             wp.launch(clear_dense, dim=(b[3] - b[0], b[4] - b[1], b[5] - b[2]), device=self.device,
-                      inputs=[g.view, self._box_lo, multi])
+                      inputs=[g.view, self._box_lo])
             if multi:
                 wp.launch(clear_pool, dim=g.capacity, device=self.device, inputs=[g.view])
             lo, hi = self._box_lo, self._box_hi
@@ -340,7 +372,8 @@ class Simulator:
             lo, hi = wp.vec3i(0, 0, 0), wp.vec3i(*g.shape)
         wp.launch(p2g, dim=len(self.particles), device=self.device,
                   inputs=[w["x"], w["v"], w["C"], w["mass"], w["volume"], w["stress"] if stress is None else stress,
-                          w["fragment"], w["band"], multi, only_fragment, self.clock.view, g.view, lo, hi,
+                          w["fragment"], w["band"], w["solo"] if target is None else w["no_solo"], multi, only_fragment,
+                          self.clock.view, g.view, lo, hi,
                           w["counts"] if counts is None else counts])
 
     def _update_grid(self) -> None:
@@ -363,7 +396,7 @@ class Simulator:
         """Per particle but for the clamp counter: on the CPU one launch per core's share, each with its
         own counter."""
         g, w = self.grid, self.wp
-        arrays = [w["x"], w["v"], w["C"], w["F"], w["fragment"]]
+        arrays = [w["x"], w["v"], w["C"], w["F"], w["fragment"], w["solo"]]
         multi = int(self.multifield)
 
         def launch(a: int, b: int, counts) -> None:
@@ -434,6 +467,7 @@ class Simulator:
                     self.grid.ensure_pool(self.pool_rows)
                 self._reset_boxes()
                 self.grid.zero()
+                self.solo.zero_()  # the whole grid, every particle claims its slots
                 vmax = None
             n, dt = self.frame_substeps(frame_dt, vmax)
             self.dt = dt
@@ -541,6 +575,7 @@ class Simulator:
         self.normal_mode = NORMAL_LATCHED if mode == "latched" or (mode == "auto" and binary) else NORMAL_MASS_GRADIENT
         self.pool_rows = max(self.pool_rows, 4 * bands + len(P) // 64)
         self._reset_boxes()  # the routing changed: the next advance() refits the box and the pool
+        self.solo.zero_()
         if self.multifield:
             self.grid.ensure_pool(self.pool_rows)
             self.grid.zero()
@@ -584,4 +619,5 @@ class Simulator:
         elif mode != "cell":
             raise ValueError(f"sort mode '{mode}' is not 'cell' or 'interleaved'")
         P.permute(order)
+        self.solo.zero_()  # recomputed for the new order at the next frame
         return order

@@ -87,6 +87,33 @@ def node_terms(i: int, j: int, l: int, f: wp.vec3, w: wp.mat33, dw: wp.mat33, dx
 
 
 @wp.func
+def axis_terms(i: int, f: float):
+    """Quadratic B-spline weight and its ξ-derivative of stencil offset i ∈ {0, 1, 2} along one axis,
+    by arithmetic selection (no indexing: a runtime i must not push the stencil into local memory)."""
+    w0 = 0.5 * (1.5 - f) * (1.5 - f)
+    w1 = 0.75 - (f - 1.0) * (f - 1.0)
+    w2 = 0.5 * (f - 0.5) * (f - 0.5)
+    w = wp.where(i == 0, w0, wp.where(i == 1, w1, w2))
+    d = wp.where(i == 0, f - 1.5, wp.where(i == 1, -2.0 * (f - 1.0), f - 0.5))
+    return w, d
+
+
+@wp.func
+def node_terms_q(q: int, f: wp.vec3, dx: float, inv_dx: float):
+    """`node_terms` of stencil node q = 9i + 3j + l, for a loop that is not unrolled (same float ops)."""
+    i = q // 9
+    j = (q // 3) % 3
+    l = q % 3  # noqa: E741
+    wx, dwx = axis_terms(i, f[0])
+    wy, dwy = axis_terms(j, f[1])
+    wz, dwz = axis_terms(l, f[2])
+    weight = wx * wy * wz
+    grad = wp.vec3(dwx * wy * wz, wx * dwy * wz, wx * wy * dwz) * inv_dx
+    dpos = (wp.vec3(float(i), float(j), float(l)) - f) * dx
+    return weight, grad, dpos, wp.vec3i(i, j, l)
+
+
+@wp.func
 def routed_field(o: int, only_fragment: int, multifield: int):
     """Field the particle writes to and reads from (its fragment under fragment-conditioned
     transfer, else the one shared field 0), or −1 when a per-fragment pass skips it."""
@@ -138,6 +165,7 @@ def p2g(
     stress: wp.array(dtype=wp.mat33),  # [N] Kirchhoff τ (band-released)
     fragment: wp.array(dtype=wp.int32),  # [N] o_p (−1 before the first latch)
     band: wp.array(dtype=wp.int32),  # [N] γ_p
+    solo: wp.array(dtype=wp.int32),  # [N] 1: no other fragment within reach this frame (dense slot 0, no claims)
     multifield: int,
     only_fragment: int,  # ≥ 0: skip every particle of another fragment (global fragment pass)
     clock: Clock,  # Δt
@@ -160,39 +188,42 @@ def p2g(
     Cp = C[p]
     force = -clock_dt(clock) * volume[p] * stress[p]
     in_band = band[p]
-    for i in range(3):
-        for j in range(3):
-            for l in range(3):  # noqa: E741
-                weight, grad, dpos = node_terms(i, j, l, f, w, dw, g.dx, g.inv_dx)
-                n = flat(wp.vec3i(base[0] + i, base[1] + j, base[2] + l), wp.vec3i(0, 0, 0), g.shape)
-                mom = weight * m * (vp + Cp * dpos) + force * grad
-                idx = n
-                if multifield != 0:
-                    idx, row, s = deposit_index(g, n, k, in_band, counts)
-                    if in_band != 0 and row >= 0:
-                        wp.atomic_add(g.band, row * g.slots + s, weight * m)
-                atomic_add_vec4(g.mp, idx, wp.vec4(mom[0], mom[1], mom[2], weight * m))
+    if multifield == 0 or solo[p] != 0:  # one field at every node reached: unrolled, one reduction per node
+        for i in range(3):
+            for j in range(3):
+                for l in range(3):  # noqa: E741
+                    weight, grad, dpos = node_terms(i, j, l, f, w, dw, g.dx, g.inv_dx)
+                    n = flat(wp.vec3i(base[0] + i, base[1] + j, base[2] + l), wp.vec3i(0, 0, 0), g.shape)
+                    mom = weight * m * (vp + Cp * dpos) + force * grad
+                    atomic_add_vec4(g.mp, n, wp.vec4(mom[0], mom[1], mom[2], weight * m))
+        return
+    for q in range(27):  # kept as a loop: the slot claims inline once, not 27 times
+        weight, grad, dpos, o = node_terms_q(q, f, g.dx, g.inv_dx)
+        n = flat(base + o, wp.vec3i(0, 0, 0), g.shape)
+        mom = weight * m * (vp + Cp * dpos) + force * grad
+        idx, row, s = deposit_index(g, n, k, in_band, counts)
+        if in_band != 0 and row >= 0:
+            wp.atomic_add(g.band, row * g.slots + s, weight * m)
+        atomic_add_vec4(g.mp, idx, wp.vec4(mom[0], mom[1], mom[2], weight * m))
 
 
 @wp.kernel
-def clear_dense(g: GridView, box_origin: wp.vec3i, multifield: int):
-    """Reset slot 0 (and its owner word) over the active box."""
+def clear_dense(g: GridView, box_origin: wp.vec3i):
+    """Reset slot 0's accumulators over the active box (its owner stays claimed for the frame)."""
     ti, tj, tl = wp.tid()
     n = flat(wp.vec3i(ti + box_origin[0], tj + box_origin[1], tl + box_origin[2]), wp.vec3i(0, 0, 0), g.shape)
     g.mp[n] = wp.vec4(0.0)
-    if multifield != 0:
-        g.owner[n] = 0
 
 
 @wp.kernel
 def clear_pool(g: GridView):
-    """Free every pool row."""
+    """Reset the pool slots' accumulators (rows and slot owners stay claimed for the frame)."""
     r = wp.tid()
-    g.key[r] = EMPTY_KEY
+    if g.key[r] == EMPTY_KEY:
+        return
     for s in range(g.slots):
         g.band[r * g.slots + s] = 0.0
         if s > 0:
-            g.pool_owner[r * (g.slots - 1) + s - 1] = -1
             g.mp[g.n_nodes + r * (g.slots - 1) + s - 1] = wp.vec4(0.0)
 
 
@@ -358,6 +389,7 @@ def g2p(
     C: wp.array(dtype=wp.mat33),
     F: wp.array(dtype=wp.mat33),
     fragment: wp.array(dtype=wp.int32),
+    solo: wp.array(dtype=wp.int32),  # [N] as in p2g
     multifield: int,
     only_fragment: int,
     clock: Clock,  # Δt
@@ -377,18 +409,22 @@ def g2p(
     vp = wp.vec3(0.0)
     B = wp.mat33(0.0)
     gradv = wp.mat33(0.0)
-    for i in range(3):
-        for j in range(3):
-            for l in range(3):  # noqa: E741
-                weight, grad, dpos = node_terms(i, j, l, f, w, dw, g.dx, g.inv_dx)
-                n = flat(wp.vec3i(base[0] + i, base[1] + j, base[2] + l), wp.vec3i(0, 0, 0), g.shape)
-                idx = n
-                if multifield != 0:
-                    idx = read_index(g, n, k)
-                vi = g.vel[idx]
-                vp = vp + weight * vi
-                B = B + weight * wp.outer(vi, dpos)
-                gradv = gradv + wp.outer(vi, grad)
+    if multifield == 0 or solo[p] != 0:  # one field at every node reached: the stencil unrolled
+        for i in range(3):
+            for j in range(3):
+                for l in range(3):  # noqa: E741
+                    weight, grad, dpos = node_terms(i, j, l, f, w, dw, g.dx, g.inv_dx)
+                    vi = g.vel[flat(wp.vec3i(base[0] + i, base[1] + j, base[2] + l), wp.vec3i(0, 0, 0), g.shape)]
+                    vp = vp + weight * vi
+                    B = B + weight * wp.outer(vi, dpos)
+                    gradv = gradv + wp.outer(vi, grad)
+    else:
+        for q in range(27):  # kept as a loop: the slot lookup inlines once, not 27 times
+            weight, grad, dpos, o = node_terms_q(q, f, g.dx, g.inv_dx)
+            vi = g.vel[read_index(g, flat(base + o, wp.vec3i(0, 0, 0), g.shape), k)]
+            vp = vp + weight * vi
+            B = B + weight * wp.outer(vi, dpos)
+            gradv = gradv + wp.outer(vi, grad)
     v[p] = vp
     C[p] = B * (4.0 * g.inv_dx * g.inv_dx)
     F[p] = (wp.identity(n=3, dtype=float) + dt * gradv) * F[p]
