@@ -7,6 +7,7 @@ Times one frame of `DiffSimulator` (n substeps) forward (no tape) and backward (
 under a wp.Tape, then the adjoints), reports per-substep milliseconds, their ratio, the frame's
 checkpoint (bytes per particle) and the peak device memory of the backward pass.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -64,15 +65,25 @@ def main(argv=None) -> int:
         t2 = time.perf_counter()
         peak = (torch.cuda.max_memory_allocated(dev) - base) if dev.startswith("cuda") else None
         n = sim.plans[-1].n
-        rows.append({"forward_ms_per_substep": 1e3 * (t1 - t0) / n, "backward_ms_per_substep": 1e3 * (t2 - t1) / n,
-                     "peak_backward_MiB": None if peak is None else peak / 2**20})
+        rows.append(
+            {
+                "forward_ms_per_substep": 1e3 * (t1 - t0) / n,
+                "backward_ms_per_substep": 1e3 * (t2 - t1) / n,
+                "peak_backward_MiB": None if peak is None else peak / 2**20,
+            }
+        )
     rows = rows[1:]  # the first repeat compiles
     med = {k: sorted(r[k] for r in rows)[len(rows) // 2] if rows[0][k] is not None else None for k in rows[0]}
-    result = {"device": torch.cuda.get_device_name(dev) if dev.startswith("cuda") else "cpu", "particles": len(P),
-              "grid": 128, "substeps_per_frame": a.substeps, **med,
-              "backward_over_forward": med["backward_ms_per_substep"] / med["forward_ms_per_substep"],
-              "checkpoint_bytes_per_particle": 4 * (3 + 3 + 9 + 9),
-              "torch_peak_note": "Warp's own allocations are outside torch's allocator statistics"}
+    result = {
+        "device": torch.cuda.get_device_name(dev) if dev.startswith("cuda") else "cpu",
+        "particles": len(P),
+        "grid": 128,
+        "substeps_per_frame": a.substeps,
+        **med,
+        "backward_over_forward": med["backward_ms_per_substep"] / med["forward_ms_per_substep"],
+        "checkpoint_bytes_per_particle": 4 * (3 + 3 + 9 + 9),
+        "torch_peak_note": "Warp's own allocations are outside torch's allocator statistics",
+    }
     print(json.dumps(result, indent=2))
     return 0
 

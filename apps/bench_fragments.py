@@ -10,6 +10,7 @@ the substep is a recorded graph timed with CUDA events (medians over `--steps` a
 round-robin over `--placements` fresh allocations, trials round-robin). Memory: the grid buffers as
 allocated (dense slot 0, owner words, the pool of multi-fragment nodes sized for the state).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -71,7 +72,9 @@ def time_builds(sims: list, steps: int, warmup: int, trials: int) -> list[float]
                 sim.transfer()
         if cuda:
             with sim._stream_scope():
-                with wp.ScopedCapture(device=sim.device, stream=wp.get_stream(sim.device), force_module_load=False) as cap:
+                with wp.ScopedCapture(
+                    device=sim.device, stream=wp.get_stream(sim.device), force_module_load=False
+                ) as cap:
                     sim.transfer()
             graphs.append(cap.graph)
         else:
@@ -124,9 +127,14 @@ def main(argv=None) -> int:
         for label, variant in BRANCHES:
             sims = [build(cfg, P, topo, variant, a.device) for _ in range(a.placements)]
             ms = time_builds(sims, a.steps, a.warmup, a.trials)
-            out[label] = {"median_ms": statistics.median(ms), "min_ms": min(ms), "max_ms": max(ms),
-                          "grid_mib": sims[0].grid.nbytes / 2**20, "pool_rows": int(sims[0].grid.rows_used()),
-                          "slot_overflow": int(sims[0].counts[2])}
+            out[label] = {
+                "median_ms": statistics.median(ms),
+                "min_ms": min(ms),
+                "max_ms": max(ms),
+                "grid_mib": sims[0].grid.nbytes / 2**20,
+                "pool_rows": int(sims[0].grid.rows_used()),
+                "slot_overflow": int(sims[0].counts[2]),
+            }
             del sims
         out["time_ratio"] = out["FractureFields"]["median_ms"] / out["Shared"]["median_ms"]
         out["memory_ratio"] = out["FractureFields"]["grid_mib"] / out["Shared"]["grid_mib"]
@@ -138,8 +146,10 @@ def main(argv=None) -> int:
     print("|---|---|---|---|---|---|---|---|---|")
     for r in rows:
         s, f = r["Shared"], r["FractureFields"]
-        print(f"| {r['K']} | {s['median_ms']:.4f} | {f['median_ms']:.4f} | {r['time_ratio']:.3f} | {s['grid_mib']:.1f} | "
-              f"{f['grid_mib']:.1f} | {r['memory_ratio']:.3f} | {f['pool_rows']} | {f['slot_overflow']} |")
+        print(
+            f"| {r['K']} | {s['median_ms']:.4f} | {f['median_ms']:.4f} | {r['time_ratio']:.3f} | {s['grid_mib']:.1f} | "
+            f"{f['grid_mib']:.1f} | {r['memory_ratio']:.3f} | {f['pool_rows']} | {f['slot_overflow']} |"
+        )
     return 0
 
 

@@ -13,6 +13,7 @@ ficus (size="small"). Every scene goes through the full per-frame path: Σ = F �
 for the clouds) evaluated with the view direction rotated by R(F)ᵀ, then `render` in the classic
 and antialiased modes, both backends on the same tensors. The Markdown table is printed last.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -22,14 +23,18 @@ import sys
 import time
 import traceback
 from dataclasses import dataclass
-from pathlib import Path
 
 import torch
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from fracture_gs.render import (deform_covariances, orbit, polar_rotation, render,  # noqa: E402
-                                render_reference, sh_colors, visible_mask)
+from fracture_gs.render import (
+    deform_covariances,
+    orbit,
+    polar_rotation,
+    render,
+    render_reference,
+    sh_colors,
+    visible_mask,
+)
 
 PSNR_MIN = 40.0
 
@@ -49,9 +54,20 @@ class Scene:
 def _rotations(n: int, g: torch.Generator) -> torch.Tensor:  # [n, 3, 3]
     q = torch.nn.functional.normalize(torch.randn(n, 4, generator=g), dim=-1)
     w, x, y, z = q.unbind(-1)
-    return torch.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
-                        2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
-                        2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1).reshape(n, 3, 3)
+    return torch.stack(
+        [
+            1 - 2 * (y * y + z * z),
+            2 * (x * y - w * z),
+            2 * (x * z + w * y),
+            2 * (x * y + w * z),
+            1 - 2 * (x * x + z * z),
+            2 * (y * z - w * x),
+            2 * (x * z - w * y),
+            2 * (y * z + w * x),
+            1 - 2 * (x * x + y * y),
+        ],
+        -1,
+    ).reshape(n, 3, 3)
 
 
 def random_cloud(name: str, n: int, size: tuple[int, int], kind: str, seed: int) -> Scene:
@@ -64,8 +80,11 @@ def random_cloud(name: str, n: int, size: tuple[int, int], kind: str, seed: int)
     elif kind == "aniso":
         ratio = torch.exp(torch.rand(n, 1, generator=g) * math.log(20.0))  # 1:1 … 20:1
         needle = torch.rand(n, 1, generator=g) < 0.5
-        s = base * torch.where(needle, torch.cat([ratio, 1 / ratio.sqrt(), 1 / ratio.sqrt()], 1),
-                               torch.cat([ratio.sqrt(), ratio.sqrt(), 1 / ratio], 1))
+        s = base * torch.where(
+            needle,
+            torch.cat([ratio, 1 / ratio.sqrt(), 1 / ratio.sqrt()], 1),
+            torch.cat([ratio.sqrt(), ratio.sqrt(), 1 / ratio], 1),
+        )
     else:  # mixed: mostly small, some large soft ones
         s = base * torch.exp(0.8 * torch.randn(n, 3, generator=g))
         big = torch.rand(n, generator=g) < 0.01
@@ -135,7 +154,7 @@ def check_scene(scene: Scene, device, dry: bool, repeats: int) -> list[dict]:
     colors = sh_colors(scene.sh.to(device), means, cam.campos, R)
     rows = []
     for mode in ("classic", "antialiased"):
-        torch_fn = lambda: render(means, covars, colors, opac, cam, backend="torch", mode=mode)
+        torch_fn = lambda mode=mode: render(means, covars, colors, opac, cam, backend="torch", mode=mode)
         out_t, t_torch = timed(torch_fn, device, repeats)
         if dry:
             work = len(means) * scene.width * scene.height
@@ -144,22 +163,41 @@ def check_scene(scene: Scene, device, dry: bool, repeats: int) -> list[dict]:
                 out_r = render_reference(means, covars, colors, opac, cam, mode=mode)
             else:
                 ref_name = "torch f64"
-                out_r, t_ref = timed(lambda: render(means.double(), covars.double(), colors.double(),
-                                                    opac.double(), cam, backend="torch", mode=mode), device, 1)
+                out_r, t_ref = timed(
+                    lambda mode=mode: render(
+                        means.double(), covars.double(), colors.double(), opac.double(), cam, backend="torch", mode=mode
+                    ),
+                    device,
+                    1,
+                )
         else:
             ref_name = "gsplat"
-            out_r, t_ref = timed(lambda: render(means, covars, colors, opac, cam, backend="gsplat", mode=mode),
-                                 device, repeats)
+            out_r, t_ref = timed(
+                lambda mode=mode: render(means, covars, colors, opac, cam, backend="gsplat", mode=mode), device, repeats
+            )
             assert out_r.backend == "gsplat"
         assert out_t.backend == "torch"
         p = psnr(out_t.image, out_r.image)
-        rows.append(dict(scene=scene.name, n=len(means), size=f"{scene.width}x{scene.height}", mode=mode,
-                         ref=ref_name, psnr=p, dalpha=float((out_t.alpha.double() - out_r.alpha.double()).abs().max()),
-                         coverage=float(out_r.alpha.float().mean()), t_ref=t_ref, t_torch=t_torch))
+        rows.append(
+            dict(
+                scene=scene.name,
+                n=len(means),
+                size=f"{scene.width}x{scene.height}",
+                mode=mode,
+                ref=ref_name,
+                psnr=p,
+                dalpha=float((out_t.alpha.double() - out_r.alpha.double()).abs().max()),
+                coverage=float(out_r.alpha.float().mean()),
+                t_ref=t_ref,
+                t_torch=t_torch,
+            )
+        )
         r = rows[-1]
-        print(f"  {mode:11s} PSNR torch vs {ref_name}: {p:6.2f} dB  max|Δalpha| {r['dalpha']:.1e}  "
-              f"coverage {r['coverage']:.2f}  {ref_name} {1e3 * t_ref:8.1f} ms  torch {1e3 * t_torch:8.1f} ms",
-              flush=True)
+        print(
+            f"  {mode:11s} PSNR torch vs {ref_name}: {p:6.2f} dB  max|Δalpha| {r['dalpha']:.1e}  "
+            f"coverage {r['coverage']:.2f}  {ref_name} {1e3 * t_ref:8.1f} ms  torch {1e3 * t_torch:8.1f} ms",
+            flush=True,
+        )
     return rows
 
 
@@ -176,23 +214,33 @@ def main(argv=None) -> int:
         return 2
     device = torch.device("cpu" if dry else "cuda")
     repeats = args.repeats or (2 if dry else 10)
-    print(f"torch {torch.__version__}, device {device}"
-          + ("" if dry else f" ({torch.cuda.get_device_name()})"), flush=True)
+    print(
+        f"torch {torch.__version__}, device {device}" + ("" if dry else f" ({torch.cuda.get_device_name()})"),
+        flush=True,
+    )
     if not dry:
         import gsplat
 
         print(f"gsplat {gsplat.__version__}", flush=True)
 
     if dry:
-        clouds = [("cloud_iso", 1_500, (96, 80), "iso"), ("cloud_aniso", 6_000, (160, 128), "aniso"),
-                  ("cloud_mixed", 20_000, (256, 256), "mixed")]
+        clouds = [
+            ("cloud_iso", 1_500, (96, 80), "iso"),
+            ("cloud_aniso", 6_000, (160, 128), "aniso"),
+            ("cloud_mixed", 20_000, (256, 256), "mixed"),
+        ]
         asset_size = (256, 256)
     else:
-        clouds = [("cloud_iso", 10_000, (256, 256), "iso"), ("cloud_aniso", 200_000, (800, 600), "aniso"),
-                  ("cloud_mixed", 1_000_000, (1280, 720), "mixed")]
+        clouds = [
+            ("cloud_iso", 10_000, (256, 256), "iso"),
+            ("cloud_aniso", 200_000, (800, 600), "aniso"),
+            ("cloud_mixed", 1_000_000, (1280, 720), "mixed"),
+        ]
         asset_size = (512, 512)
-    builders = [(name, lambda a=(name, n, size, kind, 7 + k): random_cloud(*a))
-                for k, (name, n, size, kind) in enumerate(clouds)]
+    builders = [
+        (name, lambda a=(name, n, size, kind, 7 + k): random_cloud(*a))
+        for k, (name, n, size, kind) in enumerate(clouds)
+    ]
     if not args.no_assets:
         builders += [(name, lambda nm=name: asset_scene(nm, asset_size)) for name in ("bread", "ficus")]
 
@@ -215,15 +263,19 @@ def main(argv=None) -> int:
         if device.type == "cuda":
             torch.cuda.empty_cache()
 
-    failures += [f"{r['scene']}/{r['mode']}: PSNR {r['psnr']:.2f} dB < {PSNR_MIN}" for r in rows if r["psnr"] < PSNR_MIN]
+    failures += [
+        f"{r['scene']}/{r['mode']}: PSNR {r['psnr']:.2f} dB < {PSNR_MIN}" for r in rows if r["psnr"] < PSNR_MIN
+    ]
     print()
     print("| scene | N | size | mode | vs | PSNR [dB] | max abs Δalpha | vs [ms/frame] | torch [ms/frame] |")
     print("|---|---:|---|---|---|---:|---:|---:|---:|")
     for r in rows:
         ps = "inf" if math.isinf(r["psnr"]) else f"{r['psnr']:.2f}"
         tr = "—" if math.isnan(r["t_ref"]) else f"{1e3 * r['t_ref']:.1f}"
-        print(f"| {r['scene']} | {r['n']} | {r['size']} | {r['mode']} | {r['ref']} | {ps} | {r['dalpha']:.1e} | "
-              f"{tr} | {1e3 * r['t_torch']:.1f} |")
+        print(
+            f"| {r['scene']} | {r['n']} | {r['size']} | {r['mode']} | {r['ref']} | {ps} | {r['dalpha']:.1e} | "
+            f"{tr} | {1e3 * r['t_torch']:.1f} |"
+        )
     for s in skipped:
         print(f"\nskipped {s}")
     if failures:

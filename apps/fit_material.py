@@ -7,6 +7,7 @@ Renders a target video of the beam on two supports sagging under gravity with E_
 E_start and runs Adam on log E with an image loss; writes loss.png (loss and E per step),
 side_by_side.png (target / start / fitted at a few frames) and fit.json into --out.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -25,8 +26,10 @@ def figures(res, out: Path) -> None:
 
     t = res.target.shape[0]
     picks = [0, t // 3, 2 * t // 3, t - 1]
-    rows = [np.concatenate([(v[i].clamp(0, 1).numpy() * 255).astype(np.uint8) for i in picks], axis=1)
-            for v in (res.target, res.fitted)]
+    rows = [
+        np.concatenate([(v[i].clamp(0, 1).numpy() * 255).astype(np.uint8) for i in picks], axis=1)
+        for v in (res.target, res.fitted)
+    ]
     iio.imwrite(out / "side_by_side.png", np.concatenate(rows, axis=0))
     try:
         import matplotlib
@@ -67,13 +70,25 @@ def main(argv=None) -> int:
     cfg = sagging_beam(particles=a.particles, frames=a.frames, density=a.density)
     res = fit_youngs_modulus(cfg, a.E_true, a.E_start, steps=a.steps, lr=a.lr, device=a.device)
     figures(res, out)
-    summary = {"E_true": res.E_true, "E_start": res.E_start, "E_fitted": res.E[-1], "relative_error": res.relative_error,
-               "steps": a.steps, "seconds": res.seconds, "E_per_step": res.E[:-1], "loss_per_step": res.loss[:-1],
-               "device": a.device, "particles": a.particles, "frames": a.frames,
-               "torch": torch.__version__}
+    summary = {
+        "E_true": res.E_true,
+        "E_start": res.E_start,
+        "E_fitted": res.E[-1],
+        "relative_error": res.relative_error,
+        "steps": a.steps,
+        "seconds": res.seconds,
+        "E_per_step": res.E[:-1],
+        "loss_per_step": res.loss[:-1],
+        "device": a.device,
+        "particles": a.particles,
+        "frames": a.frames,
+        "torch": torch.__version__,
+    }
     (out / "fit.json").write_text(json.dumps(summary, indent=2))
-    print(f"fitted E = {res.E[-1]:.4g} Pa (true {res.E_true:.4g}, start {res.E_start:.4g}): "
-          f"{100 * res.relative_error:.2f} % error in {res.seconds:.1f} s; outputs in {out}")
+    print(
+        f"fitted E = {res.E[-1]:.4g} Pa (true {res.E_true:.4g}, start {res.E_start:.4g}): "
+        f"{100 * res.relative_error:.2f} % error in {res.seconds:.1f} s; outputs in {out}"
+    )
     return 0 if res.relative_error <= 0.05 else 1
 
 

@@ -1,23 +1,12 @@
-"""Regenerate every table and figure of the paper (thin wrapper; the logic is `fracture_gs.figures`).
+"""Regenerate every table and figure of the paper: the same as `fracture-gs figures` (flags alike).
 
-    python apps/make_figures.py                          # CPU: quick preset, a few minutes
-    python apps/make_figures.py --device cuda:0          # GPU: paper preset (Δx = 1/128, paper particle counts)
-    python apps/make_figures.py --device cuda:0 --only ficus --out figures/gpu     # split a long GPU job ...
-    python apps/make_figures.py --device cuda:0 --only bread,interaction,bench --reuse --out figures/gpu
-
-`fracture-gs figures [--device D] [--out DIR]` calls `run_figures(device, out_dir)` (quick on the
-CPU, paper on CUDA). Outputs: tables/*.md|csv|tex, fig_*.png, data/*.json, README.md.
+python apps/make_figures.py                          # CPU: quick protocol, a few minutes
+python apps/make_figures.py --device cuda:0 --out figures/gpu   # GPU: paper protocol
 """
-from __future__ import annotations
 
 import sys
-from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-if str(ROOT) not in sys.path:
-    sys.path.insert(0, str(ROOT))
-
-from fracture_gs.figures import main, run_figures  # noqa: E402,F401
+from fracture_gs.cli import main
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(main(["figures", *sys.argv[1:]]))

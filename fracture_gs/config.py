@@ -5,6 +5,7 @@ simulator (`fracture_gs.sim` re-exports `SimConfig`), the renderer and the CLI. 
 module so that `io` can build them without importing `sim` (docs/DESIGN.md: io imports neither sim nor
 render). Units are SI throughout: metres, seconds, kilograms, pascals.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field

@@ -6,6 +6,7 @@ covariances out, differentiable through `fracture_gs.sim.diff.DiffSimulator` fra
 substep count, the fracture topology (found once by a plain run, or given), and the rotation R(F)
 used to turn the SH coefficients (covariances and means carry the gradient).
 """
+
 from __future__ import annotations
 
 import copy
@@ -38,8 +39,13 @@ def find_topology(module, gs: GaussianSet, device: str) -> list:
     with torch.no_grad():
         plain = gs.replace(**{k: getattr(gs, k).detach() for k in ("means", "quats", "scales", "opacities", "sh")})
         sim = make_simulator(module.cfg, plain, module.variant, device)
-        for _ in simulate(sim, plain.covariances().to(device, torch.float32), module.cfg.frames, module.cfg.frame_dt,
-                          diagnostics=False):
+        for _ in simulate(
+            sim,
+            plain.covariances().to(device, torch.float32),
+            module.cfg.frames,
+            module.cfg.frame_dt,
+            diagnostics=False,
+        ):
             pass
     module.topology = list(sim.topologies)
     return module.topology
@@ -80,6 +86,11 @@ def differentiable_forward(module, gs: GaussianSet, E=None, nu=None, density=Non
         rotations.append(polar_rotation(F.detach()))
     topo = sim.topology_at(cfg.frames)
     fragments.append(topo.fragment.to(device) if topo is not None else torch.full((n,), -1, device=device))
-    return {"means": torch.stack(means), "covars": torch.stack(covars), "rotations": torch.stack(rotations),
-            "fragment": torch.stack(fragments).to(torch.int32),
-            "time": torch.tensor([i * cfg.frame_dt for i in range(cfg.frames + 1)]), "metrics": []}
+    return {
+        "means": torch.stack(means),
+        "covars": torch.stack(covars),
+        "rotations": torch.stack(rotations),
+        "fragment": torch.stack(fragments).to(torch.int32),
+        "time": torch.tensor([i * cfg.frame_dt for i in range(cfg.frames + 1)]),
+        "metrics": [],
+    }

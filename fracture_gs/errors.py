@@ -4,6 +4,7 @@ Each message is one sentence that names the file (or flag, or field), the value 
 (DESIGN.md "Errors"). The CLI prints it as one line with a non-zero exit; the Python API raises
 it. Every class also derives from the builtin it refines, so `except ValueError` keeps working.
 """
+
 from __future__ import annotations
 
 

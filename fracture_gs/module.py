@@ -8,6 +8,7 @@ By default the forward pass runs the plain (fast, forward-only) solver and retur
 the simulation device, ready for gsplat's `rasterization`. `FractureSim(..., differentiable=True)`
 returns tensors with gradients to the Gaussians and to E, ν, density and initial velocity.
 """
+
 from __future__ import annotations
 
 import copy
@@ -23,20 +24,40 @@ from .pipeline import FrameOutput, make_simulator, simulate
 def _quats_from_rotations(R: torch.Tensor) -> torch.Tensor:  # [N,3,3] -> [N,4] wxyz
     """Quaternion of a rotation matrix (Shepperd's method, branch-free via the largest diagonal)."""
     m = R
-    t = torch.stack([1 + m[:, 0, 0] + m[:, 1, 1] + m[:, 2, 2], 1 + m[:, 0, 0] - m[:, 1, 1] - m[:, 2, 2],
-                     1 - m[:, 0, 0] + m[:, 1, 1] - m[:, 2, 2], 1 - m[:, 0, 0] - m[:, 1, 1] + m[:, 2, 2]], 1)
+    t = torch.stack(
+        [
+            1 + m[:, 0, 0] + m[:, 1, 1] + m[:, 2, 2],
+            1 + m[:, 0, 0] - m[:, 1, 1] - m[:, 2, 2],
+            1 - m[:, 0, 0] + m[:, 1, 1] - m[:, 2, 2],
+            1 - m[:, 0, 0] - m[:, 1, 1] + m[:, 2, 2],
+        ],
+        1,
+    )
     k = t.argmax(1)
     s = torch.sqrt(t.gather(1, k[:, None]).clamp_min(1e-12))[:, 0] * 2
-    q = torch.stack([
-        torch.stack([s / 4, (m[:, 2, 1] - m[:, 1, 2]) / s, (m[:, 0, 2] - m[:, 2, 0]) / s, (m[:, 1, 0] - m[:, 0, 1]) / s], 1),
-        torch.stack([(m[:, 2, 1] - m[:, 1, 2]) / s, s / 4, (m[:, 0, 1] + m[:, 1, 0]) / s, (m[:, 0, 2] + m[:, 2, 0]) / s], 1),
-        torch.stack([(m[:, 0, 2] - m[:, 2, 0]) / s, (m[:, 0, 1] + m[:, 1, 0]) / s, s / 4, (m[:, 1, 2] + m[:, 2, 1]) / s], 1),
-        torch.stack([(m[:, 1, 0] - m[:, 0, 1]) / s, (m[:, 0, 2] + m[:, 2, 0]) / s, (m[:, 1, 2] + m[:, 2, 1]) / s, s / 4], 1),
-    ], 1)
+    q = torch.stack(
+        [
+            torch.stack(
+                [s / 4, (m[:, 2, 1] - m[:, 1, 2]) / s, (m[:, 0, 2] - m[:, 2, 0]) / s, (m[:, 1, 0] - m[:, 0, 1]) / s], 1
+            ),
+            torch.stack(
+                [(m[:, 2, 1] - m[:, 1, 2]) / s, s / 4, (m[:, 0, 1] + m[:, 1, 0]) / s, (m[:, 0, 2] + m[:, 2, 0]) / s], 1
+            ),
+            torch.stack(
+                [(m[:, 0, 2] - m[:, 2, 0]) / s, (m[:, 0, 1] + m[:, 1, 0]) / s, s / 4, (m[:, 1, 2] + m[:, 2, 1]) / s], 1
+            ),
+            torch.stack(
+                [(m[:, 1, 0] - m[:, 0, 1]) / s, (m[:, 0, 2] + m[:, 2, 0]) / s, (m[:, 1, 2] + m[:, 2, 1]) / s, s / 4], 1
+            ),
+        ],
+        1,
+    )
     return torch.nn.functional.normalize(q[torch.arange(len(k)), k], dim=1)
 
 
-def gaussians_from_tensors(means, opacities, sh, quats=None, scales=None, covars=None, interior=None, labels=None) -> GaussianSet:
+def gaussians_from_tensors(
+    means, opacities, sh, quats=None, scales=None, covars=None, interior=None, labels=None
+) -> GaussianSet:
     """A GaussianSet from raw tensors; covariances are factored into rotation and scales."""
     if covars is not None:
         evals, evecs = torch.linalg.eigh(covars.double())
@@ -47,8 +68,15 @@ def gaussians_from_tensors(means, opacities, sh, quats=None, scales=None, covars
         raise ValueError("FractureSim needs either quats and scales, or covars, for every Gaussian")
     if sh.ndim == 2:
         sh = sh[:, None, :]
-    return GaussianSet(means=means, quats=quats, scales=scales, opacities=opacities.reshape(-1), sh=sh,
-                       interior=interior, labels=labels)
+    return GaussianSet(
+        means=means,
+        quats=quats,
+        scales=scales,
+        opacities=opacities.reshape(-1),
+        sh=sh,
+        interior=interior,
+        labels=labels,
+    )
 
 
 class FractureSim(torch.nn.Module):
@@ -60,8 +88,15 @@ class FractureSim(torch.nn.Module):
     per frame). The fracture topology is found once by a plain run (or given as `topology`) and held
     fixed: gradients flow through each fragment's dynamics on both sides of a latch."""
 
-    def __init__(self, cfg: Union[SceneConfig, str], variant: Optional[str] = None, device: Optional[str] = None,
-                 topology=None, diagnostics: bool = True, differentiable: bool = False):
+    def __init__(
+        self,
+        cfg: Union[SceneConfig, str],
+        variant: Optional[str] = None,
+        device: Optional[str] = None,
+        topology=None,
+        diagnostics: bool = True,
+        differentiable: bool = False,
+    ):
         super().__init__()
         if isinstance(cfg, str):
             from .io.config import load_config
@@ -109,8 +144,10 @@ class FractureSim(torch.nn.Module):
 
             return differentiable_forward(self, gs, E, nu, density, velocity)
         if any(t is not None for t in (E, nu, density, velocity)):
-            raise ValueError("E, nu, density and velocity are inputs of the differentiable mode; "
-                             "create FractureSim(..., differentiable=True) or set them in the config")
+            raise ValueError(
+                "E, nu, density and velocity are inputs of the differentiable mode; "
+                "create FractureSim(..., differentiable=True) or set them in the config"
+            )
         with torch.no_grad():
             outs = list(self.frames(gs))
         return {

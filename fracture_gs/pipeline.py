@@ -4,6 +4,7 @@ Frame 0 is the initial state; frame f ≥ 1 is the state after f·frame_dt. Each
 Gaussians' means x_p, covariances Σ_p = F_p Σ_p⁰ F_pᵀ, the polar rotations R(F_p) (for SH) and
 the fragment ids, as tensors on the simulation device (no host copies).
 """
+
 from __future__ import annotations
 
 import copy
@@ -15,10 +16,10 @@ import torch
 
 from . import assets
 from .config import SceneConfig
-from .profiling import phases
 from .io import GaussianSet
+from .profiling import phases
 from .render.gaussians import deform_covariances, polar_rotation
-from .sim import Particles, Simulator, SimulationError, Topology
+from .sim import Particles, SimulationError, Simulator, Topology
 from .sim.providers import ReplayProvider, make_provider
 
 
@@ -27,8 +28,18 @@ class FrameOutput:
     covariances Σ = F Σ⁰ Fᵀ and the polar rotations R(F) (for SH) are computed when first asked for,
     so a renderer on another thread pays for them there."""
 
-    def __init__(self, frame: int, time: float, means: torch.Tensor, F: torch.Tensor, cov0: torch.Tensor,
-                 fragment: torch.Tensor, band: torch.Tensor, metrics: Optional[dict] = None, substeps: int = 0):
+    def __init__(
+        self,
+        frame: int,
+        time: float,
+        means: torch.Tensor,
+        F: torch.Tensor,
+        cov0: torch.Tensor,
+        fragment: torch.Tensor,
+        band: torch.Tensor,
+        metrics: Optional[dict] = None,
+        substeps: int = 0,
+    ):
         self.frame, self.time, self.substeps = frame, time, substeps
         self.means = means  # [N, 3]
         self.F = F  # [N, 3, 3]
@@ -55,14 +66,18 @@ def load_scene(cfg: SceneConfig, device="cpu") -> GaussianSet:
 
     path = Path(cfg.scene)
     if not path.exists():
-        raise FileNotFoundError(f"scene '{cfg.scene}' is neither a built-in scene ({', '.join(assets.names())}) nor an existing .ply file")
+        raise FileNotFoundError(
+            f"scene '{cfg.scene}' is neither a built-in scene ({', '.join(assets.names())}) nor an existing .ply file"
+        )
     gs = load_ply(path)
     if cfg.fill_interior and not bool(gs.interior.any()):
         gs = assets.fill_interior(gs)
     if cfg.material_property:
         if cfg.material_property not in gs.extra:
-            raise SimulationError(f"{path}: material_property '{cfg.material_property}' is not a vertex property of the PLY; "
-                                  f"available: {', '.join(sorted(gs.extra)) or 'none'}")
+            raise SimulationError(
+                f"{path}: material_property '{cfg.material_property}' is not a vertex property of the PLY; "
+                f"available: {', '.join(sorted(gs.extra)) or 'none'}"
+            )
         gs.labels = gs.extra[cfg.material_property].to(torch.int32)
     return gs.to(device)
 
@@ -71,18 +86,24 @@ def check_inside_grid(sim: Simulator, source: str) -> None:
     """A scene that does not fit the grid is a config error, not a silent clamp."""
     g = sim.grid
     lo = torch.tensor(g.origin, device=sim.particles.x.device) + (sim.cfg.wall_cells - 1) * g.dx
-    hi = torch.tensor(g.origin, device=sim.particles.x.device) + (torch.tensor(g.shape, device=lo.device) - sim.cfg.wall_cells) * g.dx
+    hi = (
+        torch.tensor(g.origin, device=sim.particles.x.device)
+        + (torch.tensor(g.shape, device=lo.device) - sim.cfg.wall_cells) * g.dx
+    )
     x = sim.particles.x
     outside = int(((x < lo) | (x > hi)).any(dim=1).sum())
     if outside:
-        raise SimulationError(f"{source}: {outside} of {len(x)} particles lie outside the simulation grid "
-                              f"[{lo.tolist()}, {hi.tolist()}]; enlarge sim.grid_shape, move sim.grid_origin or use sim.grid = \"auto\"")
+        raise SimulationError(
+            f"{source}: {outside} of {len(x)} particles lie outside the simulation grid "
+            f'[{lo.tolist()}, {hi.tolist()}]; enlarge sim.grid_shape, move sim.grid_origin or use sim.grid = "auto"'
+        )
 
 
-def make_simulator(cfg: SceneConfig, gs: GaussianSet, variant: str, device: str,
-                   topology: Union[Topology, list, None] = None) -> Simulator:
-    """A simulator for one variant. `topology` (a saved one, or a run's history of them) is replayed at its latch frame instead
-    of running the event provider, so every variant uses the same topology; `baseline` runs no
+def make_simulator(
+    cfg: SceneConfig, gs: GaussianSet, variant: str, device: str, topology: Union[Topology, list, None] = None
+) -> Simulator:
+    """A simulator for one variant. `topology` (a saved one, or a run's history of them) is replayed at its
+    latch frame instead of running the event provider, so every variant uses the same topology; `baseline` runs no
     provider but still receives the saved labels for its diagnostics (its transfer ignores them)."""
     sim_cfg = copy.deepcopy(cfg.sim)
     sim_cfg.variant = variant
@@ -100,12 +121,22 @@ def make_simulator(cfg: SceneConfig, gs: GaussianSet, variant: str, device: str,
 
 def frame_output(sim: Simulator, cov0: torch.Tensor, metrics: dict, substeps: int = 0) -> FrameOutput:
     P = sim.particles
-    return FrameOutput(frame=sim.frame, time=sim.time, means=P.x.clone(), F=P.F.clone(), cov0=cov0,
-                       fragment=P.fragment.clone(), band=P.band.clone(), metrics=metrics, substeps=substeps)
+    return FrameOutput(
+        frame=sim.frame,
+        time=sim.time,
+        means=P.x.clone(),
+        F=P.F.clone(),
+        cov0=cov0,
+        fragment=P.fragment.clone(),
+        band=P.band.clone(),
+        metrics=metrics,
+        substeps=substeps,
+    )
 
 
-def simulate(sim: Simulator, cov0: torch.Tensor, frames: int, frame_dt: float,
-             diagnostics: bool = True) -> Iterator[FrameOutput]:
+def simulate(
+    sim: Simulator, cov0: torch.Tensor, frames: int, frame_dt: float, diagnostics: bool = True
+) -> Iterator[FrameOutput]:
     """Yield frame 0 (initial state), then one FrameOutput per simulated frame. Raises
     `SimulationDiverged` at the frame that diverged (everything yielded before stays valid).
     Without `diagnostics` nothing is read back to the host but the per-frame divergence check."""

@@ -6,6 +6,7 @@ solver runs frame n + 1), so their busy times can add up to more than the wall t
 shows both. On CUDA, `enable(sync_device=...)` synchronises the device at every section boundary
 so GPU work is charged to the phase that launched it (a profiled run is a little slower).
 """
+
 from __future__ import annotations
 
 import contextlib
@@ -69,8 +70,12 @@ class PhaseTimer:
         """A Markdown table: phase, busy seconds, share of the wall time, calls."""
         wall = time.perf_counter() - self._t0 if self._t0 is not None else 0.0
         names = [p for p in PHASES if p in self.seconds] + sorted(set(self.seconds) - set(PHASES))
-        lines = [f"wall time {wall:.2f} s (phases overlap: rendering runs beside the solver)", "",
-                 "| phase | busy s | % of wall | calls |", "|---|---:|---:|---:|"]
+        lines = [
+            f"wall time {wall:.2f} s (phases overlap: rendering runs beside the solver)",
+            "",
+            "| phase | busy s | % of wall | calls |",
+            "|---|---:|---:|---:|",
+        ]
         for p in names:
             share = 100.0 * self.seconds[p] / wall if wall > 0 else 0.0
             lines.append(f"| {p} | {self.seconds[p]:.2f} | {share:.0f} | {self.calls[p]} |")

@@ -4,6 +4,7 @@ Outputs in DIR: <variant>.mp4, comparison.mp4 (side by side, captions, circular 
 frames/compare_NNNN.png, metrics.jsonl, summary.json, summary.md, topology.npz, config.toml.
 Ctrl-C or a divergence keeps every frame and metric already written.
 """
+
 from __future__ import annotations
 
 import json
@@ -56,8 +57,9 @@ class Painter:
         count = int(exposed.sum())
         if count != self.exposed_count and count > 0 and bool((~self.interior).any()):
             # colour of the nearest surface Gaussian, computed when a fracture exposes new interior
-            self.exposed_rgb = exposed_interior_colors(out.means[exposed], out.means[~self.interior],
-                                                       self.surface_dc[~self.interior])
+            self.exposed_rgb = exposed_interior_colors(
+                out.means[exposed], out.means[~self.interior], self.surface_dc[~self.interior]
+            )
             self.exposed_idx = torch.nonzero(exposed).flatten()
             self.exposed_count = count
         return exposed
@@ -66,7 +68,7 @@ class Painter:
         """Each fragment in its own hue (golden-ratio spacing), shaded by the Gaussian's own brightness."""
         k = fragment.clamp_min(0).to(torch.float32)
         hue = torch.remainder(0.61803398875 * k + 0.08, 1.0)
-        rgb = (0.5 + 0.45 * torch.cos(2 * torch.pi * (hue[:, None] + torch.tensor([0.0, 1 / 3, 2 / 3], device=k.device))))
+        rgb = 0.5 + 0.45 * torch.cos(2 * torch.pi * (hue[:, None] + torch.tensor([0.0, 1 / 3, 2 / 3], device=k.device)))
         shade = 0.55 + 0.45 * colors.mean(1, keepdim=True).clamp(0, 1)
         return torch.where((fragment >= 0)[:, None], rgb * shade, colors)
 
@@ -79,8 +81,16 @@ class Painter:
         if self.cfg.color_by == "fragment":
             colors = self._fragment_colors(colors, out.fragment)
         keep = ~self.interior | exposed
-        img = render(out.means[keep], out.covars[keep], colors[keep], self.opacities[keep], cam.to(out.means.device),
-                     background=self.cfg.background, backend=self.cfg.backend, mode=self.cfg.mode).image
+        img = render(
+            out.means[keep],
+            out.covars[keep],
+            colors[keep],
+            self.opacities[keep],
+            cam.to(out.means.device),
+            background=self.cfg.background,
+            backend=self.cfg.backend,
+            mode=self.cfg.mode,
+        ).image
         return (img.clamp(0, 1) * 255).round().to(torch.uint8).cpu().numpy()
 
 
@@ -93,8 +103,13 @@ def summarize(variant: str, rows: list, status: str, seconds: float) -> dict:
     """Run-level numbers: final opening, max re-approach, mean stringing after the latch, mixing
     mean/max, max mass residual, contact metrics, penetration max, speed."""
     post = [r for r in rows if r.get("latched")]
-    out = {"variant": variant, "status": status, "frames": rows[-1]["frame"] if rows else 0,
-           "substeps": rows[-1]["substeps"] if rows else 0, "wall_s": round(seconds, 3)}
+    out = {
+        "variant": variant,
+        "status": status,
+        "frames": rows[-1]["frame"] if rows else 0,
+        "substeps": rows[-1]["substeps"] if rows else 0,
+        "wall_s": round(seconds, 3),
+    }
     out["substeps_per_s"] = round(out["substeps"] / seconds, 2) if seconds > 0 else None
     latch = next((r["latch"] for r in rows if "latch" in r), None)
     out["latch"] = latch
@@ -120,18 +135,35 @@ def summarize(variant: str, rows: list, status: str, seconds: float) -> dict:
             out[k] = last.get(k)
     if rows and "plane_penetration" in rows[-1]:
         last = rows[-1]
-        for k in ("plane_first_contact", "plane_penetration", "plane_max_vt_near", "plane_max_vn_post", "plane_momentum_residual"):
+        for k in (
+            "plane_first_contact",
+            "plane_penetration",
+            "plane_max_vt_near",
+            "plane_max_vn_post",
+            "plane_momentum_residual",
+        ):
             out[k] = last[k]
     return out
 
 
 def summary_markdown(summaries: list) -> str:
-    cols = [("variant", "variant"), ("status", "status"), ("latch frame", None), ("opening/Δx", "opening"),
-            ("re-approach", "reapproach"), ("stringing", "stringing"), ("separated", "separated"),
-            ("E_mix cf mean", "mixing_counterfactual_mean"), ("E_mix real mean", "mixing_realized_mean"),
-            ("max E_m", "mass_residual_max"), ("pen./Δx", "penetration_max"), ("fragments", "fragments"),
-            ("fragment crossing", "fragment_crossing_max"), ("slot overflow", "slot_overflow"),
-            ("substeps/s", "substeps_per_s")]
+    cols = [
+        ("variant", "variant"),
+        ("status", "status"),
+        ("latch frame", None),
+        ("opening/Δx", "opening"),
+        ("re-approach", "reapproach"),
+        ("stringing", "stringing"),
+        ("separated", "separated"),
+        ("E_mix cf mean", "mixing_counterfactual_mean"),
+        ("E_mix real mean", "mixing_realized_mean"),
+        ("max E_m", "mass_residual_max"),
+        ("pen./Δx", "penetration_max"),
+        ("fragments", "fragments"),
+        ("fragment crossing", "fragment_crossing_max"),
+        ("slot overflow", "slot_overflow"),
+        ("substeps/s", "substeps_per_s"),
+    ]
 
     def fmt(v):
         if v is None:
@@ -209,8 +241,12 @@ def run_variant(cfg, gs, variant, device, out_dir: Path, painter: Painter, topol
             sink.put(out)
             if out.frame > 0:
                 elapsed = time.perf_counter() - t0
-                bar.set_postfix(substeps_per_s=f"{sim.substeps / elapsed:.0f}", fragments=sim.n_fragments,
-                                overflow=sim.slot_overflow_total, refresh=False)
+                bar.set_postfix(
+                    substeps_per_s=f"{sim.substeps / elapsed:.0f}",
+                    fragments=sim.n_fragments,
+                    overflow=sim.slot_overflow_total,
+                    refresh=False,
+                )
                 bar.update(1)
     except SimulationDiverged as err:
         status = f"diverged at frame {err.frame}"
@@ -228,8 +264,15 @@ def progress_bar(total: int, desc: str) -> tqdm:
     """A tqdm bar; in a non-interactive log (stderr not a terminal) it prints a line every few
     seconds instead of every update."""
     interactive = sys.stderr.isatty()
-    return tqdm(total=total, desc=desc, unit="frame", leave=True, dynamic_ncols=True,
-                mininterval=0.1 if interactive else 5.0, maxinterval=10.0 if interactive else 30.0)
+    return tqdm(
+        total=total,
+        desc=desc,
+        unit="frame",
+        leave=True,
+        dynamic_ncols=True,
+        mininterval=0.1 if interactive else 5.0,
+        maxinterval=10.0 if interactive else 30.0,
+    )
 
 
 def _json_default(o):
@@ -251,7 +294,7 @@ def compose_comparison(cfg, variants, frame_lists, topology: Optional[Topology],
         for i in range(n):
             with phases.section("compose"):
                 panels = []
-                for variant, frames in zip(variants, frame_lists):
+                for frames in frame_lists:
                     img = frames[i]
                     if latch_frame is not None and i >= latch_frame:
                         cx, cy, r = compose.interface_region(topology.point, topology.normal, 0.04, painter.camera(i))
@@ -267,8 +310,9 @@ def compose_comparison(cfg, variants, frame_lists, topology: Optional[Topology],
                 save_png(out_dir / "frames" / f"compare_{i:04d}.png", frame)
 
 
-def run_render_sim(cfg: SceneConfig, variants, device: str, out_dir, progress: bool = True,
-                   profile: bool = False) -> dict:
+def run_render_sim(
+    cfg: SceneConfig, variants, device: str, out_dir, progress: bool = True, profile: bool = False
+) -> dict:
     """The main job. Returns the summary dict (also written to summary.json / summary.md); with
     `profile`, the time per phase is in summary["profile"] and profile.md."""
     out_dir = Path(out_dir)
@@ -289,8 +333,9 @@ def run_render_sim(cfg: SceneConfig, variants, device: str, out_dir, progress: b
         try:
             for variant in order:
                 frames[variant] = []
-                summaries[variant], topology = run_variant(cfg, gs, variant, device, out_dir, painter, topology,
-                                                           metrics_file, frames[variant])
+                summaries[variant], topology = run_variant(
+                    cfg, gs, variant, device, out_dir, painter, topology, metrics_file, frames[variant]
+                )
                 if topology is not None and not (out_dir / "topology.npz").exists():
                     save_history(out_dir / "topology.npz", topology)
         except KeyboardInterrupt:
@@ -298,12 +343,23 @@ def run_render_sim(cfg: SceneConfig, variants, device: str, out_dir, progress: b
     done = [v for v in variants if v in summaries]
     if done and all(frames[v] for v in done):
         compose_comparison(cfg, done, [frames[v] for v in done], topology, painter, out_dir)
-    summary = {"name": cfg.name, "scene": cfg.scene, "preset": cfg.preset, "device": device, "particles": len(gs),
-               "frames": cfg.frames, "frame_dt": cfg.frame_dt, "variants": [summaries[v] for v in done],
-               "interrupted": interrupted, "out_dir": str(out_dir)}
+    summary = {
+        "name": cfg.name,
+        "scene": cfg.scene,
+        "preset": cfg.preset,
+        "device": device,
+        "particles": len(gs),
+        "frames": cfg.frames,
+        "frame_dt": cfg.frame_dt,
+        "variants": [summaries[v] for v in done],
+        "interrupted": interrupted,
+        "out_dir": str(out_dir),
+    }
     (out_dir / "summary.json").write_text(json.dumps(summary, indent=2, default=_json_default))
-    (out_dir / "summary.md").write_text(f"# {cfg.name}: {cfg.scene} ({cfg.preset}, {len(gs)} particles, {device})\n\n"
-                                        + summary_markdown(summary["variants"]))
+    (out_dir / "summary.md").write_text(
+        f"# {cfg.name}: {cfg.scene} ({cfg.preset}, {len(gs)} particles, {device})\n\n"
+        + summary_markdown(summary["variants"])
+    )
     if profile:
         summary["profile"] = phases.report()
         (out_dir / "profile.md").write_text(f"# where the time went: {cfg.name} ({device})\n\n" + summary["profile"])

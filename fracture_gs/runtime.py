@@ -9,6 +9,7 @@ the differentiable path of this package, keeps Warp's defaults.
 `torch_stream(device)` launches Warp kernels on torch's current CUDA stream (DESIGN.md,
 "Performance rules"): a kernel must never read a tensor before torch has finished writing it.
 """
+
 from __future__ import annotations
 
 import contextlib

@@ -4,6 +4,7 @@ Every other module asks `variant_spec(name)` instead of testing variant names: t
 `fields`, `per_fragment_pass`, `release` and `contact`; the config checks `needs_provider`; the
 composer, tables and plots take the labels. A leaf module: no torch, no Warp.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -46,18 +47,78 @@ class VariantSpec:
 VARIANTS: dict[str, VariantSpec] = {
     s.name: s
     for s in (
-        VariantSpec("baseline", "shared", False, False, False, False, "Baseline", "baseline (shared field)",
-                    "Shared (Baseline)", "1/1/0"),
-        VariantSpec("probe_latch", "shared", False, False, False, True, "Probe+Latch", "probe latch",
-                    "Shared (Probe+Latch)", "1/1/0"),
-        VariantSpec("stress_zero", "shared", False, True, False, True, "Stress-Zero", "stress release",
-                    "Shared (Stress-Zero)", "1/1/0"),
-        VariantSpec("global_fragment_pass", "shared", True, True, False, True, "Global Fragment Pass",
-                    "global fragment pass", "Per-fragment passes", "2/2/1"),
-        VariantSpec("local_multifield", "per_fragment", False, True, False, True, "Multi-field, no contact",
-                    "local multifield", "Fragment-conditioned (no contact)", "1/1/0"),
-        VariantSpec("full", "per_fragment", False, True, True, True, "FractureFields (Full)", "FractureFields",
-                    "Fragment-conditioned (Full)", "1/1/0"),
+        VariantSpec(
+            "baseline",
+            "shared",
+            False,
+            False,
+            False,
+            False,
+            "Baseline",
+            "baseline (shared field)",
+            "Shared (Baseline)",
+            "1/1/0",
+        ),
+        VariantSpec(
+            "probe_latch",
+            "shared",
+            False,
+            False,
+            False,
+            True,
+            "Probe+Latch",
+            "probe latch",
+            "Shared (Probe+Latch)",
+            "1/1/0",
+        ),
+        VariantSpec(
+            "stress_zero",
+            "shared",
+            False,
+            True,
+            False,
+            True,
+            "Stress-Zero",
+            "stress release",
+            "Shared (Stress-Zero)",
+            "1/1/0",
+        ),
+        VariantSpec(
+            "global_fragment_pass",
+            "shared",
+            True,
+            True,
+            False,
+            True,
+            "Global Fragment Pass",
+            "global fragment pass",
+            "Per-fragment passes",
+            "2/2/1",
+        ),
+        VariantSpec(
+            "local_multifield",
+            "per_fragment",
+            False,
+            True,
+            False,
+            True,
+            "Multi-field, no contact",
+            "local multifield",
+            "Fragment-conditioned (no contact)",
+            "1/1/0",
+        ),
+        VariantSpec(
+            "full",
+            "per_fragment",
+            False,
+            True,
+            True,
+            True,
+            "FractureFields (Full)",
+            "FractureFields",
+            "Fragment-conditioned (Full)",
+            "1/1/0",
+        ),
     )
 }
 VARIANT_NAMES: tuple[str, ...] = get_args(VariantName)

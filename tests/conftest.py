@@ -1,4 +1,5 @@
 """Shared fixtures: `--device cpu|cuda` selects where solver tests run (CUDA skips without a GPU)."""
+
 import os
 
 import numpy as np

@@ -1,4 +1,5 @@
 """Built-in scenes (exact geometries, labels, counts, determinism) and interior fill."""
+
 from __future__ import annotations
 
 import math
@@ -184,9 +185,15 @@ def sphere_surface(n: int, radius: float, centre, seed: int) -> tuple[GaussianSe
     nrm = (nrm @ Q).float()
     sp = math.sqrt(4 * math.pi * radius**2 / n)
     sc = torch.tensor([0.6 * sp, 0.6 * sp, 0.05 * sp]) * (1 + 0.1 * torch.rand(n, 3, generator=g))
-    gs = GaussianSet(means=torch.tensor(centre) + radius * nrm, quats=quat_z_to(nrm), scales=sc,
-                     opacities=0.6 + 0.4 * torch.rand(n, generator=g), sh=torch.rand(n, 4, 3, generator=g) - 0.5,
-                     labels=(nrm[:, 2] > 0).int(), extra={"part": (nrm[:, 0] > 0).to(torch.int16)})
+    gs = GaussianSet(
+        means=torch.tensor(centre) + radius * nrm,
+        quats=quat_z_to(nrm),
+        scales=sc,
+        opacities=0.6 + 0.4 * torch.rand(n, generator=g),
+        sh=torch.rand(n, 4, 3, generator=g) - 0.5,
+        labels=(nrm[:, 2] > 0).int(),
+        extra={"part": (nrm[:, 0] > 0).to(torch.int16)},
+    )
     return gs, sp
 
 
@@ -253,12 +260,22 @@ def test_fill_degenerate_input_is_fast():
     sc[0] = 1e6
     sc[1:100] = 1e-12
     sc[100:120, 0] = 1e-12
-    gs = GaussianSet(means=torch.rand(n, 3, generator=g), quats=torch.randn(n, 4, generator=g), scales=sc,
-                     opacities=torch.rand(n, generator=g), sh=torch.rand(n, 1, 3, generator=g))
+    gs = GaussianSet(
+        means=torch.rand(n, 3, generator=g),
+        quats=torch.randn(n, 4, generator=g),
+        scales=sc,
+        opacities=torch.rand(n, generator=g),
+        sh=torch.rand(n, 1, 3, generator=g),
+    )
     t = time.perf_counter()
     out = fill_interior(gs)
     assert time.perf_counter() - t < 5.0, f"seed={seed}"
     assert len(out) >= n and torch.isfinite(out.means).all() and (out.scales > 0).all()
-    single = GaussianSet(means=torch.zeros(1, 3), quats=torch.tensor([[1.0, 0, 0, 0]]),
-                         scales=torch.full((1, 3), 1e6), opacities=torch.ones(1), sh=torch.zeros(1, 1, 3))
+    single = GaussianSet(
+        means=torch.zeros(1, 3),
+        quats=torch.tensor([[1.0, 0, 0, 0]]),
+        scales=torch.full((1, 3), 1e6),
+        opacities=torch.ones(1),
+        sh=torch.zeros(1, 1, 3),
+    )
     assert len(fill_interior(single)) >= 1

@@ -1,4 +1,5 @@
 """`fracture-gs` CLI: help, info, validate and one-line user errors (in-process and via subprocess)."""
+
 from __future__ import annotations
 
 import os
@@ -8,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from fracture_gs import cli
+from fracture_gs import cli, runner
 
 REPO = Path(__file__).resolve().parent.parent
 COMMANDS = ["render-sim", "bench", "figures", "info", "validate"]
@@ -18,8 +19,14 @@ def start(*args: str) -> subprocess.Popen:
     """Start `python -m fracture_gs.cli ARGS` in a fresh interpreter (several run concurrently)."""
     env = dict(os.environ, PYTHONPATH=str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", ""))
     env.pop("FRACTURE_GS_DEBUG", None)
-    return subprocess.Popen([sys.executable, "-m", "fracture_gs.cli", *args], cwd=REPO, env=env,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    return subprocess.Popen(
+        [sys.executable, "-m", "fracture_gs.cli", *args],
+        cwd=REPO,
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
 
 
 def finish(proc: subprocess.Popen) -> tuple[int, str, str]:
@@ -97,7 +104,10 @@ BAD_CALLS = [
     (["render-sim", "bread", "--frames", "zero"], "--frames"),
     (["render-sim", "bread", "--bogus"], "unrecognized arguments"),
     (["figures", "--device", "tpu"], "not a device"),
-    (["bench", "nope", "--device", "cpu"], "no such config file"),
+    (["bench", "--steps", "0", "--device", "cpu"], "must be at least 1"),
+    (["bench", "--accuracy", "--cases", "bar,nope", "--device", "cpu"], "--cases nope unknown"),
+    (["figures", "--only", "ficus,nope", "--device", "cpu"], "--only nope unknown"),
+    (["figures", "--protocol", "fast"], "invalid choice"),
     (["render-sim", "scene.ply"], "not a config"),
 ]
 
@@ -116,14 +126,18 @@ def test_user_errors_are_one_line(argv, needle, tmp_path, capsys):
 
 
 def test_cuda_request_without_cuda(monkeypatch, capsys):
-    monkeypatch.setattr(cli, "_cuda_devices", lambda: (False, 0, "torch.cuda.is_available() is False"))
+    monkeypatch.setattr(cli.devices, "_cuda_devices", lambda: (False, 0, "torch.cuda.is_available() is False"))
     assert_one_line_error(cli.main(["render-sim", "bread", "--device", "cuda"]), capsys.readouterr().err)
 
 
 def test_resolve_device(monkeypatch):
-    monkeypatch.setattr(cli, "_cuda_devices", lambda: (True, 2, "ok"))
-    assert (cli.resolve_device("auto"), cli.resolve_device("cuda"), cli.resolve_device("cuda:1")) == ("cuda:0", "cuda:0", "cuda:1")
-    monkeypatch.setattr(cli, "_cuda_devices", lambda: (False, 0, "no"))
+    monkeypatch.setattr(cli.devices, "_cuda_devices", lambda: (True, 2, "ok"))
+    assert (cli.resolve_device("auto"), cli.resolve_device("cuda"), cli.resolve_device("cuda:1")) == (
+        "cuda:0",
+        "cuda:0",
+        "cuda:1",
+    )
+    monkeypatch.setattr(cli.devices, "_cuda_devices", lambda: (False, 0, "no"))
     assert (cli.resolve_device("auto"), cli.resolve_device("CPU")) == ("cpu", "cpu")
 
 
@@ -134,9 +148,25 @@ def test_render_sim_dispatches_to_runner(monkeypatch, tmp_path, capsys):
         calls.update(cfg=cfg, variants=variants, device=device, out_dir=out_dir, profile=profile)
         return {"video": str(out_dir / "compare.mp4")}
 
-    monkeypatch.setattr(cli, "_import_first", lambda candidates, what: fake_run)
-    code = cli.main(["render-sim", "bread", "--variants", "baseline,full", "--frames", "3", "--resolution", "64x48",
-                     "--preset", "paper", "--device", "cpu", "--out", str(tmp_path)])
+    monkeypatch.setattr(runner, "run_render_sim", fake_run)
+    code = cli.main(
+        [
+            "render-sim",
+            "bread",
+            "--variants",
+            "baseline,full",
+            "--frames",
+            "3",
+            "--resolution",
+            "64x48",
+            "--preset",
+            "paper",
+            "--device",
+            "cpu",
+            "--out",
+            str(tmp_path),
+        ]
+    )
     assert code == 0, capsys.readouterr().err
     assert calls["variants"] == ["baseline", "full"] and calls["device"] == "cpu" and calls["out_dir"] == tmp_path
     assert calls["cfg"].frames == 3 and calls["cfg"].sim.grid_shape == (128, 128, 128)
@@ -147,20 +177,15 @@ def test_keyboard_interrupt_reports_partial_outputs(monkeypatch, tmp_path, capsy
     def interrupted(cfg, variants, device, out_dir, profile=False):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(cli, "_import_first", lambda candidates, what: interrupted)
+    monkeypatch.setattr(runner, "run_render_sim", interrupted)
     assert cli.main(["render-sim", "recontact", "--device", "cpu", "--out", str(tmp_path)]) == 130
     assert f"partial outputs are in {tmp_path}" in capsys.readouterr().err
-
-
-def test_missing_module_is_one_line(capsys):
-    with pytest.raises(cli.CliError, match="not available"):
-        cli._import_first([("fracture_gs.no_such_module", "run")], "thing")
 
 
 def test_bugs_keep_their_traceback(monkeypatch):
     def broken(cfg, variants, device, out_dir, profile=False):
         raise RuntimeError("bug")
 
-    monkeypatch.setattr(cli, "_import_first", lambda candidates, what: broken)
+    monkeypatch.setattr(runner, "run_render_sim", broken)
     with pytest.raises(RuntimeError):
         cli.main(["render-sim", "recontact", "--device", "cpu"])

@@ -1,13 +1,13 @@
 """`fracture-gs render-sim` end to end on a tiny scene: every output exists and parses, a divergence
 or Ctrl-C keeps what was written, a bad PLY is one sentence, and the torch module gives the same
 trajectories as the CLI."""
+
 import json
 import os
 import signal
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -22,8 +22,9 @@ TINY = ["--particles", "1500", "--resolution", "64x48", "--device", "cpu"]
 
 def cli(*args, timeout=600, **kw):
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
-    return subprocess.run([sys.executable, "-m", "fracture_gs.cli", *args], capture_output=True, text=True,
-                          timeout=timeout, env=env, **kw)
+    return subprocess.run(
+        [sys.executable, "-m", "fracture_gs.cli", *args], capture_output=True, text=True, timeout=timeout, env=env, **kw
+    )
 
 
 @pytest.fixture(scope="module")
@@ -36,8 +37,16 @@ def recontact_run(tmp_path_factory):
 def test_render_sim_writes_every_output(recontact_run):
     res, out = recontact_run
     assert res.returncode == 0, res.stderr[-2000:]
-    for name in ("local_multifield.mp4", "full.mp4", "comparison.mp4", "metrics.jsonl", "summary.json", "summary.md",
-                 "topology.npz", "config.toml"):
+    for name in (
+        "local_multifield.mp4",
+        "full.mp4",
+        "comparison.mp4",
+        "metrics.jsonl",
+        "summary.json",
+        "summary.md",
+        "topology.npz",
+        "config.toml",
+    ):
         assert (out / name).exists(), name
     n, h, w = read_video(out / "full.mp4")
     assert (n, h, w) == (5, 48, 64)
@@ -75,8 +84,24 @@ def test_ctrl_c_keeps_partial_outputs(tmp_path):
     """SIGINT mid-run: exit 130, the message says where the partial outputs are, and they parse."""
     out = tmp_path / "out"
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
-    proc = subprocess.Popen([sys.executable, "-m", "fracture_gs.cli", "render-sim", "recontact", "--frames", "200",
-                             "--out", str(out), *TINY], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "fracture_gs.cli",
+            "render-sim",
+            "recontact",
+            "--frames",
+            "200",
+            "--out",
+            str(out),
+            *TINY,
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+    )
     metrics = out / "metrics.jsonl"
     deadline = time.time() + 300
     while time.time() < deadline and (not metrics.exists() or len(metrics.read_text().splitlines()) < 3):
@@ -110,7 +135,9 @@ def test_module_matches_cli(recontact_run):
     cfg = load_config(out / "config.toml")
     gs = load_scene(cfg)
     sim = fgs.FractureSim(cfg, variant="full", device="cpu")
-    result = sim(gs.means, gs.opacities, gs.sh, quats=gs.quats, scales=gs.scales, interior=gs.interior, labels=gs.labels)
+    result = sim(
+        gs.means, gs.opacities, gs.sh, quats=gs.quats, scales=gs.scales, interior=gs.interior, labels=gs.labels
+    )
     assert result["means"].shape == (cfg.frames + 1, len(gs), 3) and result["covars"].shape[-2:] == (3, 3)
     cli_rows = [json.loads(line) for line in (out / "metrics.jsonl").read_text().splitlines()]
     cli_rows = [r for r in cli_rows if r["variant"] == "full"]
@@ -130,5 +157,7 @@ def test_module_accepts_covariances(recontact_run):
     cfg.frames = 1
     gs = load_scene(cfg)
     cov = gs.covariances()
-    out = fgs.FractureSim(cfg, variant="full", device="cpu", diagnostics=False)(gs.means, gs.opacities, gs.sh, covars=cov)
+    out = fgs.FractureSim(cfg, variant="full", device="cpu", diagnostics=False)(
+        gs.means, gs.opacities, gs.sh, covars=cov
+    )
     torch.testing.assert_close(out["covars"][0], cov.float(), rtol=1e-4, atol=1e-9)

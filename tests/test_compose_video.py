@@ -1,4 +1,5 @@
 """Composer layouts, circular insets, interface regions and H.264 video output (CPU)."""
+
 from __future__ import annotations
 
 import math
@@ -12,8 +13,15 @@ import torch
 
 from fracture_gs.io.video import VideoWriter, read_video, save_png, write_video
 from fracture_gs.render import look_at
-from fracture_gs.render.compose import (add_inset, caption, caption_text, grid, inset_placement,
-                                        interface_region, side_by_side)
+from fracture_gs.render.compose import (
+    add_inset,
+    caption,
+    caption_text,
+    grid,
+    inset_placement,
+    interface_region,
+    side_by_side,
+)
 
 
 def fresh_rng():
@@ -39,7 +47,7 @@ def test_caption_adds_bar_and_keeps_even_size():
     assert out.dtype == np.uint8 and out.shape[0] % 2 == 0 and out.shape[1] % 2 == 0, seed
     assert out.shape[1] == 78 and out.shape[0] > 51
     bar = out.shape[0] - 52  # 51 rows of image padded to 52
-    np.testing.assert_array_equal(out[bar:bar + 51, :77], img, err_msg=f"seed {seed}")
+    np.testing.assert_array_equal(out[bar : bar + 51, :77], img, err_msg=f"seed {seed}")
     assert out[:bar].std() > 0, "caption text not drawn"
 
 

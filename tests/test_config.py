@@ -1,11 +1,12 @@
 """TOML configs: built-ins load, round-trip, strict keys/types/values, extends, overrides."""
+
 from __future__ import annotations
 
 import copy
-import tomllib
 from pathlib import Path
 
 import pytest
+import tomllib
 
 from fracture_gs.config import CuboidBoundary, ParticleRegion, PlaneBoundary, SceneConfig
 from fracture_gs.io.config import (
@@ -77,7 +78,13 @@ def test_round_trip_through_a_file(tmp_path):
 
 def test_scene_geometry_contracts():
     bread = load_config("bread")
-    assert (bread.frames, bread.frame_dt, bread.material.E, bread.material.density, bread.material.sigma_R) == (90, 0.01, 2e3, 200, 50)
+    assert (bread.frames, bread.frame_dt, bread.material.E, bread.material.density, bread.material.sigma_R) == (
+        90,
+        0.01,
+        2e3,
+        200,
+        50,
+    )
     assert bread.topology.provider == "stress" and bread.variants == ["baseline", "stress_zero", "full"]
     assert {e.label for e in bread.material_map} == {0, 1}
     grips = [b for b in bread.sim.boundaries if isinstance(b, CuboidBoundary)]
@@ -89,7 +96,9 @@ def test_scene_geometry_contracts():
     regions = [b for b in rc.sim.boundaries if isinstance(b, ParticleRegion)]
     # zero total momentum with the 2:1 mass ratio, relative normal speed 0.6
     momentum = [2 * a + b for a, b in zip(regions[0].velocity, regions[1].velocity)]
-    assert momentum == pytest.approx([0, 0, 0]) and regions[0].velocity[0] - regions[1].velocity[0] == pytest.approx(0.6)
+    assert momentum == pytest.approx([0, 0, 0]) and regions[0].velocity[0] - regions[1].velocity[0] == pytest.approx(
+        0.6
+    )
     drop = load_config("plane_drop")
     plane = next(b for b in drop.sim.boundaries if isinstance(b, PlaneBoundary))
     assert plane.mode == "slip" and plane.point[2] == pytest.approx(0.1)
@@ -140,7 +149,11 @@ BAD = [
     ('[[sim.boundaries]]\ntype = "plane"\nmode = "stiky"\n', "sim.boundaries[0].mode", "did you mean 'sticky'"),
     ('[[sim.boundaries]]\ntype = "plan"\n', "sim.boundaries[0].type", "did you mean type = 'plane'"),
     ("[[sim.boundaries]]\nlower = [0, 0, 0]\n", "sim.boundaries[0].type", "no type"),
-    ('[[sim.boundaries]]\ntype = "cuboid"\nlower = [1, 0, 0]\nupper = [0, 1, 1]\n', "sim.boundaries[0].lower", "lower < upper"),
+    (
+        '[[sim.boundaries]]\ntype = "cuboid"\nlower = [1, 0, 0]\nupper = [0, 1, 1]\n',
+        "sim.boundaries[0].lower",
+        "lower < upper",
+    ),
     ('[[sim.boundaries]]\ntype = "plane"\nnormal = [0, 0, 0]\n', "sim.boundaries[0].normal", "nonzero"),
     ("[material]\nnu = 0.5\n", "material.nu", "below 0.5"),
     ("[material]\nnu = -0.1\n", "material.nu", "[0.0, 0.5)"),
@@ -191,24 +204,38 @@ def test_find_config_resolves_names_and_paths(tmp_path):
 
 
 def test_normals_normalized_and_arrays_become_tuples():
-    cfg = config_from_dict({
-        "sim": {"boundaries": [{"type": "plane", "normal": [0, 0, 2], "point": [0, 0, 1]}], "grid_shape": [8, 8, 8]},
-        "topology": {"provider": "oracle", "normal": [3, 4, 0]},
-    })
+    cfg = config_from_dict(
+        {
+            "sim": {
+                "boundaries": [{"type": "plane", "normal": [0, 0, 2], "point": [0, 0, 1]}],
+                "grid_shape": [8, 8, 8],
+            },
+            "topology": {"provider": "oracle", "normal": [3, 4, 0]},
+        }
+    )
     assert cfg.sim.boundaries[0].normal == (0.0, 0.0, 1.0)
     assert cfg.topology.normal == pytest.approx((0.6, 0.8, 0.0))
     assert isinstance(cfg.sim.grid_shape, tuple) and cfg.sim.boundaries[0].point == (0.0, 0.0, 1.0)
 
 
 def test_material_model_and_sim_material_follow_each_other():
-    assert config_from_dict({"material": {"model": "neo_hookean"}, "variants": ["baseline"]}).sim.material == "neo_hookean"
-    assert config_from_dict({"sim": {"material": "neo_hookean"}, "variants": ["baseline"]}).material.model == "neo_hookean"
+    assert (
+        config_from_dict({"material": {"model": "neo_hookean"}, "variants": ["baseline"]}).sim.material == "neo_hookean"
+    )
+    assert (
+        config_from_dict({"sim": {"material": "neo_hookean"}, "variants": ["baseline"]}).material.model == "neo_hookean"
+    )
     with pytest.raises(ConfigError, match="disagrees"):
         config_from_dict({"sim": {"material": "neo_hookean"}, "material": {"model": "fixed_corotated"}})
 
 
 def test_config_from_dict_accepts_dataclass_boundaries():
-    cfg = config_from_dict({"sim": {"boundaries": [PlaneBoundary(mode="sticky"), CuboidBoundary(upper=(1, 1, 1))]}, "variants": ["baseline"]})
+    cfg = config_from_dict(
+        {
+            "sim": {"boundaries": [PlaneBoundary(mode="sticky"), CuboidBoundary(upper=(1, 1, 1))]},
+            "variants": ["baseline"],
+        }
+    )
     assert cfg.sim.boundaries[0] == PlaneBoundary(mode="sticky")
     assert cfg.sim.boundaries[1].upper == (1.0, 1.0, 1.0)
 
@@ -217,7 +244,11 @@ def test_config_from_dict_accepts_dataclass_boundaries():
 
 
 def test_extends_deep_merges_tables_and_replaces_arrays(tmp_path):
-    path = write(tmp_path, 'extends = "bread"\nname = "mine"\nvariants = ["full"]\n[material]\nE = 3000.0\n[render.camera]\nfov_deg = 30.0\n')
+    path = write(
+        tmp_path,
+        'extends = "bread"\nname = "mine"\nvariants = ["full"]\n[material]\nE = 3000.0\n'
+        "[render.camera]\nfov_deg = 30.0\n",
+    )
     cfg, bread = load_config(path), load_config("bread")
     assert cfg.name == "mine" and cfg.variants == ["full"]
     assert cfg.material.E == 3000.0 and cfg.material.sigma_R == bread.material.sigma_R  # merged, not replaced
@@ -261,10 +292,17 @@ def test_frames_resolution_variants_overrides():
     assert apply_overrides(cfg, resolution=(32, 16), variants=["stress_zero"]).render.width == 32
 
 
-@pytest.mark.parametrize("kwargs,flag", [
-    ({"preset": "huge"}, "--preset"), ({"frames": 0}, "--frames"), ({"resolution": "640"}, "--resolution"),
-    ({"resolution": "1x480"}, "--resolution"), ({"variants": "full,nope"}, "--variants"), ({"variants": "full,full"}, "--variants"),
-])
+@pytest.mark.parametrize(
+    "kwargs,flag",
+    [
+        ({"preset": "huge"}, "--preset"),
+        ({"frames": 0}, "--frames"),
+        ({"resolution": "640"}, "--resolution"),
+        ({"resolution": "1x480"}, "--resolution"),
+        ({"variants": "full,nope"}, "--variants"),
+        ({"variants": "full,full"}, "--variants"),
+    ],
+)
 def test_bad_overrides(kwargs, flag):
     with pytest.raises(ConfigError) as info:
         apply_overrides(load_config("bread"), **kwargs)

@@ -1,13 +1,14 @@
 """Gradients through the simulation (issue 15): the Warp adjoints of `DiffSimulator` frames against
 central finite differences of the float64 torch twin, for `baseline` and for `full` on both sides of
 a latch with contact and friction active; finite gradients on hard cases."""
+
 import pytest
 import torch
+from simutil import block, config
 
 from fracture_gs import sim as S
 from fracture_gs.sim.diff import DiffSimulator
 from fracture_gs.sim.diff import reference as DR
-from simutil import block, config
 
 NU = 0.3
 RHO = 1000.0
@@ -45,7 +46,7 @@ def loss_of(sim, x0, v0, E, vol, frames=3, ref=False, F0=None):
         else:
             x, v, C, F = sim.step(0.01, x, v, C, F, mu, lam, mass, V)
     w = torch.linspace(0.5, 1.5, n, dtype=torch.float64)
-    return (w[:, None] * x ** 2).sum() + 0.1 * (F ** 2).sum() + (w[:, None] * v).sum()
+    return (w[:, None] * x**2).sum() + 0.1 * (F**2).sum() + (w[:, None] * v).sum()
 
 
 def check(sim, x0, v0, vol, E0=1e3, frames=3):
@@ -60,8 +61,10 @@ def check(sim, x0, v0, vol, E0=1e3, frames=3):
     d = torch.randn(n, 3, generator=g, dtype=torch.float64)
     out = {}
     with torch.no_grad():
+
         def L(xx, vv, EE):
             return float(loss_of(sim, xx, vv, EE, vol, frames, ref=True))
+
         h = 1e-3 * E0
         fd = (L(x0, v0, E + h) - L(x0, v0, E - h)) / (2 * h)
         out["E"] = (float(E.grad.sum()), fd)
@@ -119,8 +122,9 @@ def test_fit_material_example_recovers_E(tmp_path):
     from pathlib import Path
 
     script = Path(__file__).resolve().parent.parent / "apps" / "fit_material.py"
-    r = subprocess.run([sys.executable, str(script), "--out", str(tmp_path)], capture_output=True, text=True,
-                       timeout=600)
+    r = subprocess.run(
+        [sys.executable, str(script), "--out", str(tmp_path)], capture_output=True, text=True, timeout=600
+    )
     assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
     fit = json.loads((tmp_path / "fit.json").read_text())
     assert fit["relative_error"] <= 0.05 and fit["E_start"] == 5e3 and fit["E_true"] == 2e4

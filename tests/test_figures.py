@@ -1,12 +1,10 @@
-"""`fracture_gs.figures` and `apps/accuracy.py`: the table writers (Markdown, CSV, LaTeX), each
+"""`fracture_gs.paper` (figures and accuracy): the table writers (Markdown, CSV, LaTeX), each
 figure function on tiny data (a PNG of the expected size), the method figure's slice from a real
 two-fragment simulation, and the accuracy cases against their known answers."""
+
 import csv
 import io
 import json
-import math
-import sys
-from pathlib import Path
 
 import cv2
 import numpy as np
@@ -14,31 +12,42 @@ import pytest
 import torch
 
 from fracture_gs import sim as S
-from fracture_gs.figures import (QUICK, Column, Panel, Table, curves_figure, method_figure, method_slice, multiscene_figure,
-                                 prepare, teaser_figure, tex_escape)
 from fracture_gs.io.config import load_config
-
-ROOT = Path(__file__).resolve().parents[1]
-if str(ROOT) not in sys.path:
-    sys.path.insert(0, str(ROOT))
-
-from apps import accuracy  # noqa: E402
-
+from fracture_gs.paper import accuracy
+from fracture_gs.paper.plots import curves_figure, method_figure, method_slice, multiscene_figure, teaser_figure
+from fracture_gs.paper.protocol import QUICK, prepare
+from fracture_gs.paper.tables import Column, Panel, Table, tex_escape
 
 pytestmark = pytest.mark.usefixtures("one_thread")  # tests/conftest.py: one torch thread
 
 
 def two_panel_table():
-    cols = [Column("scene", "Scene", "Scene", "text"), Column("mix", "E_mix mean/max", r"$E$ mean/max", "meanmax"),
-            Column("open", "Opening/Δx", r"Opening/$\Delta x$", "num"), Column("sep", "Sep.", "Sep.", "bool"),
-            Column("n", "Latch", "Latch", "int")]
-    rows = [{"scene": "Bread_1 & co", "mix": (5.156e-7, 7.637e-6), "open": 10.0091, "sep": True, "n": 10},
-            {"scene": "Ficus", "mix": (0.0, 0.0), "open": -0.0182, "sep": False, "n": None}]
-    cols_b = [Column("method", "Method", "Method", "text"), Column("t", "t_c", "$t_c$", "time_pair"),
-              Column("pen", "Pen./Δx", "Pen.", "sci")]
+    cols = [
+        Column("scene", "Scene", "Scene", "text"),
+        Column("mix", "E_mix mean/max", r"$E$ mean/max", "meanmax"),
+        Column("open", "Opening/Δx", r"Opening/$\Delta x$", "num"),
+        Column("sep", "Sep.", "Sep.", "bool"),
+        Column("n", "Latch", "Latch", "int"),
+    ]
+    rows = [
+        {"scene": "Bread_1 & co", "mix": (5.156e-7, 7.637e-6), "open": 10.0091, "sep": True, "n": 10},
+        {"scene": "Ficus", "mix": (0.0, 0.0), "open": -0.0182, "sep": False, "n": None},
+    ]
+    cols_b = [
+        Column("method", "Method", "Method", "text"),
+        Column("t", "t_c", "$t_c$", "time_pair"),
+        Column("pen", "Pen./Δx", "Pen.", "sci"),
+    ]
     rows_b = [{"method": "Full", "t": (0.276, None), "pen": 0.026}]
-    return Table("table9_test", "Table 9: test", [Panel(cols, rows), Panel(cols_b, rows_b, "Panel B: contact")],
-                 "A caption with 50% of σ_R and $x^2$.", "tab:test", "fracture-gs figures", {(0, 0, "open"): True})
+    return Table(
+        "table9_test",
+        "Table 9: test",
+        [Panel(cols, rows), Panel(cols_b, rows_b, "Panel B: contact")],
+        "A caption with 50% of σ_R and $x^2$.",
+        "tab:test",
+        "fracture-gs figures",
+        {(0, 0, "open"): True},
+    )
 
 
 def test_table_markdown():
@@ -90,7 +99,7 @@ def test_tex_escape():
 
 def panel(h, w, value):
     img = np.full((h, w, 3), 255, np.uint8)
-    img[h // 4:3 * h // 4, w // 4:3 * w // 4] = value
+    img[h // 4 : 3 * h // 4, w // 4 : 3 * w // 4] = value
     return img
 
 
@@ -106,8 +115,10 @@ def test_teaser_and_multiscene_png(tmp_path):
     assert png.shape[1] >= 3 * 64 + 2 * 4
     assert not np.array_equal(img, teaser_figure(panels, frames, 0.04, tmp_path / "plain.png"))  # insets drawn
 
-    scenes = {"ficus": {v: panel(60, 48, 90) for v in ("baseline", "stress_zero", "full")},
-              "bread": {v: panel(36, 48, 150) for v in ("baseline", "stress_zero", "full")}}
+    scenes = {
+        "ficus": {v: panel(60, 48, 90) for v in ("baseline", "stress_zero", "full")},
+        "bread": {v: panel(36, 48, 150) for v in ("baseline", "stress_zero", "full")},
+    }
     img = multiscene_figure(scenes, tmp_path / "grid.png", {"ficus": (24.0, 30.0, 5.0)}, times={"ficus": "(t = 1 s)"})
     png = cv2.imread(str(tmp_path / "grid.png"))
     assert png.shape == img.shape and png.shape[0] == 16 + 4 + 2 * 60 + 4
@@ -116,8 +127,19 @@ def test_teaser_and_multiscene_png(tmp_path):
 
 def test_curves_png(tmp_path):
     t = np.linspace(0.1, 0.9, 20)
-    series = {s: {v: {"t": t, "opening": t * k, "cf": 1e-5 + 0 * t, "real": (0 * t if v == "full" else 1e-5 + 0 * t),
-                      "latch_t": 0.1} for k, v in enumerate(("baseline", "stress_zero", "full"))} for s in ("ficus", "bread")}
+    series = {
+        s: {
+            v: {
+                "t": t,
+                "opening": t * k,
+                "cf": 1e-5 + 0 * t,
+                "real": (0 * t if v == "full" else 1e-5 + 0 * t),
+                "latch_t": 0.1,
+            }
+            for k, v in enumerate(("baseline", "stress_zero", "full"))
+        }
+        for s in ("ficus", "bread")
+    }
     curves_figure(series, tmp_path / "curves.png", dpi=50)
     assert cv2.imread(str(tmp_path / "curves.png")).shape == (2 * 140, 450, 3)  # figsize (9, 2.8·rows) × dpi
 
@@ -130,7 +152,9 @@ def two_blocks(variant="full"):
     x = torch.cat([xa, xb])
     v = torch.cat([torch.tensor([0.5, 0.0, 0.0]).expand(len(xa), 3), torch.tensor([-0.5, 0.0, 0.0]).expand(len(xb), 3)])
     n = len(x)
-    P = S.Particles(x=x.float(), v=v.float(), mass=torch.full((n,), 1000 * vol), volume=torch.full((n,), vol), E=1e4, nu=0.3)
+    P = S.Particles(
+        x=x.float(), v=v.float(), mass=torch.full((n,), 1000 * vol), volume=torch.full((n,), vol), E=1e4, nu=0.3
+    )
     sim = S.Simulator(S.SimConfig(dx=dx, grid_shape=(16, 16, 16), gravity=(0, 0, 0), variant=variant, dt=1e-3), P)
     sim.latch(S.Topology.from_plane(sim.particles.x, (0.5, 0.5, 0.5), (1.0, 0.0, 0.0), 2 * dx))
     for _ in range(5):
@@ -155,7 +179,7 @@ def test_method_slice_and_figure(tmp_path):
     json.dumps({k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in d.items()})  # cacheable
 
 
-def test_quick_preset_keeps_the_protocol_frames():
+def test_quick_protocol_keeps_the_protocol_frames():
     """The quick ficus is compressed 4× in time: same frames, loading 4× faster (times the
     calibrated load scale), switching 4× earlier."""
     base = load_config("exp_table3_ficus")
@@ -177,8 +201,10 @@ def test_accuracy_helpers(tmp_path):
     t = np.linspace(0, 0.3, 301)
     assert accuracy.period_from_zero_crossings(t, np.cos(2 * np.pi * t / 0.08)) == pytest.approx(0.08, rel=1e-4)
     assert accuracy.pareto_front([(1, 1e-2), (2, 1e-3), (3, 5e-3), (0.5, 1e-1)]) == [3, 0, 1]
-    r = [accuracy.Result("bar", "dx", 1 / 16, 1e-3, 0.4, 64, 81, 0.02, 0.02, "rel. period error", {}, "x"),
-         accuracy.Result("bar", "dt", 1 / 32, 5e-4, 0.2, 512, 161, 0.1, 0.005, "rel. period error", {}, "y")]
+    r = [
+        accuracy.Result("bar", "dx", 1 / 16, 1e-3, 0.4, 64, 81, 0.02, 0.02, "rel. period error", {}, "x"),
+        accuracy.Result("bar", "dt", 1 / 32, 5e-4, 0.2, 512, 161, 0.1, 0.005, "rel. period error", {}, "y"),
+    ]
     accuracy.accuracy_table(r, "caption").write(tmp_path)
     rows = list(csv.DictReader(io.StringIO((tmp_path / "accuracy.csv").read_text())))
     assert [x["pareto"] for x in rows] == ["yes", "yes"] and rows[0]["dx"] == "1/16"

@@ -2,13 +2,14 @@
 properties (single-field consistency, structural zero realized mixing, per-fragment mass
 consistency, momentum-conserving approach-only contact), equivalence of the global fragment pass,
 and the controlled re-contact benchmark (Table 4, Panel B)."""
+
 import pytest
 import torch
+from simutil import block, config, fill_slots, particles, rand_rotations, rel_err
 
 from fracture_gs import sim as S
 from fracture_gs.sim import reference as ref
 from fracture_gs.sim.diagnostics import SEPARATION, reapproach_ratio
-from simutil import block, config, fill_slots, particles, rand_rotations, rel_err
 
 N = 3000
 
@@ -19,9 +20,16 @@ def split_state(seed, device, variant, plane_x=0.5, band_all=False, boundaries=(
     x = 0.3 + 0.4 * torch.rand(N, 3, generator=g)
     U, V = rand_rotations(N, g), rand_rotations(N, g)
     s = 0.8 + 0.4 * torch.rand(N, 3, generator=g, dtype=torch.float64)
-    P = S.Particles(x=x, v=torch.randn(N, 3, generator=g), C=torch.randn(N, 3, 3, generator=g),
-                    F=(U @ torch.diag_embed(s) @ V.transpose(1, 2)).float(), mass=0.5 + torch.rand(N, generator=g),
-                    volume=torch.full((N,), 1e-5), E=1e4, nu=0.3)
+    P = S.Particles(
+        x=x,
+        v=torch.randn(N, 3, generator=g),
+        C=torch.randn(N, 3, 3, generator=g),
+        F=(U @ torch.diag_embed(s) @ V.transpose(1, 2)).float(),
+        mass=0.5 + torch.rand(N, generator=g),
+        volume=torch.full((N,), 1e-5),
+        E=1e4,
+        nu=0.3,
+    )
     cfg = config(32, variant=variant, gravity=(0.0, 0.0, -9.8), dt=1e-3, boundaries=list(boundaries))
     sim = S.Simulator(cfg, P, device=device)
     topo = S.Topology.from_plane(sim.particles.x, (plane_x, 0.5, 0.5), (1.0, 0.0, 0.0), 0.05 if not band_all else 1.0)
@@ -44,8 +52,21 @@ def test_two_field_transfer_matches_reference(device, seed, fitted):
         sim.solo.zero_()  # the logical fields name each node's fragment from its claims, which solo particles skip
     sim.compute_stress(sim.stress, commit=True)
     x0, F0, field = P.x.cpu().clone(), P.F.cpu().clone(), P.fragment.cpu().long()
-    gm, gp, gb = ref.p2g(x0, P.v.cpu(), P.C.cpu(), P.mass.cpu(), P.volume.cpu(), sim.stress.cpu(), field, 2, g.shape,
-                         g.origin, g.dx, dt, band=P.band.cpu())
+    gm, gp, gb = ref.p2g(
+        x0,
+        P.v.cpu(),
+        P.C.cpu(),
+        P.mass.cpu(),
+        P.volume.cpu(),
+        sim.stress.cpu(),
+        field,
+        2,
+        g.shape,
+        g.origin,
+        g.dx,
+        dt,
+        band=P.band.cpu(),
+    )
     sim.p2g(dt)
     assert float(gb.sum()) > 0
     rows = int(g.rows_used())
@@ -116,8 +137,15 @@ def random_fields(seed, device, shape=(8, 8, 8)):
 def contact_grid(device, slots=2, friction=0.0, normal="latched", n=(1.0, 0.0, 0.0)):
     """A full-variant simulator on an 8³ grid whose storage the test fills by hand (`fill_slots`)."""
     x, vol = block((0.4, 0.4, 0.4), (0.45, 0.45, 0.45), 0.01)
-    cfg = S.SimConfig(dx=1 / 8, grid_shape=(8, 8, 8), gravity=(0, 0, 0), variant="full", wall_cells=0,
-                      field_slots=max(slots, 2), contact=S.ContactConfig(friction=friction, normal=normal))
+    cfg = S.SimConfig(
+        dx=1 / 8,
+        grid_shape=(8, 8, 8),
+        gravity=(0, 0, 0),
+        variant="full",
+        wall_cells=0,
+        field_slots=max(slots, 2),
+        contact=S.ContactConfig(friction=friction, normal=normal),
+    )
     sim = S.Simulator(cfg, particles(x, vol), device=device)
     sim.latch(S.Topology.from_plane(sim.particles.x, (0.5, 0.5, 0.5), tuple(n), 0.0))
     sim.grid.ensure_pool(sim.grid.n_nodes)
@@ -134,8 +162,8 @@ def test_contact_projection_properties(device, seed):
     sim.update_grid(1e-3)
     w = g.velocity.double().cpu()
     v, m, n = v.double(), m.double(), n.double()
-    un_before = ((v[1] - v[0]) @ n)
-    un_after = ((w[1] - w[0]) @ n)
+    un_before = (v[1] - v[0]) @ n
+    un_after = (w[1] - w[0]) @ n
     p_before = m[0, ..., None] * v[0] + m[1, ..., None] * v[1]
     p_after = m[0, ..., None] * w[0] + m[1, ..., None] * w[1]
     assert float((p_after - p_before).norm(dim=-1).max() / p_before.norm(dim=-1).max()) <= 1e-6
@@ -194,8 +222,9 @@ def recontact(device, variant, frames=40):
     cfg = S.SimConfig(dx=dx, grid_shape=(48, 48, 48), gravity=(0, 0, 0), variant=variant, dt=4e-4)
     front_a = float(xa[:, 0].max())
     contact_x = front_a + va * (float(xb[:, 0].min()) - front_a) / speed  # where the fronts meet
-    topo_cfg = S.TopologyConfig(provider="oracle", point=(contact_x, 0.5, 0.5), normal=(1, 0, 0), latch_frame=0,
-                                band_width=4.0, pair_radius=6.0)
+    topo_cfg = S.TopologyConfig(
+        provider="oracle", point=(contact_x, 0.5, 0.5), normal=(1, 0, 0), latch_frame=0, band_width=4.0, pair_radius=6.0
+    )
     sim = S.Simulator(cfg, P, device=device, provider=S.make_provider(topo_cfg))
     tracker = sim.diagnostics_tracker()
     for _ in range(frames):
@@ -248,8 +277,9 @@ def test_escaping_particles_redo_the_frame(seed):
     P2G counts them, `advance` rolls the frame back and redoes it with more slack, and the frame
     ends exactly (CPU, bitwise) as on boxes that cover the whole grid."""
     x, vol = block((0.3, 0.3, 0.3), (0.6, 0.6, 0.6), 1 / 48)
-    push = S.ParticleRegion(kind="velocity", lower=(0.45, 0.0, 0.0), upper=(1.0, 1.0, 1.0), velocity=(3.0, 0.0, 0.0),
-                            start=0.02, end=1.0)
+    push = S.ParticleRegion(
+        kind="velocity", lower=(0.45, 0.0, 0.0), upper=(1.0, 1.0, 1.0), velocity=(3.0, 0.0, 0.0), start=0.02, end=1.0
+    )
     runs = []
     for slack in (0, 10**4):
         sim = S.Simulator(config(32, variant="full", dt=1e-3, boundaries=[push]), particles(x, vol, E=1e4))
@@ -286,10 +316,10 @@ def test_active_box_skips_only_empty_nodes(seed, variant):
 
 
 def test_table2_bench_times_every_build_of_every_branch():
-    """apps/bench.py's Table 2: every branch is built `placements` times and each build is timed
+    """fracture_gs.paper.bench's Table 2: every branch is built `placements` times and each build is timed
     in every trial (round-robin), on the same latched state; FractureFields' second field costs
     memory only on the shared box."""
-    from apps.bench import BRANCHES, bench_state, time_branches
+    from fracture_gs.paper.bench import BRANCHES, bench_state, time_branches
 
     cfg, P, topo = bench_state(3000, "cpu", n=32)
     rows = time_branches(cfg, P, topo, "cpu", steps=2, warmup=1, trials=2, graph=False, placements=2)
@@ -317,8 +347,9 @@ def test_recorded_substeps_replay_like_launches(device, seed):
     """A frame's substeps replayed from one recorded substep (a CUDA graph reading Δt, t and the timed
     regions from the device clock) give the launches' result: same time, substeps and redos, and the
     same state (bitwise on the CPU, where both run launches; to float32 atomics order on CUDA)."""
-    push = S.ParticleRegion(kind="impulse", lower=(0.0, 0.0, 0.0), upper=(0.5, 1.0, 1.0), delta_v=(0.5, 0.0, 0.0),
-                            start=0.004, end=0.012)
+    push = S.ParticleRegion(
+        kind="impulse", lower=(0.0, 0.0, 0.0), upper=(0.5, 1.0, 1.0), delta_v=(0.5, 0.0, 0.0), start=0.004, end=0.012
+    )
     runs = []
     for graphs in (False, True):
         sim, topo = split_state(seed, device, "full", boundaries=[push])

@@ -1,6 +1,6 @@
 """The paper's qualitative claims, asserted on small runs of its own experiment configs.
 
-Each test runs `configs/exp_table*.toml` through `fracture_gs.figures` (the code that writes the
+Each test runs `configs/exp_table*.toml` through `fracture_gs.paper` (the code that writes the
 tables) with the CPU `quick` preset shrunk further (a few thousand particles, fewer frames):
 
 * Table 1: under FractureFields realized mixing is exactly 0 after the latch, while the
@@ -16,14 +16,14 @@ The bread's protocol (grips pull until 0.3 s, latch at frame 10) is kept; the ru
 40, which leaves 30 post-latch frames: Full's opening passes the 0.1Δx rule by frame ~13, and
 Probe+Latch's stays below it throughout (see figures/fig_opening_mixing.png for 90 frames).
 """
+
 import math
 
 import pytest
-import torch
 
-from fracture_gs.figures import ablation_stats, prepare, run_experiment, transfer_stats
 from fracture_gs.io.config import load_config
-
+from fracture_gs.paper.experiments import ablation_stats, run_experiment, transfer_stats
+from fracture_gs.paper.protocol import prepare
 
 pytestmark = pytest.mark.usefixtures("one_thread")  # tests/conftest.py: one torch thread
 
@@ -57,7 +57,9 @@ def test_full_realized_mixing_is_zero(bread):
     shared = transfer_stats(bread.runs["stress_zero"], bread.latch_frame)
     assert full["real"] == (0.0, 0.0), "fragment-conditioned routing leaves no path for realized mixing"
     assert full["cf"][1] > 0 and full["shared"] > 0, "the claim is not vacuous: fragments share support nodes"
-    assert shared["real"][1] > 0 and shared["real"] == pytest.approx(shared["cf"]), "shared transfer realizes the mixing"
+    assert shared["real"][1] > 0 and shared["real"] == pytest.approx(shared["cf"]), (
+        "shared transfer realizes the mixing"
+    )
     assert full["mass_residual"] < 1e-6
 
 

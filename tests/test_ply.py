@@ -1,4 +1,5 @@
 """3DGS PLY read/write: bit-exact round trips on random files, layout by name, clear errors."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -18,8 +19,9 @@ def fresh_seed() -> int:
     return int(np.random.SeedSequence().entropy % (2**63))
 
 
-def random_vertex(rng, n: int, degree: int, normals: bool = True, extras: bool = True,
-                  ours: bool = False) -> np.ndarray:
+def random_vertex(
+    rng, n: int, degree: int, normals: bool = True, extras: bool = True, ours: bool = False
+) -> np.ndarray:
     """A structured vertex array in the standard 3DGS layout with random (valid) values."""
     names = ["x", "y", "z"] + (["nx", "ny", "nz"] if normals else [])
     names += [f"f_dc_{i}" for i in range(3)] + [f"f_rest_{i}" for i in range(REST[degree])]
@@ -146,10 +148,16 @@ def test_fresh_set_roundtrip(tmp_path):
     g = torch.Generator().manual_seed(fresh_seed() % (2**31))
     n = 64
     q = torch.nn.functional.normalize(torch.randn(n, 4, generator=g), dim=1)
-    gs = GaussianSet(means=torch.rand(n, 3, generator=g), quats=q, scales=torch.rand(n, 3, generator=g) + 1e-3,
-                     opacities=torch.rand(n, generator=g).clamp(1e-3, 0.999), sh=torch.randn(n, 4, 3, generator=g),
-                     interior=torch.rand(n, generator=g) < 0.5, labels=torch.randint(0, 5, (n,), generator=g, dtype=torch.int32),
-                     extra={"flag": torch.ones(n, dtype=torch.bool), "idx": torch.arange(n)})
+    gs = GaussianSet(
+        means=torch.rand(n, 3, generator=g),
+        quats=q,
+        scales=torch.rand(n, 3, generator=g) + 1e-3,
+        opacities=torch.rand(n, generator=g).clamp(1e-3, 0.999),
+        sh=torch.randn(n, 4, 3, generator=g),
+        interior=torch.rand(n, generator=g) < 0.5,
+        labels=torch.randint(0, 5, (n,), generator=g, dtype=torch.int32),
+        extra={"flag": torch.ones(n, dtype=torch.bool), "idx": torch.arange(n)},
+    )
     save_ply(gs, tmp_path / "a.ply")
     names = PlyData.read(str(tmp_path / "a.ply"))["vertex"].data.dtype.names
     assert names[:6] == ("x", "y", "z", "nx", "ny", "nz")  # INRIA layout for a fresh set
@@ -229,8 +237,9 @@ def test_ragged_sh(tmp_path):
     expect_error(write(tmp_path / "gap.ply", drop(both, "f_rest_4")), "'f_rest_4'")
 
 
-@pytest.mark.parametrize("name,value", [("y", np.nan), ("opacity", np.inf), ("f_rest_3", -np.inf),
-                                        ("rot_0", np.nan), ("scale_0", np.inf)])
+@pytest.mark.parametrize(
+    "name,value", [("y", np.nan), ("opacity", np.inf), ("f_rest_3", -np.inf), ("rot_0", np.nan), ("scale_0", np.inf)]
+)
 def test_non_finite(tmp_path, name, value):
     rng = np.random.default_rng(fresh_seed())
     v = good(rng)

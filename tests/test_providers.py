@@ -3,16 +3,17 @@ topology a provider returns and never again; the oracle latches its plane at a f
 stress provider latches a pulled bar at its weakened slice once the over-stress persists, never
 under compression, sub-strength load or a one-frame spike; providers are deterministic and the
 latch is impulse-free."""
+
 import math
 import os
 
 import numpy as np
 import pytest
 import torch
+from simutil import block, config, particles
 
 from fracture_gs import sim as S
 from fracture_gs.sim.providers.stress import StressProvider, least_variance_axis, mean_direction
-from simutil import block, config, particles
 
 DX = 1 / 32
 X_WEAK = 0.59  # weakened slice: off-centre by ~3Δx, so a plane at the centre fails the 2Δx check
@@ -36,8 +37,10 @@ def bar_particles(seed, weak=WEAK, x_weak=X_WEAK, material="fixed_corotated"):
 
 def grips(v):
     """Two grid grips covering each end, moving at ∓v along x (v > 0 pulls, v < 0 compresses)."""
-    return [S.CuboidBoundary(lower=(0.2, 0.4, 0.4), upper=(0.29, 0.6, 0.6), velocity=(-v, 0.0, 0.0)),
-            S.CuboidBoundary(lower=(0.71, 0.4, 0.4), upper=(0.8, 0.6, 0.6), velocity=(v, 0.0, 0.0))]
+    return [
+        S.CuboidBoundary(lower=(0.2, 0.4, 0.4), upper=(0.29, 0.6, 0.6), velocity=(-v, 0.0, 0.0)),
+        S.CuboidBoundary(lower=(0.71, 0.4, 0.4), upper=(0.8, 0.6, 0.6), velocity=(v, 0.0, 0.0)),
+    ]
 
 
 def stress_cfg(**kw):
@@ -67,8 +70,12 @@ def run_bar(device, seed, v=0.5, frames=8, weak=WEAK, variant="baseline", materi
     """The gripped bar with a stress provider (through make_provider), gravity off."""
     provider = S.make_provider(stress_cfg(**topo))
     rec = Recorder(provider)
-    sim = S.Simulator(config(32, dt=5e-4, boundaries=grips(v), variant=variant),
-                      bar_particles(seed, weak, material=material), device=device, provider=rec)
+    sim = S.Simulator(
+        config(32, dt=5e-4, boundaries=grips(v), variant=variant),
+        bar_particles(seed, weak, material=material),
+        device=device,
+        provider=rec,
+    )
     after = None
     for _ in range(frames):
         sim.advance(FRAME_DT)
@@ -125,8 +132,15 @@ def oracle_run(device, frames=5, **topo):
     return sim, rec
 
 
-@pytest.mark.parametrize("topo, frame", [(dict(latch_frame=0), 0), (dict(latch_frame=3), 3), (dict(latch_time=0.02), 2),
-                                         (dict(latch_frame=1, latch_time=0.025), 3)])
+@pytest.mark.parametrize(
+    "topo, frame",
+    [
+        (dict(latch_frame=0), 0),
+        (dict(latch_frame=3), 3),
+        (dict(latch_time=0.02), 2),
+        (dict(latch_frame=1, latch_time=0.025), 3),
+    ],
+)
 def test_oracle_latches_once_at_frame_or_time(device, topo, frame):
     """Oracle: latches at `latch_frame` (0 = before the first substep), or at the first frame end
     ≥ `latch_time` (which overrides latch_frame), exactly once; labels are the sign of
@@ -167,14 +181,20 @@ def test_pulled_bar_latches_at_weak_slice(pulled):
     sim, provider, rec, _, seed = pulled
     t, cfg = sim.topology, provider.cfg
     info = provider.summary() | {"seed": seed}
-    assert t is not None and t is provider.topology and rec.latched_at == [provider.latch_frame] \
-        and provider.latch_frame == t.latch_frame, info
+    assert (
+        t is not None
+        and t is provider.topology
+        and rec.latched_at == [provider.latch_frame]
+        and provider.latch_frame == t.latch_frame
+    ), info
     first = provider.first_exceed_frame
     assert first is not None and first + cfg.persist_frames - 1 <= t.latch_frame <= first + cfg.persist_frames + 2, info
     assert provider.over_count >= cfg.min_particles and not provider.used_pca, info
     n, p = torch.tensor(t.normal, dtype=torch.float64), torch.tensor(t.point, dtype=torch.float64)
     assert float(n[0]) >= math.cos(math.radians(10.0)), f"normal {t.normal} is not along the pull axis (seed {seed})"
-    assert abs(float(p[0]) - X_WEAK) < 2 * DX, f"plane at x = {float(p[0]):.4f}, weakened slice at {X_WEAK} (seed {seed})"
+    assert abs(float(p[0]) - X_WEAK) < 2 * DX, (
+        f"plane at x = {float(p[0]):.4f}, weakened slice at {X_WEAK} (seed {seed})"
+    )
     x = rec.before["x"].double().cpu()
     d = (x - p) @ n  # signed distance at the latch
     frag = t.fragment.cpu()

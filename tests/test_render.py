@@ -1,5 +1,6 @@
 """Renderer tests (CPU): Gaussian update from F, SH, cameras, torch rasterizer vs float64 reference,
 projection vs gsplat's pure-torch helpers. Every random test draws a fresh seed and prints it."""
+
 from __future__ import annotations
 
 import math
@@ -15,9 +16,20 @@ import torch
 from torch.testing import assert_close
 
 from fracture_gs.config import CameraConfig
-from fracture_gs.render import (Camera, deform_covariances, exposed_interior_colors, from_config, look_at,
-                                orbit, polar_rotation, project_gaussians, render, render_reference, sh_colors,
-                                visible_mask)
+from fracture_gs.render import (
+    Camera,
+    deform_covariances,
+    exposed_interior_colors,
+    from_config,
+    look_at,
+    orbit,
+    polar_rotation,
+    project_gaussians,
+    render,
+    render_reference,
+    sh_colors,
+    visible_mask,
+)
 from fracture_gs.render.gaussians import sh_basis
 
 
@@ -53,6 +65,7 @@ def random_scene(n, g, spread=0.4, scale=0.05, sh_degree=0, dtype=torch.float32)
 
 
 # ---------------------------------------------------------------- Gaussian update from F
+
 
 def test_deform_covariances_is_F_cov_Ft_and_spd():
     seed, g = fresh_seed()
@@ -124,8 +137,11 @@ def test_sh_basis_matches_gsplat(degree):
     means = torch.randn(n, 3, generator=g, dtype=torch.float64)
     campos = torch.tensor([0.3, -4.0, 1.0], dtype=torch.float64)
     col = sh_colors(coeffs, means, campos)
-    assert_close(col, (_spherical_harmonics(degree, means - campos, coeffs) + 0.5).clamp_min(0),
-                 msg=lambda m: f"seed {seed}: {m}")
+    assert_close(
+        col,
+        (_spherical_harmonics(degree, means - campos, coeffs) + 0.5).clamp_min(0),
+        msg=lambda m: f"seed {seed}: {m}",
+    )
 
 
 def test_rigid_rotation_renders_like_inverse_rotated_camera():
@@ -138,8 +154,9 @@ def test_rigid_rotation_renders_like_inverse_rotated_camera():
     cam = look_at((0.2, -2.0, 0.7), (0, 0, 0), (0, 0, 1), 45, 48, 40).to(dtype=torch.float64)
     F = Q.expand(n, 3, 3)
     x = x0 @ Q.T
-    img_rot = render(x, deform_covariances(F, cov0), sh_colors(sh, x, cam.campos, polar_rotation(F)),
-                     opac, cam, backend="torch").image
+    img_rot = render(
+        x, deform_covariances(F, cov0), sh_colors(sh, x, cam.campos, polar_rotation(F)), opac, cam, backend="torch"
+    ).image
     V = cam.viewmat.clone()
     V[:3, :3] = V[:3, :3] @ Q
     cam0 = Camera(V, cam.K, cam.width, cam.height)
@@ -148,8 +165,9 @@ def test_rigid_rotation_renders_like_inverse_rotated_camera():
     assert img_rest.std() > 0.05, f"seed {seed}: empty image"
     assert_close(img_rot, img_rest, rtol=0, atol=1e-9, msg=lambda m: f"seed {seed}: {m}")
     # the test is sensitive: without rotating the view direction the images differ
-    img_norot = render(x, deform_covariances(F, cov0), sh_colors(sh, x, cam.campos, None),
-                       opac, cam, backend="torch").image
+    img_norot = render(
+        x, deform_covariances(F, cov0), sh_colors(sh, x, cam.campos, None), opac, cam, backend="torch"
+    ).image
     assert (img_norot - img_rest).abs().max() > 1e-2, f"seed {seed}: SH rotation has no effect"
 
 
@@ -167,6 +185,7 @@ def test_exposed_interior_colors_and_visible_mask():
 
 
 # ---------------------------------------------------------------- cameras
+
 
 def test_camera_conventions():
     cam = look_at((1.0, -3.0, 0.5), (1.0, 0.0, 0.5), (0, 0, 1), 60, 64, 48)
@@ -200,6 +219,7 @@ def test_orbit_and_from_config():
 
 # ---------------------------------------------------------------- projection and rasterization
 
+
 def _cross_check_scene(g, n=400):
     means, cov, _, opac = random_scene(n, g, spread=1.0, scale=0.08, dtype=torch.float64)
     means[:40, 0] *= 6  # far outside the frustum: exercises the 1.3·tan(fov/2) clamp of J
@@ -216,8 +236,17 @@ def test_projection_matches_gsplat_torch_impl(mode):
     cam = look_at((0.1, -3.0, 0.4), (0, 0, 0), (0, 0, 1), 50, 80, 60).to(dtype=torch.float64)
     cam.K[0, 2] += 3.7  # off-centre principal point: asymmetric clamp limits
     radii, m2d, depths, conics, comp = _fully_fused_projection(
-        means, cov, cam.viewmat[None], cam.K[None], cam.width, cam.height, eps2d=0.3, near_plane=0.01,
-        far_plane=1e10, calc_compensations=mode == "antialiased")
+        means,
+        cov,
+        cam.viewmat[None],
+        cam.K[None],
+        cam.width,
+        cam.height,
+        eps2d=0.3,
+        near_plane=0.01,
+        far_plane=1e10,
+        calc_compensations=mode == "antialiased",
+    )
     p = project_gaussians(means, cov, cam.viewmat, cam.K, cam.width, cam.height, 0.3, 0.01, 1e10, mode, None)
     ok = (radii[0] > 0).all(-1)
     msg = lambda m: f"seed {seed}: {m}"
@@ -234,8 +263,9 @@ def _threshold_ambiguous(means, cov, opac, cam, mode, pixels, rel=1e-4):
     """For each pixel (row, col): does some compositing decision at it (α ≥ 1/255, T(1−α) ≤ 1e-4)
     sit within `rel` of its threshold in float64, so float32 rounding may flip it?"""
     f = lambda t: t.double()
-    p = project_gaussians(f(means), f(cov), f(cam.viewmat), f(cam.K), cam.width, cam.height, 0.3, 0.01, 1e10,
-                          mode, None)
+    p = project_gaussians(
+        f(means), f(cov), f(cam.viewmat), f(cam.K), cam.width, cam.height, 0.3, 0.01, 1e10, mode, None
+    )
     ids = torch.nonzero((p.depths >= 0.01) & (torch.linalg.det(p.covars2d) > 0)).squeeze(1)
     ids = ids[torch.sort(p.depths[ids], stable=True).indices]
     o = f(opac) * (p.compensations if mode == "antialiased" else 1.0)
@@ -243,7 +273,7 @@ def _threshold_ambiguous(means, cov, opac, cam, mode, pixels, rel=1e-4):
     for r, c in pixels:
         d = p.means2d[ids] - torch.tensor([c + 0.5, r + 0.5], dtype=torch.float64)
         a, b, cc = p.conics[ids].unbind(-1)
-        alpha = (o[ids] * torch.exp(-(0.5 * (a * d[:, 0] ** 2 + cc * d[:, 1] ** 2) + b * d[:, 0] * d[:, 1])))
+        alpha = o[ids] * torch.exp(-(0.5 * (a * d[:, 0] ** 2 + cc * d[:, 1] ** 2) + b * d[:, 0] * d[:, 1]))
         alpha = alpha.clamp_max(0.999)
         T, near = 1.0, False
         for al in alpha.tolist():
@@ -308,11 +338,13 @@ def test_backend_choice_by_device_never_imports_gsplat_on_cpu():
         render(*args, backend="gsplat")
     with pytest.raises(ValueError, match="backend"):
         render(*args, backend="vulkan")
-    code = ("import sys, torch\nfrom fracture_gs.render import render, look_at\n"
-            "cam = look_at((0, -2, 0), (0, 0, 0), (0, 0, 1), 40, 16, 16)\n"
-            "out = render(torch.zeros(1, 3), 0.01 * torch.eye(3)[None], torch.ones(1, 3), torch.ones(1), cam)\n"
-            "assert out.backend == 'torch'\n"
-            "assert not any(m.startswith('gsplat') for m in sys.modules), 'gsplat imported on CPU'\n")
+    code = (
+        "import sys, torch\nfrom fracture_gs.render import render, look_at\n"
+        "cam = look_at((0, -2, 0), (0, 0, 0), (0, 0, 1), 40, 16, 16)\n"
+        "out = render(torch.zeros(1, 3), 0.01 * torch.eye(3)[None], torch.ones(1, 3), torch.ones(1), cam)\n"
+        "assert out.backend == 'torch'\n"
+        "assert not any(m.startswith('gsplat') for m in sys.modules), 'gsplat imported on CPU'\n"
+    )
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
 
@@ -321,8 +353,12 @@ def test_print_cpu_speed_20k_256():
     """Not a timed assertion: prints the torch backend's CPU time for 20k Gaussians at 256²."""
     seed, g = fresh_seed()
     n = 20000
-    means = torch.nn.functional.normalize(torch.randn(n, 3, generator=g), dim=1) * 0.35 \
-        * (1 + 0.15 * torch.randn(n, 1, generator=g)) * torch.tensor([1.3, 1.0, 0.8])
+    means = (
+        torch.nn.functional.normalize(torch.randn(n, 3, generator=g), dim=1)
+        * 0.35
+        * (1 + 0.15 * torch.randn(n, 1, generator=g))
+        * torch.tensor([1.3, 1.0, 0.8])
+    )
     Q = random_rotations(n, g).float()
     M = Q * (0.012 * torch.exp(0.5 * torch.randn(n, 3, generator=g)))[:, None, :]
     cov, opac, cols = M @ M.transpose(1, 2), 0.3 + 0.7 * torch.rand(n, generator=g), torch.rand(n, 3, generator=g)
@@ -333,6 +369,8 @@ def test_print_cpu_speed_20k_256():
         t0 = time.perf_counter()
         out = render(means, cov, cols, opac, cam)
         times.append(time.perf_counter() - t0)
-    print(f"\n[speed] torch backend, {n} Gaussians, 256x256, {torch.get_num_threads()} threads: "
-          f"best {min(times):.3f} s/frame (seed {seed}, coverage {out.alpha.mean():.2f}; "
-          f"load average {os.getloadavg()[0]:.1f})")
+    print(
+        f"\n[speed] torch backend, {n} Gaussians, 256x256, {torch.get_num_threads()} threads: "
+        f"best {min(times):.3f} s/frame (seed {seed}, coverage {out.alpha.mean():.2f}; "
+        f"load average {os.getloadavg()[0]:.1f})"
+    )

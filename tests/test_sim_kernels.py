@@ -1,10 +1,11 @@
 """Each Warp kernel (stress, P2G, grid update, G2P) against its float64 torch reference on random
 particles, plus partition of unity. Relative error ≤ 1e-5 (float32 kernels vs float64 truth)."""
+
 import torch
+from simutil import config, rand_rotations, rel_err
 
 from fracture_gs import sim as S
 from fracture_gs.sim import reference as ref
-from simutil import config, rand_rotations, rel_err
 
 N = 3000
 
@@ -17,9 +18,14 @@ def random_state(seed, device, variant="baseline", n_grid=32):
     s = 0.6 + 0.8 * torch.rand(N, 3, generator=g, dtype=torch.float64)
     F = (U @ torch.diag_embed(s) @ V.transpose(1, 2)).float()
     P = S.Particles(
-        x=x, v=torch.randn(N, 3, generator=g), C=torch.randn(N, 3, 3, generator=g) * 2.0, F=F,
-        mass=0.5 + torch.rand(N, generator=g), volume=(0.5 + torch.rand(N, generator=g)) * 1e-3,
-        E=1e3 + 1e4 * torch.rand(N, generator=g), nu=0.45 * torch.rand(N, generator=g),
+        x=x,
+        v=torch.randn(N, 3, generator=g),
+        C=torch.randn(N, 3, 3, generator=g) * 2.0,
+        F=F,
+        mass=0.5 + torch.rand(N, generator=g),
+        volume=(0.5 + torch.rand(N, generator=g)) * 1e-3,
+        E=1e3 + 1e4 * torch.rand(N, generator=g),
+        nu=0.45 * torch.rand(N, generator=g),
         material=torch.randint(0, 4, (N,), generator=g, dtype=torch.int32),
         yield_stress=1e2 + 1e3 * torch.rand(N, generator=g),
     )
@@ -44,8 +50,9 @@ def test_p2g_grid_g2p_match_reference(device, seed):
     P, g, dt = sim.particles, sim.grid, 1e-3
     sim.compute_stress(sim.stress, commit=True)
     x0, F0, field = P.x.cpu().clone(), P.F.cpu().clone(), torch.zeros(N, dtype=torch.long)
-    gm, gp, gb = ref.p2g(x0, P.v.cpu(), P.C.cpu(), P.mass.cpu(), P.volume.cpu(), sim.stress.cpu(), field, 1, g.shape,
-                         g.origin, g.dx, dt)
+    gm, gp, gb = ref.p2g(
+        x0, P.v.cpu(), P.C.cpu(), P.mass.cpu(), P.volume.cpu(), sim.stress.cpu(), field, 1, g.shape, g.origin, g.dx, dt
+    )
     sim.p2g(dt)
     assert rel_err(g.mass[:1].cpu(), gm) <= 1e-5, f"P2G mass (seed {seed})"
     assert rel_err(g.momentum[:1].cpu(), gp) <= 1e-5, f"P2G momentum (seed {seed})"

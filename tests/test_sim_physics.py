@@ -1,14 +1,13 @@
 """Physics the solver must get right: exact free fall, momentum and angular momentum conservation,
 rigidity, plane contact modes, stability at high stiffness, divergence detection, extreme
 deformations, plastic return mappings."""
-import math
 
 import pytest
 import torch
+from simutil import angular_momentum, block, config, particles, skew
 
 from fracture_gs import sim as S
 from fracture_gs.sim import reference as ref
-from simutil import angular_momentum, block, config, particles, skew
 
 
 def test_free_fall_matches_discrete_solution(device, seed):
@@ -149,8 +148,17 @@ def plastic_state(device, seed, model):
     U, V = rand_rotations(n, g), rand_rotations(n, g)
     s = torch.exp(0.4 * torch.randn(n, 3, generator=g, dtype=torch.float64))
     F = (U @ torch.diag_embed(s) @ V.transpose(1, 2)).float()
-    P = S.Particles(x=x, mass=torch.ones(n), volume=torch.full((n,), 1e-6), F=F, E=1e5, nu=0.3, material=model,
-                    yield_stress=2e3 + 5e3 * torch.rand(n, generator=g), friction_angle=35.0)
+    P = S.Particles(
+        x=x,
+        mass=torch.ones(n),
+        volume=torch.full((n,), 1e-6),
+        F=F,
+        E=1e5,
+        nu=0.3,
+        material=model,
+        yield_stress=2e3 + 5e3 * torch.rand(n, generator=g),
+        friction_angle=35.0,
+    )
     return S.Simulator(config(32), P, device=device)
 
 
@@ -204,10 +212,12 @@ def test_timed_particle_regions(device):
     """An impulse region adds its Δv in total over its window to the particles inside it only;
     a velocity region overrides velocity while active."""
     x, vol = block((0.3, 0.4, 0.4), (0.7, 0.6, 0.6), 1 / 48)
-    left = S.ParticleRegion(kind="impulse", lower=(0.0, 0.0, 0.0), upper=(0.45, 1.0, 1.0), delta_v=(0.0, 0.0, 3.0),
-                            start=0.0, end=0.01)
-    right = S.ParticleRegion(kind="velocity", lower=(0.6, 0.0, 0.0), upper=(1.0, 1.0, 1.0), velocity=(0.5, 0.0, 0.0),
-                             start=0.0, end=0.0)
+    left = S.ParticleRegion(
+        kind="impulse", lower=(0.0, 0.0, 0.0), upper=(0.45, 1.0, 1.0), delta_v=(0.0, 0.0, 3.0), start=0.0, end=0.01
+    )
+    right = S.ParticleRegion(
+        kind="velocity", lower=(0.6, 0.0, 0.0), upper=(1.0, 1.0, 1.0), velocity=(0.5, 0.0, 0.0), start=0.0, end=0.0
+    )
     P = particles(x, vol, E=1.0)  # nearly no elasticity: velocities stay what the regions set
     sim = S.Simulator(config(32, dt=1e-3, boundaries=[left, right]), P, device=device)
     inside_left = (P.x[:, 0] <= 0.45).cpu()
@@ -234,10 +244,17 @@ def test_frame_is_whole_number_of_substeps(device):
     assert sim.time == 0.02
 
 
-@pytest.mark.parametrize("field, kwargs", [
-    ("nu", dict(nu=0.5)), ("nu", dict(nu=-0.1)), ("E", dict(E=0.0)), ("mass", dict(mass=torch.zeros(8))),
-    ("v", dict(v=torch.zeros(7, 3))), ("F", dict(F=torch.eye(3).expand(3, 3, 3))),
-])
+@pytest.mark.parametrize(
+    "field, kwargs",
+    [
+        ("nu", dict(nu=0.5)),
+        ("nu", dict(nu=-0.1)),
+        ("E", dict(E=0.0)),
+        ("mass", dict(mass=torch.zeros(8))),
+        ("v", dict(v=torch.zeros(7, 3))),
+        ("F", dict(F=torch.eye(3).expand(3, 3, 3))),
+    ],
+)
 def test_invalid_parameters_name_the_field(field, kwargs):
     x = torch.rand(8, 3) * 0.1 + 0.45
     base = dict(mass=torch.ones(8), volume=torch.ones(8) * 1e-6)
@@ -269,7 +286,11 @@ def test_material_map_sets_per_particle_parameters():
     crust = gs.labels == 0
     assert bool(crust.any()) and bool((~crust).any())
     assert torch.all(P.E[crust] == 4e3) and torch.all(P.E[~crust] == 2e3)
-    assert torch.all(P.sigma_R[crust] == 150.0) and torch.all(P.material[crust] == 1) and torch.all(P.material[~crust] == 0)
+    assert (
+        torch.all(P.sigma_R[crust] == 150.0)
+        and torch.all(P.material[crust] == 1)
+        and torch.all(P.material[~crust] == 0)
+    )
     assert torch.allclose(P.mass, 200.0 * P.volume)
 
 

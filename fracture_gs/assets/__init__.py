@@ -5,6 +5,7 @@ Gaussians + interior fill particles, int32 material labels) for one of `names()`
 are documented in `fracture_gs.assets.scenes`. `fill_interior(gs)` adds interior particles to a
 surface-only reconstruction.
 """
+
 from __future__ import annotations
 
 from ..io.gaussian_set import GaussianSet
@@ -20,8 +21,9 @@ def names() -> list[str]:
     return list(SCENES)
 
 
-def build(name: str, size: str = "small", seed: int = 0, n: int | None = None,
-          sh_degree: int = 1, device="cpu") -> GaussianSet:
+def build(
+    name: str, size: str = "small", seed: int = 0, n: int | None = None, sh_degree: int = 1, device="cpu"
+) -> GaussianSet:
     """Build scene `name` with `size` (`small` ≈ 20k, `paper` = the paper's count) or exactly `n`
     particles; deterministic for a given seed."""
     if name not in SCENES:
@@ -32,8 +34,7 @@ def build(name: str, size: str = "small", seed: int = 0, n: int | None = None,
             raise ValueError(f"unknown size '{size}' for scene '{name}'; use 'small' or 'paper'")
         n = spec.paper_n if size == "paper" else SIZES[size]
     if int(n) < 1 or not 0 <= int(sh_degree) <= 3:
-        raise ValueError(f"scene '{name}': n must be ≥ 1 and sh_degree in 0..3 (got n={n}, "
-                         f"sh_degree={sh_degree})")
+        raise ValueError(f"scene '{name}': n must be ≥ 1 and sh_degree in 0..3 (got n={n}, sh_degree={sh_degree})")
     return build_scene(spec, int(n), seed=seed, sh_degree=int(sh_degree), device=device)
 
 

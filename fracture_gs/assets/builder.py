@@ -5,6 +5,7 @@ MPM volume ≈ h³. The outer layer (sdf > -h) becomes drawn surface Gaussians, 
 surface along the normal and flattened along it; foliage labels keep a thicker drawn layer (2h)
 of randomly tilted flat Gaussians; the rest are interior fill particles (`interior=True`).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -85,6 +86,5 @@ def build_scene(spec: SceneSpec, n: int, seed: int = 0, sh_degree: int = 1, devi
     rgb = spec.colors(p, labels, normals, s, gen).clamp(0.0, 1.0)
     sh = G.rgb_to_sh(rgb, sh_degree, spec.view_std, gen)
     sh[~s, 1:] = 0.0  # interior particles: no view dependence
-    gs = GaussianSet(means=p, quats=quats, scales=scales, opacities=opacities, sh=sh,
-                     interior=~s, labels=labels)
+    gs = GaussianSet(means=p, quats=quats, scales=scales, opacities=opacities, sh=sh, interior=~s, labels=labels)
     return gs.to(device)

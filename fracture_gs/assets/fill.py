@@ -20,6 +20,7 @@ voxels, a few hundred MB of temporaries at most) and at most `max_particles` par
 (default 200,000); the voxel size grows until both hold. Cost is O(voxels + Σ splat footprints),
 a few seconds for 200k Gaussians.
 """
+
 from __future__ import annotations
 
 import math
@@ -92,8 +93,7 @@ def _splat(gs: GaussianSet, grid: _Grid, max_radius: int) -> tuple[torch.Tensor,
         m = reach[max(abs(c) for c in off)]
         dx, dy, dz = (d0[a, :m] + off[a] for a in range(3))
         p = P[:, :m]
-        m2 = (p[0] * dx * dx + p[1] * dy * dy + p[2] * dz * dz
-              + 2 * (p[3] * dx * dy + p[4] * dx * dz + p[5] * dy * dz))
+        m2 = p[0] * dx * dx + p[1] * dy * dy + p[2] * dz * dz + 2 * (p[3] * dx * dy + p[4] * dx * dz + p[5] * dy * dz)
         hit = torch.nonzero(m2 <= 9.0).squeeze(1)
         w = alpha[hit] * torch.exp(-0.5 * m2[hit])
         flat = flat0[hit] + int((torch.tensor(off) * grid.strides).sum())
@@ -183,9 +183,13 @@ def _interior_set(src: GaussianSet, pts: torch.Tensor, near: torch.Tensor, dv: f
     quats = torch.zeros(q, 4)
     quats[:, 0] = 1
     return GaussianSet(
-        means=pts.float(), quats=quats, scales=torch.full((q, 3), 0.5 * dv),
-        opacities=torch.full((q,), INTERIOR_OPACITY), sh=sh,
-        interior=torch.ones(q, dtype=torch.bool), labels=src.labels[near],
+        means=pts.float(),
+        quats=quats,
+        scales=torch.full((q, 3), 0.5 * dv),
+        opacities=torch.full((q,), INTERIOR_OPACITY),
+        sh=sh,
+        interior=torch.ones(q, dtype=torch.bool),
+        labels=src.labels[near],
         extra={k: v[near] for k, v in src.extra.items()},
     )
 
@@ -195,9 +199,13 @@ def _concat(a: GaussianSet, b: GaussianSet) -> GaussianSet:
     dev = a.device
     cat = lambda x, y: torch.cat([x, y.to(dev, x.dtype)])  # noqa: E731
     return GaussianSet(
-        means=cat(a.means, b.means), quats=cat(a.quats, b.quats), scales=cat(a.scales, b.scales),
-        opacities=cat(a.opacities, b.opacities), sh=cat(a.sh, b.sh),
-        interior=cat(a.interior, b.interior), labels=cat(a.labels, b.labels),
+        means=cat(a.means, b.means),
+        quats=cat(a.quats, b.quats),
+        scales=cat(a.scales, b.scales),
+        opacities=cat(a.opacities, b.opacities),
+        sh=cat(a.sh, b.sh),
+        interior=cat(a.interior, b.interior),
+        labels=cat(a.labels, b.labels),
         extra={k: cat(v, b.extra[k]) for k, v in a.extra.items()},
     )
 
@@ -209,9 +217,16 @@ def _voxel_size(src: GaussianSet, spacing, ext: float, max_grid: int, pad: int) 
     return max(dv, ext / max(1, max_grid - 2 * pad - 1), _TINY)
 
 
-def fill_interior(gs: GaussianSet, spacing: float | None = None, max_particles: int = 200_000,
-                  max_grid: int = 256, threshold: float = 0.2, min_opacity: float = 0.05,
-                  max_radius: int = 3, seed: int = 0) -> GaussianSet:
+def fill_interior(
+    gs: GaussianSet,
+    spacing: float | None = None,
+    max_particles: int = 200_000,
+    max_grid: int = 256,
+    threshold: float = 0.2,
+    min_opacity: float = 0.05,
+    max_radius: int = 3,
+    seed: int = 0,
+) -> GaussianSet:
     """`gs` followed by interior particles (interior=True) filling the volume its Gaussians
     enclose (see the module doc).
 

@@ -7,6 +7,7 @@ Conventions (shared by the built-in scenes and the interior fill):
   * interior particles are isotropic with standard deviation h/2 and identity rotation;
   * colours are RGB in [0, 1]; SH DC = (rgb - ½) / C0 and higher bands get small random terms.
 """
+
 from __future__ import annotations
 
 import math
@@ -21,12 +22,15 @@ def quat_mul(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:  # [M, 4] × [M,
     """Hamilton product of wxyz quaternions."""
     aw, ax, ay, az = a.unbind(-1)
     bw, bx, by, bz = b.unbind(-1)
-    return torch.stack([
-        aw * bw - ax * bx - ay * by - az * bz,
-        aw * bx + ax * bw + ay * bz - az * by,
-        aw * by - ax * bz + ay * bw + az * bx,
-        aw * bz + ax * by - ay * bx + az * bw,
-    ], dim=-1)
+    return torch.stack(
+        [
+            aw * bw - ax * bx - ay * by - az * bz,
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+        ],
+        dim=-1,
+    )
 
 
 def quat_z_to(n: torch.Tensor) -> torch.Tensor:  # [M, 3] unit -> [M, 4]

@@ -7,6 +7,7 @@ grid-aligned artefacts. Blocks of `BLOCK`³ cells whose centre lies
 farther outside than the block's half-diagonal are skipped, so the SDF is evaluated only near the
 solid (the paper-size scenes sample in about a second).
 """
+
 from __future__ import annotations
 
 import math
@@ -30,8 +31,7 @@ def eval_chunked(sdf: Sdf, p: torch.Tensor) -> torch.Tensor:  # [M, 3] -> [M]
 
 def _lattice(lower: torch.Tensor, counts: list, step: float, offset: torch.Tensor) -> torch.Tensor:
     """Cell centres lower + offset + (i + ½)·step for i in [0, counts) per axis: [∏counts, 3]."""
-    axes = [lower[a] + offset[a] + (torch.arange(counts[a], dtype=torch.float32) + 0.5) * step
-            for a in range(3)]
+    axes = [lower[a] + offset[a] + (torch.arange(counts[a], dtype=torch.float32) + 0.5) * step for a in range(3)]
     return torch.stack(torch.meshgrid(*axes, indexing="ij"), dim=-1).reshape(-1, 3)
 
 

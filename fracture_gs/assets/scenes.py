@@ -19,6 +19,7 @@ plane_drop  capsule of total length 0.3 (segment x∈[0.40,0.60] of radius 0.05 
 plate_drop  a glazed plate: disc of radius 0.14 and thickness 0.03 centred at (0.5,0.5,0.30), tilted
             6° about y (+x edge lower); one label 0 (ceramic).
 """
+
 from __future__ import annotations
 
 import math
@@ -78,8 +79,9 @@ def _bread_colors(p, labels, normals, surface, gen):
     return _by_label(labels, {0: crust, 1: crumb})
 
 
-BREAD = SceneSpec("bread", (0.25, 0.39, 0.15), (0.75, 0.61, 0.33), 182_959,
-                  _bread_sdf, _bread_labels, _bread_colors, view_std=0.04)
+BREAD = SceneSpec(
+    "bread", (0.25, 0.39, 0.15), (0.75, 0.61, 0.33), 182_959, _bread_sdf, _bread_labels, _bread_colors, view_std=0.04
+)
 
 # ----------------------------------------------------------------------------- ficus
 
@@ -129,14 +131,21 @@ def _pot_sdf(p):
 
 def _soil_sdf(p):
     w = POT["wall"]
-    return S.capped_cone_z(p, _AXIS, POT["z0"] + w, POT["z1"] + 0.01, POT["r0"] - w,
-                           POT["r1"] - w + (POT["r1"] - POT["r0"]) * 0.01 / (POT["z1"] - POT["z0"]))
+    return S.capped_cone_z(
+        p,
+        _AXIS,
+        POT["z0"] + w,
+        POT["z1"] + 0.01,
+        POT["r0"] - w,
+        POT["r1"] - w + (POT["r1"] - POT["r0"]) * 0.01 / (POT["z1"] - POT["z0"]),
+    )
 
 
 def _wood_sdf(p):
     n = len(_TRUNK) - 1
-    ds = [S.capsule(p, _TRUNK[i], _TRUNK[i + 1], (0.016 - 0.005 * i / n, 0.016 - 0.005 * (i + 1) / n))
-          for i in range(n)]
+    ds = [
+        S.capsule(p, _TRUNK[i], _TRUNK[i + 1], (0.016 - 0.005 * i / n, 0.016 - 0.005 * (i + 1) / n)) for i in range(n)
+    ]
     ds += [S.capsule(p, a, b, (0.008, 0.005)) for a, b in _BRANCHES]
     return S.union(*ds)
 
@@ -168,8 +177,17 @@ def _ficus_colors(p, labels, normals, surface, gen):
     return _by_label(labels, {0: pot, 1: soil, 2: wood, 3: leaf})
 
 
-FICUS = SceneSpec("ficus", (0.30, 0.30, 0.05), (0.70, 0.70, 0.75), 171_553,
-                  _ficus_sdf, _ficus_labels, _ficus_colors, foliage=(3,), view_std=0.03)
+FICUS = SceneSpec(
+    "ficus",
+    (0.30, 0.30, 0.05),
+    (0.70, 0.70, 0.75),
+    171_553,
+    _ficus_sdf,
+    _ficus_labels,
+    _ficus_colors,
+    foliage=(3,),
+    view_std=0.03,
+)
 
 # ----------------------------------------------------------------------------- recontact blocks
 
@@ -188,8 +206,15 @@ def _recontact_colors(p, labels, normals, surface, gen):
     return _by_label(labels, {0: a, 1: b})
 
 
-RECONTACT = SceneSpec("recontact", BLOCK_A[0], BLOCK_B[1], 170_000, _recontact_sdf,
-                      lambda p, d, h: torch.where(p[:, 0] < 0.48, 0, 1), _recontact_colors)
+RECONTACT = SceneSpec(
+    "recontact",
+    BLOCK_A[0],
+    BLOCK_B[1],
+    170_000,
+    _recontact_sdf,
+    lambda p, d, h: torch.where(p[:, 0] < 0.48, 0, 1),
+    _recontact_colors,
+)
 
 # ----------------------------------------------------------------------------- beam
 
@@ -204,8 +229,15 @@ def _beam_colors(p, labels, normals, surface, gen):
     return _vary(wood, p, gen, 6.0, 0.05, 0.03)
 
 
-BEAM = SceneSpec("beam", *BEAM_BOX, 170_000, lambda p: S.box(p, *BEAM_BOX),
-                 lambda p, d, h: torch.zeros(len(p), dtype=torch.int32), _beam_colors, view_std=0.02)
+BEAM = SceneSpec(
+    "beam",
+    *BEAM_BOX,
+    170_000,
+    lambda p: S.box(p, *BEAM_BOX),
+    lambda p, d, h: torch.zeros(len(p), dtype=torch.int32),
+    _beam_colors,
+    view_std=0.02,
+)
 
 # ----------------------------------------------------------------------------- plane drop
 
@@ -238,9 +270,14 @@ def _drop_box():
     return (c[0] - ex, c[1] - DROP_RADIUS, c[2] - ez), (c[0] + ex, c[1] + DROP_RADIUS, c[2] + ez)
 
 
-PLANE_DROP = SceneSpec("plane_drop", *_drop_box(), 170_000, _drop_sdf,
-                       lambda p, d, h: torch.where(_drop_rest(p)[:, 0] < DROP_CENTER[0], 0, 1),
-                       _drop_colors)
+PLANE_DROP = SceneSpec(
+    "plane_drop",
+    *_drop_box(),
+    170_000,
+    _drop_sdf,
+    lambda p, d, h: torch.where(_drop_rest(p)[:, 0] < DROP_CENTER[0], 0, 1),
+    _drop_colors,
+)
 
 # ----------------------------------------------------------------------------- plate drop
 
@@ -271,7 +308,14 @@ def _plate_box():
     return (c[0] - ex, c[1] - PLATE_RADIUS, c[2] - ez), (c[0] + ex, c[1] + PLATE_RADIUS, c[2] + ez)
 
 
-PLATE = SceneSpec("plate_drop", *_plate_box(), 170_000, _plate_sdf,
-                  lambda p, d, h: torch.zeros(len(p), dtype=torch.int32), _plate_colors, view_std=0.05)
+PLATE = SceneSpec(
+    "plate_drop",
+    *_plate_box(),
+    170_000,
+    _plate_sdf,
+    lambda p, d, h: torch.zeros(len(p), dtype=torch.int32),
+    _plate_colors,
+    view_std=0.05,
+)
 
 SCENES = {s.name: s for s in (BREAD, FICUS, RECONTACT, BEAM, PLANE_DROP, PLATE)}

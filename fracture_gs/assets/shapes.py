@@ -4,6 +4,7 @@ All functions take points `p` [M, 3] (float32 torch) and return distances [M]. F
 standard exact SDFs (box, capsule, capped cone) and first-order ones (ellipsoid, smooth min/max);
 the built-in scenes combine them with `union`/`smooth_max`.
 """
+
 from __future__ import annotations
 
 import math

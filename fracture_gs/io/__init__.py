@@ -1,4 +1,5 @@
 """Input/output: 3DGS PLY files, TOML configs, videos. Imports neither `sim` nor `render`."""
+
 from .config import ConfigError, dump_config, load_config
 from .gaussian_set import GaussianSet
 from .ply import PlyError, load_ply, save_ply

@@ -1,4 +1,5 @@
 """`GaussianSet`: a 3D Gaussian scene as torch tensors (the type io, assets and users share)."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field, fields, replace
@@ -43,12 +44,12 @@ class GaussianSet:
     def device(self) -> torch.device:
         return self.means.device
 
-    def to(self, device) -> "GaussianSet":
+    def to(self, device) -> GaussianSet:
         moved = {f.name: getattr(self, f.name) for f in fields(self) if f.name != "extra"}
         moved = {k: v.to(device) if torch.is_tensor(v) else v for k, v in moved.items()}
         return GaussianSet(**moved, extra={k: v.to(device) for k, v in self.extra.items()})
 
-    def subset(self, mask: torch.Tensor) -> "GaussianSet":
+    def subset(self, mask: torch.Tensor) -> GaussianSet:
         """The Gaussians selected by a boolean mask or index tensor."""
         pick = {f.name: getattr(self, f.name)[mask] for f in fields(self) if f.name != "extra"}
         return GaussianSet(**pick, extra={k: v[mask] for k, v in self.extra.items()})
@@ -58,9 +59,15 @@ class GaussianSet:
         w, x, y, z = torch.nn.functional.normalize(self.quats, dim=-1).unbind(-1)
         return torch.stack(
             [
-                1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
-                2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
-                2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y),
+                1 - 2 * (y * y + z * z),
+                2 * (x * y - w * z),
+                2 * (x * z + w * y),
+                2 * (x * y + w * z),
+                1 - 2 * (x * x + z * z),
+                2 * (y * z - w * x),
+                2 * (x * z - w * y),
+                2 * (y * z + w * x),
+                1 - 2 * (x * x + y * y),
             ],
             dim=-1,
         ).reshape(-1, 3, 3)
@@ -70,5 +77,5 @@ class GaussianSet:
         M = self.rotations() * self.scales[:, None, :]
         return M @ M.transpose(1, 2)
 
-    def replace(self, **changes) -> "GaussianSet":
+    def replace(self, **changes) -> GaussianSet:
         return replace(self, **changes)

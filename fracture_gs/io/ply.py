@@ -17,6 +17,7 @@ wherever the activated value is still the one it came from (so `save_ply(load_pl
 every property bit for bit) and the float64 inverse elsewhere. Other vertex properties travel in
 `gs.extra`; `interior` and `labels` are written as `fgs_interior` (uint8) and `fgs_label` (int32).
 """
+
 from __future__ import annotations
 
 import os
@@ -26,16 +27,14 @@ import numpy as np
 import torch
 from plyfile import PlyData, PlyElement
 
-from .gaussian_set import GaussianSet
-
 from ..errors import PlyError
+from .gaussian_set import GaussianSet
 
 INTERIOR_PROP = "fgs_interior"
 LABEL_PROP = "fgs_label"
 NORMAL_PROPS = ("nx", "ny", "nz")
 SH_REST_COUNTS = {0: 0, 9: 1, 24: 2, 45: 3}  # number of f_rest_* -> SH degree
 _LOGIT_CLAMP = 80.0  # |logit| written for opacities 0 or 1 (sigmoid(80) == 1 in float32)
-
 
 
 @dataclass
@@ -52,6 +51,7 @@ class _RawCache:
 
 
 # ----------------------------------------------------------------------------- activations
+
 
 def _activate_scale(raw: np.ndarray) -> np.ndarray:
     """exp(log-scale) in float64, stored as float32."""
@@ -84,6 +84,7 @@ def _inverse_opacity(p: np.ndarray) -> np.ndarray:
 
 # ----------------------------------------------------------------------------- reading
 
+
 def _fail(path, msg: str) -> PlyError:
     return PlyError(f"{path}: {msg}")
 
@@ -96,12 +97,16 @@ def _read_vertex(path) -> tuple[np.ndarray, list]:
         ply = PlyData.read(str(path))
     except Exception as err:  # plyfile raises many types; the user gets one sentence
         reason = " ".join(str(err).split())[:160] or type(err).__name__
-        raise _fail(path, f"is not a readable PLY file ({reason}); export the scene again as a "
-                          "binary 3DGS .ply") from None
+        raise _fail(
+            path, f"is not a readable PLY file ({reason}); export the scene again as a binary 3DGS .ply"
+        ) from None
     names = [el.name for el in ply.elements]
     if "vertex" not in names:
-        raise _fail(path, f"has no 'vertex' element (elements: {names or 'none'}); a 3DGS .ply "
-                          "stores one Gaussian per vertex, so export the Gaussians, not a mesh")
+        raise _fail(
+            path,
+            f"has no 'vertex' element (elements: {names or 'none'}); a 3DGS .ply "
+            "stores one Gaussian per vertex, so export the Gaussians, not a mesh",
+        )
     data = ply["vertex"].data
     if len(data) == 0:
         raise _fail(path, "element 'vertex' is empty; the scene has no Gaussians to load")
@@ -117,19 +122,25 @@ def _column(path, data, name: str) -> np.ndarray:  # [N]
     bad = ~np.isfinite(col)
     if bad.any():
         first = int(np.flatnonzero(bad)[0])
-        raise _fail(path, f"property '{name}' has {int(bad.sum())} NaN/inf values (first at vertex "
-                          f"{first}, value {col[first]}); remove or repair those Gaussians before "
-                          "loading")
+        raise _fail(
+            path,
+            f"property '{name}' has {int(bad.sum())} NaN/inf values (first at vertex "
+            f"{first}, value {col[first]}); remove or repair those Gaussians before "
+            "loading",
+        )
     return col
 
 
 def _require(path, names: list, wanted: list) -> None:
     missing = [w for w in wanted if w not in names]
     if missing:
-        raise _fail(path, f"missing required property '{missing[0]}'"
-                          + (f" (and {len(missing) - 1} more)" if len(missing) > 1 else "")
-                          + "; a 3DGS .ply needs x y z, f_dc_0..2, opacity, scale_0..2 and "
-                            "rot_0..3, so export it from a Gaussian splatting trainer")
+        raise _fail(
+            path,
+            f"missing required property '{missing[0]}'"
+            + (f" (and {len(missing) - 1} more)" if len(missing) > 1 else "")
+            + "; a 3DGS .ply needs x y z, f_dc_0..2, opacity, scale_0..2 and "
+            "rot_0..3, so export it from a Gaussian splatting trainer",
+        )
 
 
 def _rest_names(path, names: list) -> list:
@@ -138,11 +149,17 @@ def _rest_names(path, names: list) -> list:
     idx = sorted(int(n[7:]) for n in rest if n[7:].isdigit())
     if len(idx) != len(rest) or idx != list(range(len(rest))):
         gap = next((f"f_rest_{i}" for i in range(len(rest)) if i not in idx), rest[-1])
-        raise _fail(path, f"property '{gap}' is missing: the {len(rest)} f_rest_* properties must "
-                          f"be numbered 0..{len(rest) - 1} without gaps; re-export the SH coefficients")
+        raise _fail(
+            path,
+            f"property '{gap}' is missing: the {len(rest)} f_rest_* properties must "
+            f"be numbered 0..{len(rest) - 1} without gaps; re-export the SH coefficients",
+        )
     if len(rest) not in SH_REST_COUNTS:
-        raise _fail(path, f"property 'f_rest_*' has {len(rest)} coefficients, but SH degree 0-3 "
-                          "needs 0, 9, 24 or 45; re-export with a supported SH degree")
+        raise _fail(
+            path,
+            f"property 'f_rest_*' has {len(rest)} coefficients, but SH degree 0-3 "
+            "needs 0, 9, 24 or 45; re-export with a supported SH degree",
+        )
     return [f"f_rest_{i}" for i in range(len(rest))]
 
 
@@ -150,18 +167,24 @@ def _check_scales(path, raw: np.ndarray, act: np.ndarray) -> None:  # [N, 3] eac
     bad = ~(np.isfinite(act) & (act > 0))
     if bad.any():
         v, k = (int(i) for i in np.argwhere(bad)[0])
-        raise _fail(path, f"property 'scale_{k}' gives {int(bad.sum())} zero or infinite standard "
-                          f"deviations after exp (first at vertex {v}, log-scale {raw[v, k]}); clamp "
-                          "log-scales to a finite range such as [-30, 10] before saving")
+        raise _fail(
+            path,
+            f"property 'scale_{k}' gives {int(bad.sum())} zero or infinite standard "
+            f"deviations after exp (first at vertex {v}, log-scale {raw[v, k]}); clamp "
+            "log-scales to a finite range such as [-30, 10] before saving",
+        )
 
 
 def _check_rots(path, raw: np.ndarray) -> None:  # [N, 4]
     norm = np.linalg.norm(raw.astype(np.float64), axis=1)
     bad = ~(norm > 0)
     if bad.any():
-        raise _fail(path, f"properties 'rot_0..rot_3' are a zero quaternion at {int(bad.sum())} "
-                          f"vertices (first at vertex {int(np.flatnonzero(bad)[0])}); write a unit "
-                          "quaternion such as (1, 0, 0, 0) for those Gaussians")
+        raise _fail(
+            path,
+            f"properties 'rot_0..rot_3' are a zero quaternion at {int(bad.sum())} "
+            f"vertices (first at vertex {int(np.flatnonzero(bad)[0])}); write a unit "
+            "quaternion such as (1, 0, 0, 0) for those Gaussians",
+        )
 
 
 def _extra_tensor(path, data, name: str, device) -> torch.Tensor | None:
@@ -203,21 +226,29 @@ def load_ply(path, device="cpu") -> GaussianSet:
 
     t = lambda a: torch.from_numpy(np.ascontiguousarray(a)).to(device)  # noqa: E731
     gs = GaussianSet(
-        means=t(means), quats=t(_activate_rot(raw_rot)), scales=t(scales),
-        opacities=t(_activate_opacity(raw_opacity)), sh=t(sh),
+        means=t(means),
+        quats=t(_activate_rot(raw_rot)),
+        scales=t(scales),
+        opacities=t(_activate_opacity(raw_opacity)),
+        sh=t(sh),
         interior=t(np.asarray(data[INTERIOR_PROP]) != 0) if INTERIOR_PROP in names else None,
         labels=t(np.asarray(data[LABEL_PROP]).astype(np.int32)) if LABEL_PROP in names else None,
         extra=extra,
     )
     gs.__dict__["_ply_raw"] = _RawCache(
-        scale=raw_scale, opacity=raw_opacity, rot=raw_rot, order=names,
+        scale=raw_scale,
+        opacity=raw_opacity,
+        rot=raw_rot,
+        order=names,
         had_normals=all(p in names for p in NORMAL_PROPS),
-        had_interior=INTERIOR_PROP in names, had_label=LABEL_PROP in names,
+        had_interior=INTERIOR_PROP in names,
+        had_label=LABEL_PROP in names,
     )
     return gs
 
 
 # ----------------------------------------------------------------------------- writing
+
 
 def _np(x: torch.Tensor) -> np.ndarray:
     return x.detach().cpu().numpy()
@@ -244,15 +275,20 @@ def _raw_fields(gs: GaussianSet) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 def _check_writable(gs: GaussianSet, path) -> None:
     s, q = _np(gs.scales), _np(gs.quats)
     if not (np.isfinite(s).all() and (s > 0).all()):
-        raise _fail(path, "cannot write field 'scales': it has zero, negative or non-finite values; "
-                          "clamp the scales to positive finite values first")
+        raise _fail(
+            path,
+            "cannot write field 'scales': it has zero, negative or non-finite values; "
+            "clamp the scales to positive finite values first",
+        )
     if not (np.isfinite(q).all() and (np.linalg.norm(q, axis=1) > 0).all()):
-        raise _fail(path, "cannot write field 'quats': it has zero or non-finite quaternions; "
-                          "normalize them first")
+        raise _fail(path, "cannot write field 'quats': it has zero or non-finite quaternions; normalize them first")
     for name, v in gs.extra.items():
         if not torch.is_tensor(v) or v.ndim != 1 or len(v) != len(gs):
-            raise _fail(path, f"cannot write extra property '{name}': it must be a [N] tensor with "
-                              f"N = {len(gs)}; reshape or drop it from gs.extra")
+            raise _fail(
+                path,
+                f"cannot write extra property '{name}': it must be a [N] tensor with "
+                f"N = {len(gs)}; reshape or drop it from gs.extra",
+            )
 
 
 def _columns(gs: GaussianSet, normals) -> dict:

@@ -3,6 +3,7 @@
 H.264 with yuv420p subsamples chroma 2×2, so both frame sides must be even: odd frames are
 padded by repeating their last row/column (never resized).
 """
+
 from __future__ import annotations
 
 import os
@@ -54,7 +55,7 @@ class VideoWriter:
         self.n_frames = 0
         self._gen = None
 
-    def __enter__(self) -> "VideoWriter":
+    def __enter__(self) -> VideoWriter:
         return self
 
     def __exit__(self, exc_type, exc, tb):
@@ -66,8 +67,14 @@ class VideoWriter:
 
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._gen = imageio_ffmpeg.write_frames(
-            str(self.path), (w, h), pix_fmt_in="rgb24", pix_fmt_out="yuv420p", fps=self.fps,
-            codec="libx264", quality=self.quality, macro_block_size=1,
+            str(self.path),
+            (w, h),
+            pix_fmt_in="rgb24",
+            pix_fmt_out="yuv420p",
+            fps=self.fps,
+            codec="libx264",
+            quality=self.quality,
+            macro_block_size=1,
             output_params=["-movflags", "+faststart"],
         )
         self._gen.send(None)
@@ -80,8 +87,10 @@ class VideoWriter:
         if self._gen is None:
             self._open(w, h)
         elif (w, h) != self.size:
-            raise ValueError(f"{self.path}: frame {self.n_frames} is {w}x{h} but the video is "
-                             f"{self.size[0]}x{self.size[1]}; give every frame the same size")
+            raise ValueError(
+                f"{self.path}: frame {self.n_frames} is {w}x{h} but the video is "
+                f"{self.size[0]}x{self.size[1]}; give every frame the same size"
+            )
         self._gen.send(img)
         self.n_frames += 1
 

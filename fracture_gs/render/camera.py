@@ -4,6 +4,7 @@
 coordinates; the camera centre is c = −Rᵀ t. Intrinsics K = [[f, 0, W/2], [0, f, H/2], [0, 0, 1]]
 with f = (H/2) / tan(fov_y/2) (square pixels). A pixel (u, v) covers [u, u+1) × [v, v+1).
 """
+
 from __future__ import annotations
 
 import math
@@ -33,9 +34,10 @@ class Camera:
         """Vertical field of view [degrees]."""
         return math.degrees(2 * math.atan(0.5 * self.height / float(self.K[1, 1])))
 
-    def to(self, device=None, dtype=None) -> "Camera":
-        return Camera(self.viewmat.to(device=device, dtype=dtype), self.K.to(device=device, dtype=dtype),
-                      self.width, self.height)
+    def to(self, device=None, dtype=None) -> Camera:
+        return Camera(
+            self.viewmat.to(device=device, dtype=dtype), self.K.to(device=device, dtype=dtype), self.width, self.height
+        )
 
     def project(self, points: Tensor) -> tuple[Tensor, Tensor]:  # [N,3] -> [N,2] pixels, [N] depth
         """Pinhole projection u = f_x x/z + c_x, v = f_y y/z + c_y of world points; depth = z."""
@@ -56,8 +58,7 @@ def intrinsics(fov_deg: float, width: int, height: int) -> Tensor:  # [3,3]
     return torch.tensor([[f, 0.0, width / 2], [0.0, f, height / 2], [0.0, 0.0, 1.0]])
 
 
-def look_at(eye, target, up=(0.0, 0.0, 1.0), fov_deg: float = 40.0, width: int = 256,
-            height: int = 256) -> Camera:
+def look_at(eye, target, up=(0.0, 0.0, 1.0), fov_deg: float = 40.0, width: int = 256, height: int = 256) -> Camera:
     """Camera at `eye` looking at `target`; image up is as close to `up` as possible.
 
     z = (target − eye)/|·|, x = z × up /|·| (right), y = z × x (down); R = [x; y; z], t = −R eye.
@@ -89,8 +90,16 @@ def _perp_basis(up: Tensor) -> tuple[Tensor, Tensor]:
     return e1, torch.linalg.cross(up, e1)
 
 
-def orbit(target, radius: float, elevation_deg: float, azimuth_deg: float, up=(0.0, 0.0, 1.0),
-          fov_deg: float = 40.0, width: int = 256, height: int = 256) -> Camera:
+def orbit(
+    target,
+    radius: float,
+    elevation_deg: float,
+    azimuth_deg: float,
+    up=(0.0, 0.0, 1.0),
+    fov_deg: float = 40.0,
+    width: int = 256,
+    height: int = 256,
+) -> Camera:
     """Camera on a sphere about `target`: eye = target + r (cos e (cos a e1 + sin a e2) + sin e up)."""
     target, up = _vec(target), _vec(up)
     up = up / up.norm()

@@ -3,6 +3,7 @@
 Images are numpy uint8 HxWx3 RGB (floats in [0, 1] and torch tensors are converted). Every
 function returns an image with even height and width (H.264 yuv420p needs it).
 """
+
 from __future__ import annotations
 
 import math
@@ -46,8 +47,9 @@ def _text_scale(text: str, max_w: int, max_h: int) -> tuple[float, int]:
     return scale, 1
 
 
-def _put_text_centered(img: np.ndarray, text: str, x0: int, y0: int, w: int, h: int, color,
-                       scale: Optional[float] = None) -> None:
+def _put_text_centered(
+    img: np.ndarray, text: str, x0: int, y0: int, w: int, h: int, color, scale: Optional[float] = None
+) -> None:
     fit, th = _text_scale(text, w - 6, h)
     scale = fit if scale is None else min(scale, fit)
     (tw, tht), base = cv2.getTextSize(text, FONT, scale, th)
@@ -55,8 +57,9 @@ def _put_text_centered(img: np.ndarray, text: str, x0: int, y0: int, w: int, h: 
     cv2.putText(img, text, org, FONT, scale, color, th, cv2.LINE_AA)
 
 
-def caption(img, text: str, bar_height: Optional[int] = None, position: str = "top",
-            scale: Optional[float] = None) -> np.ndarray:
+def caption(
+    img, text: str, bar_height: Optional[int] = None, position: str = "top", scale: Optional[float] = None
+) -> np.ndarray:
     """The image with a label bar (dark, centred white text) above (or below) it. The font scale
     is the largest that fits (capped by `scale`, so panels can share one size)."""
     img = as_uint8_rgb(img)
@@ -96,8 +99,12 @@ def side_by_side(images: Sequence, captions: Optional[Sequence[str]] = None, gap
     return pad_even(np.concatenate(parts, axis=1))
 
 
-def grid(rows_of_images: Sequence[Sequence], row_labels: Optional[Sequence[str]] = None,
-         col_labels: Optional[Sequence[str]] = None, gap: int = 4) -> np.ndarray:
+def grid(
+    rows_of_images: Sequence[Sequence],
+    row_labels: Optional[Sequence[str]] = None,
+    col_labels: Optional[Sequence[str]] = None,
+    gap: int = 4,
+) -> np.ndarray:
     """A table of images: column labels in a bar on top, row labels in a column on the left.
     Cells are padded (white) to the largest cell."""
     rows = [[as_uint8_rgb(i) for i in r] for r in rows_of_images]
@@ -124,7 +131,7 @@ def grid(rows_of_images: Sequence[Sequence], row_labels: Optional[Sequence[str]]
         scale = min(_text_scale(t, cw - 6, bh)[0] for t in col_labels)
         for c, t in enumerate(col_labels):
             x0 = lw + c * (cw + gap)
-            out[:bh, x0:x0 + cw] = BAR_BG
+            out[:bh, x0 : x0 + cw] = BAR_BG
             _put_text_centered(out, t, x0, 0, cw, bh, BAR_FG, scale)
     for r, row in enumerate(rows):
         y0 = top + r * (ch + gap)
@@ -132,12 +139,13 @@ def grid(rows_of_images: Sequence[Sequence], row_labels: Optional[Sequence[str]]
             _put_text_centered(out, row_labels[r], 0, y0 + (ch - bh) // 2, lw, bh, (0, 0, 0))
         for c, img in enumerate(row):
             x0 = lw + c * (cw + gap)
-            out[y0:y0 + img.shape[0], x0:x0 + img.shape[1]] = img
+            out[y0 : y0 + img.shape[0], x0 : x0 + img.shape[1]] = img
     return pad_even(out)
 
 
-def inset_placement(shape, center_xy, radius: float, zoom: float, margin: int = 4,
-                    gap: int = 4) -> tuple[float, float, float]:
+def inset_placement(
+    shape, center_xy, radius: float, zoom: float, margin: int = 4, gap: int = 4
+) -> tuple[float, float, float]:
     """Centre (x, y) and radius R of the inset disc: the image corner that admits the largest
     R ≤ radius·zoom with the inset inside the image and ≥ `gap` px away from the source circle
     (centre_xy, radius). If no corner admits R ≥ 8 px, the corner farthest from the source is used
@@ -192,7 +200,7 @@ def _bilinear(img: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:  # [
     x1, y1 = np.minimum(x0 + 1, w - 1), np.minimum(y0 + 1, h - 1)
     fx, fy = (x - x0)[..., None], (y - y0)[..., None]
     f = img.astype(np.float64)
-    return ((f[y0, x0] * (1 - fx) + f[y0, x1] * fx) * (1 - fy) + (f[y1, x0] * (1 - fx) + f[y1, x1] * fx) * fy)
+    return (f[y0, x0] * (1 - fx) + f[y0, x1] * fx) * (1 - fy) + (f[y1, x0] * (1 - fx) + f[y1, x1] * fx) * fy
 
 
 def magnify(img, center_xy, zoom: float, inset_xy, inset_r: float) -> tuple[np.ndarray, np.ndarray]:
@@ -200,14 +208,15 @@ def magnify(img, center_xy, zoom: float, inset_xy, inset_r: float) -> tuple[np.n
     center + (p − inset_centre)/zoom, sampled bilinearly. Returns (mask [H,W] bool, values [n,3])."""
     h, w = img.shape[:2]
     ys, xs = np.mgrid[0:h, 0:w] + 0.5
-    mask = (xs - inset_xy[0]) ** 2 + (ys - inset_xy[1]) ** 2 <= inset_r ** 2
+    mask = (xs - inset_xy[0]) ** 2 + (ys - inset_xy[1]) ** 2 <= inset_r**2
     sx = center_xy[0] + (xs[mask] - inset_xy[0]) / zoom
     sy = center_xy[1] + (ys[mask] - inset_xy[1]) / zoom
     return mask, np.clip(np.rint(_bilinear(img, sx, sy)), 0, 255).astype(np.uint8)
 
 
-def add_inset(img, center_xy, radius: float, zoom: float, inset_center_xy=None, color=INSET_COLOR,
-              thickness: Optional[int] = None) -> np.ndarray:
+def add_inset(
+    img, center_xy, radius: float, zoom: float, inset_center_xy=None, color=INSET_COLOR, thickness: Optional[int] = None
+) -> np.ndarray:
     """Circular magnified inset of the disc (center_xy, radius).
 
     The inset (radius R = radius·zoom, reduced — and the zoom with it, R/radius — when a corner

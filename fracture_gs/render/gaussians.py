@@ -10,6 +10,7 @@ The SH rotation is done by rotating the *view direction* instead of the coeffici
 the rest-frame SH at Rᵀd is exactly the SH of the rotated signal at d, for every degree.
 Takes tensors only; never imports `fracture_gs.sim`.
 """
+
 from __future__ import annotations
 
 import torch
@@ -18,10 +19,16 @@ from torch import Tensor
 # Real SH constants of the reference 3DGS implementation (Kerbl et al. 2023, `sh_utils.py`).
 SH_C0 = 0.28209479177387814
 SH_C1 = 0.4886025119029199
-SH_C2 = (1.0925484305920792, -1.0925484305920792, 0.31539156525252005,
-         -1.0925484305920792, 0.5462742152960396)
-SH_C3 = (-0.5900435899266435, 2.890611442640554, -0.4570457994644658, 0.3731763325901154,
-         -0.4570457994644658, 1.445305721320277, -0.5900435899266435)
+SH_C2 = (1.0925484305920792, -1.0925484305920792, 0.31539156525252005, -1.0925484305920792, 0.5462742152960396)
+SH_C3 = (
+    -0.5900435899266435,
+    2.890611442640554,
+    -0.4570457994644658,
+    0.3731763325901154,
+    -0.4570457994644658,
+    1.445305721320277,
+    -0.5900435899266435,
+)
 
 
 def polar_rotation(F: Tensor) -> Tensor:  # [N,3,3] -> [N,3,3]
@@ -57,12 +64,17 @@ def sh_basis(dirs: Tensor, degree: int) -> Tensor:  # [N,3] unit -> [N,(degree+1
         out += [-SH_C1 * y, SH_C1 * z, -SH_C1 * x]
     if degree >= 2:
         xx, yy, zz, xy, yz, xz = x * x, y * y, z * z, x * y, y * z, x * z
-        out += [SH_C2[0] * xy, SH_C2[1] * yz, SH_C2[2] * (2 * zz - xx - yy),
-                SH_C2[3] * xz, SH_C2[4] * (xx - yy)]
+        out += [SH_C2[0] * xy, SH_C2[1] * yz, SH_C2[2] * (2 * zz - xx - yy), SH_C2[3] * xz, SH_C2[4] * (xx - yy)]
     if degree >= 3:
-        out += [SH_C3[0] * y * (3 * xx - yy), SH_C3[1] * xy * z, SH_C3[2] * y * (4 * zz - xx - yy),
-                SH_C3[3] * z * (2 * zz - 3 * xx - 3 * yy), SH_C3[4] * x * (4 * zz - xx - yy),
-                SH_C3[5] * z * (xx - yy), SH_C3[6] * x * (xx - 3 * yy)]
+        out += [
+            SH_C3[0] * y * (3 * xx - yy),
+            SH_C3[1] * xy * z,
+            SH_C3[2] * y * (4 * zz - xx - yy),
+            SH_C3[3] * z * (2 * zz - 3 * xx - 3 * yy),
+            SH_C3[4] * x * (4 * zz - xx - yy),
+            SH_C3[5] * z * (xx - yy),
+            SH_C3[6] * x * (xx - 3 * yy),
+        ]
     return torch.stack(out, dim=-1)
 
 
@@ -74,7 +86,7 @@ def sh_colors(
 ) -> Tensor:  # [N, 3] RGB, ≥ 0
     """colour = max(0, Σ_lm c_lm Y_lm(d_rest) + 0.5) with d_rest = Rᵀ (x − c)/|x − c|."""
     K = sh.shape[-2]
-    degree = int(round(K ** 0.5)) - 1
+    degree = int(round(K**0.5)) - 1
     if (degree + 1) ** 2 != K:
         raise ValueError(f"sh has K={K} coefficients per channel; expected a square (1, 4, 9, 16)")
     d = means - campos.to(means)[None, :]
@@ -99,14 +111,14 @@ def exposed_interior_colors(
     best_d = torch.full((n,), float("inf"), dtype=interior_means.dtype, device=interior_means.device)
     best_i = torch.zeros(n, dtype=torch.long, device=interior_means.device)
     for i0 in range(0, n, chunk):
-        q = interior_means[i0:i0 + chunk]
-        bd, bi = best_d[i0:i0 + chunk], best_i[i0:i0 + chunk]
+        q = interior_means[i0 : i0 + chunk]
+        bd, bi = best_d[i0 : i0 + chunk], best_i[i0 : i0 + chunk]
         for j0 in range(0, m, chunk):
-            dmin, jmin = torch.cdist(q, surface_means[j0:j0 + chunk]).min(dim=1)
+            dmin, jmin = torch.cdist(q, surface_means[j0 : j0 + chunk]).min(dim=1)
             better = dmin < bd
             bd = torch.where(better, dmin, bd)
             bi = torch.where(better, jmin + j0, bi)
-        best_d[i0:i0 + chunk], best_i[i0:i0 + chunk] = bd, bi
+        best_d[i0 : i0 + chunk], best_i[i0 : i0 + chunk] = bd, bi
     return surface_colors[best_i]
 
 

@@ -23,6 +23,7 @@ The math, identical to gsplat 1.5.3 (`ProjectionEWA3DGSFused.cu`, `RasterizeToPi
   σ = ½ dᵀ Σ₂⁻¹ d, α = min(0.999, o e^{−σ}); skip α < 1/255; stop (exclusive) once
   T(1 − α) ≤ 1e-4; C = Σ c_i α_i T_i + T·background, alpha = 1 − T.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -115,7 +116,9 @@ def project_gaussians(
     if opacities is not None:
         opacities = opacities.to(means) * comp if comp is not None else opacities.to(means)
         valid = valid & (opacities >= ALPHA_THRESHOLD)
-        extend = torch.minimum(extend, torch.sqrt(2.0 * torch.log(opacities.clamp_min(ALPHA_THRESHOLD) / ALPHA_THRESHOLD)))
+        extend = torch.minimum(
+            extend, torch.sqrt(2.0 * torch.log(opacities.clamp_min(ALPHA_THRESHOLD) / ALPHA_THRESHOLD))
+        )
     else:
         opacities = comp if comp is not None else torch.ones_like(z)
     rx = torch.ceil(extend * torch.sqrt(cov2d[:, 0, 0].clamp_min(0.0)))
@@ -149,8 +152,9 @@ def _tile_intersections(proj: Projection, width: int, height: int, tile: int):
     return flat, torch.cumsum(tile_counts, 0) - tile_counts, tile_counts, tw, th
 
 
-def _composite_chunk(tiles, pos, counts, starts, flat_pad, pad_id, ox, oy, ar, mx, my, ca, cb, cc,
-                     log_opac, cols, T, acc):
+def _composite_chunk(
+    tiles, pos, counts, starts, flat_pad, pad_id, ox, oy, ar, mx, my, ca, cb, cc, log_opac, cols, T, acc
+):
     """Composite Gaussians number `pos` [chunk] of each tile in `tiles` [A] into T [tiles, P] and
     acc [tiles, P, C] (in place). T < 0 marks a pixel that has stopped (|T| its transmittance)."""
     inside = pos[None, :] < counts[tiles, None]  # [A, chunk]
@@ -176,8 +180,9 @@ def _composite_chunk(tiles, pos, counts, starts, flat_pad, pad_id, ox, oy, ar, m
     T[tiles] = torch.where(stopped, -T_new, T_new)
 
 
-def _composite_chunk_autograd(tiles, pos, counts, starts, flat_pad, pad_id, ox, oy, ar, mx, my, ca, cb, cc,
-                              log_opac, cols, T, acc):
+def _composite_chunk_autograd(
+    tiles, pos, counts, starts, flat_pad, pad_id, ox, oy, ar, mx, my, ca, cb, cc, log_opac, cols, T, acc
+):
     """`_composite_chunk` without in-place operations, for autograd: returns the new (T, acc)."""
     inside = pos[None, :] < counts[tiles, None]
     g = flat_pad[torch.where(inside, starts[tiles, None] + pos[None, :], pad_id)]
@@ -241,12 +246,31 @@ def rasterize_tiles(
         max_elems = max_elems or (1 << 26 if dev.type == "cuda" else 1 << 23)
         batch = max(1, max_elems // (chunk * P))  # tiles per kernel call: caps temporaries
         active = torch.nonzero(counts > 0).squeeze(1)
-        grad = torch.is_grad_enabled() and any(t.requires_grad for t in (proj.means2d, proj.conics, proj.opacities,
-                                                                         colors))
+        grad = torch.is_grad_enabled() and any(
+            t.requires_grad for t in (proj.means2d, proj.conics, proj.opacities, colors)
+        )
         for s in range(n_steps):
             for b0 in range(0, active.numel(), batch):
-                args = (active[b0:b0 + batch], s * chunk + steps, counts, starts, flat_pad, flat.numel(), ox, oy, ar,
-                        mx, my, ca, cb, cc, log_opac, cols, T, acc)
+                args = (
+                    active[b0 : b0 + batch],
+                    s * chunk + steps,
+                    counts,
+                    starts,
+                    flat_pad,
+                    flat.numel(),
+                    ox,
+                    oy,
+                    ar,
+                    mx,
+                    my,
+                    ca,
+                    cb,
+                    cc,
+                    log_opac,
+                    cols,
+                    T,
+                    acc,
+                )
                 if grad:  # differentiable (fitting through the renderer): no in-place updates
                     T, acc = _composite_chunk_autograd(*args)
                 else:
@@ -266,10 +290,21 @@ def _render_gsplat(means, covars, colors, opacities, camera, background, mode, e
     import gsplat  # lazy: only reached with CUDA tensors on a machine with a GPU
 
     render_colors, render_alphas, _ = gsplat.rasterization(
-        means.float().contiguous(), None, None, opacities.float().contiguous(), colors.float().contiguous(),
-        camera.viewmat.to(means.device, torch.float32)[None], camera.K.to(means.device, torch.float32)[None],
-        camera.width, camera.height, near_plane=near, far_plane=far, eps2d=eps2d, packed=False,
-        rasterize_mode=mode, covars=covars.float().contiguous(),
+        means.float().contiguous(),
+        None,
+        None,
+        opacities.float().contiguous(),
+        colors.float().contiguous(),
+        camera.viewmat.to(means.device, torch.float32)[None],
+        camera.K.to(means.device, torch.float32)[None],
+        camera.width,
+        camera.height,
+        near_plane=near,
+        far_plane=far,
+        eps2d=eps2d,
+        packed=False,
+        rasterize_mode=mode,
+        covars=covars.float().contiguous(),
         backgrounds=background.to(means.device, torch.float32)[None],
     )
     return render_colors[0], render_alphas[0, ..., 0]
@@ -299,14 +334,17 @@ def render(
     if backend == "auto":
         backend = "gsplat" if on_cuda else "torch"
     if backend == "gsplat" and not on_cuda:
-        raise ValueError("render: backend='gsplat' needs CUDA tensors on a machine with a GPU; "
-                         "use backend='torch' (or 'auto') for CPU tensors")
+        raise ValueError(
+            "render: backend='gsplat' needs CUDA tensors on a machine with a GPU; "
+            "use backend='torch' (or 'auto') for CPU tensors"
+        )
     bg = torch.as_tensor(background, dtype=means.dtype, device=means.device).reshape(3)
     if backend == "gsplat":
         img, alpha = _render_gsplat(means, covars, colors, opacities, camera, bg, mode, eps2d, near, far)
     else:
-        proj = project_gaussians(means, covars, camera.viewmat, camera.K, camera.width, camera.height,
-                                 eps2d, near, far, mode, opacities)
+        proj = project_gaussians(
+            means, covars, camera.viewmat, camera.K, camera.width, camera.height, eps2d, near, far, mode, opacities
+        )
         img, alpha = rasterize_tiles(proj, colors, camera.width, camera.height, bg)
     return RenderOutput(img.clamp(0.0, 1.0), alpha, backend)
 
@@ -328,8 +366,19 @@ def render_reference(
     no screen-extent culling), with the compositing rules of the module docstring. O(N·H·W)."""
     f64 = dict(dtype=torch.float64, device=means.device)
     means, covars, colors, opacities = (a.to(**f64) for a in (means, covars, colors, opacities))
-    proj = project_gaussians(means, covars, camera.viewmat.to(**f64), camera.K.to(**f64),
-                             camera.width, camera.height, eps2d, near, far, mode, None)
+    proj = project_gaussians(
+        means,
+        covars,
+        camera.viewmat.to(**f64),
+        camera.K.to(**f64),
+        camera.width,
+        camera.height,
+        eps2d,
+        near,
+        far,
+        mode,
+        None,
+    )
     depth_ok = (proj.depths >= near) & (proj.depths <= far)
     det = proj.covars2d[:, 0, 0] * proj.covars2d[:, 1, 1] - proj.covars2d[:, 0, 1] ** 2
     ids = torch.nonzero(depth_ok & (det > 0)).squeeze(1)

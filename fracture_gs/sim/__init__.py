@@ -3,17 +3,44 @@
 Importing this package has no side effects: Warp is initialised by the first `Simulator`
 (`fracture_gs.runtime.ensure_warp`) and each kernel module sets its own compile options.
 """
-from ..config import (ContactConfig, CuboidBoundary, MaterialConfig, ParticleRegion, PlaneBoundary, SimConfig,
-                      TopologyConfig)
+
+from ..config import (
+    ContactConfig,
+    CuboidBoundary,
+    MaterialConfig,
+    ParticleRegion,
+    PlaneBoundary,
+    SimConfig,
+    TopologyConfig,
+)
+from ..errors import SimulationDiverged
 from . import layout
 from .grid import Grid, fit_grid
 from .particles import Particles, SimulationError
-from .simulator import MULTIFIELD_VARIANTS, RELEASE_VARIANTS, SimulationDiverged, Simulator
 from .providers import OracleProvider, ReplayProvider, StressProvider, make_provider
+from .simulator import MULTIFIELD_VARIANTS, RELEASE_VARIANTS, Simulator
 from .topology import Topology
 
 __all__ = [
-    "layout", "ContactConfig", "CuboidBoundary", "Grid", "MaterialConfig", "MULTIFIELD_VARIANTS", "OracleProvider", "ParticleRegion", "Particles",
-    "PlaneBoundary", "RELEASE_VARIANTS", "ReplayProvider", "StressProvider", "SimConfig", "SimulationDiverged", "SimulationError", "Simulator", "Topology",
-    "TopologyConfig", "fit_grid", "make_provider",
+    "layout",
+    "ContactConfig",
+    "CuboidBoundary",
+    "Grid",
+    "MaterialConfig",
+    "MULTIFIELD_VARIANTS",
+    "OracleProvider",
+    "ParticleRegion",
+    "Particles",
+    "PlaneBoundary",
+    "RELEASE_VARIANTS",
+    "ReplayProvider",
+    "StressProvider",
+    "SimConfig",
+    "SimulationDiverged",
+    "SimulationError",
+    "Simulator",
+    "Topology",
+    "TopologyConfig",
+    "fit_grid",
+    "make_provider",
 ]

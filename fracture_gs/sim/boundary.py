@@ -4,13 +4,14 @@ regions (impulse / velocity override).
 Grid-side operators are `@wp.func`s applied per field after the contact projection (Algorithm 1);
 `Boundaries` packs the config's boundary list into device arrays once.
 """
+
 from __future__ import annotations
 
 import torch
 import warp as wp
 
-from ..runtime import ensure_warp
 from ..config import CuboidBoundary, ParticleRegion, PlaneBoundary
+from ..runtime import ensure_warp
 from .clock import Clock
 
 wp.set_module_options({"enable_backward": False})  # forward-only kernels compile in half the time
@@ -77,7 +78,14 @@ def apply_boundaries(v: wp.vec3, node: wp.vec3i, xi: wp.vec3, t: float, c: Colli
             shift = c.box_velocity[b] * (t - tw[0])
             lo = c.box_lower[b] + shift
             hi = c.box_upper[b] + shift
-            if xi[0] >= lo[0] and xi[0] <= hi[0] and xi[1] >= lo[1] and xi[1] <= hi[1] and xi[2] >= lo[2] and xi[2] <= hi[2]:
+            if (
+                xi[0] >= lo[0]
+                and xi[0] <= hi[0]
+                and xi[1] >= lo[1]
+                and xi[1] <= hi[1]
+                and xi[2] >= lo[2]
+                and xi[2] <= hi[2]
+            ):
                 out = c.box_velocity[b]
     for b in range(c.plane_point.shape[0]):
         out = plane_velocity(out, xi, c.plane_point[b], c.plane_normal[b], c.plane_mode[b], c.plane_mu[b])
@@ -101,8 +109,14 @@ def apply_particle_region(
     value = clock.region_value[i]
     p = wp.tid()
     xp = x[p]
-    if (xp[0] >= lower[0] and xp[0] <= upper[0] and xp[1] >= lower[1] and xp[1] <= upper[1]
-            and xp[2] >= lower[2] and xp[2] <= upper[2]):
+    if (
+        xp[0] >= lower[0]
+        and xp[0] <= upper[0]
+        and xp[1] >= lower[1]
+        and xp[1] <= upper[1]
+        and xp[2] >= lower[2]
+        and xp[2] <= upper[2]
+    ):
         if kind == 0:
             v[p] = v[p] + value
         else:
@@ -123,7 +137,9 @@ class Boundaries:
         self.regions = [b for b in items if isinstance(b, ParticleRegion)]
         unknown = [b for b in items if not isinstance(b, (PlaneBoundary, CuboidBoundary, ParticleRegion))]
         if unknown:
-            raise ValueError(f"sim.boundaries: unsupported entry {unknown[0]!r}; use PlaneBoundary, CuboidBoundary or ParticleRegion")
+            raise ValueError(
+                f"sim.boundaries: unsupported entry {unknown[0]!r}; use PlaneBoundary, CuboidBoundary or ParticleRegion"
+            )
         for b in planes:
             if b.mode not in PLANE_MODE_IDS:
                 raise ValueError(f"sim.boundaries: plane mode '{b.mode}' is not one of {sorted(PLANE_MODE_IDS)}")
@@ -139,8 +155,14 @@ class Boundaries:
             box_velocity=_vec3([b.velocity for b in boxes], device),
             box_time=torch.tensor([[b.start, b.end] for b in boxes], dtype=torch.float32, device=device).reshape(-1, 2),
         )
-        vec = {"plane_point": wp.vec3, "plane_normal": wp.vec3, "box_lower": wp.vec3, "box_upper": wp.vec3,
-               "box_velocity": wp.vec3, "box_time": wp.vec2}
+        vec = {
+            "plane_point": wp.vec3,
+            "plane_normal": wp.vec3,
+            "box_lower": wp.vec3,
+            "box_upper": wp.vec3,
+            "box_velocity": wp.vec3,
+            "box_time": wp.vec2,
+        }
         self.colliders = Colliders()
         for k, t in self.t.items():
             setattr(self.colliders, k, wp.from_torch(t, dtype=vec[k]) if k in vec else wp.from_torch(t))
@@ -171,6 +193,9 @@ class Boundaries:
         for i, r in enumerate(self.regions):
             if active is not None and not active[i]:
                 continue
-            wp.launch(apply_particle_region, dim=n, device=device,
-                      inputs=[x_wp, v_wp, wp.vec3(*r.lower), wp.vec3(*r.upper), 0 if r.kind == "impulse" else 1, i,
-                              clock])
+            wp.launch(
+                apply_particle_region,
+                dim=n,
+                device=device,
+                inputs=[x_wp, v_wp, wp.vec3(*r.lower), wp.vec3(*r.upper), 0 if r.kind == "impulse" else 1, i, clock],
+            )

@@ -7,6 +7,7 @@ launch argument would be; the timed particle regions' activity and velocity chan
 and the recorded `tick` advances the substep index. Bitwise the same as passing the values as
 arguments.
 """
+
 from __future__ import annotations
 
 import torch
@@ -79,7 +80,8 @@ class FrameClock:
         self.step.zero_()
         self.times[:n].copy_(torch.tensor(times, dtype=torch.float32), non_blocking=True)
         if self.regions and on is not None:
-            self.on[:n * self.regions].copy_(torch.tensor(on, dtype=torch.int32).reshape(-1), non_blocking=True)
-            self.value[:n * self.regions].copy_(torch.tensor(value, dtype=torch.float32).reshape(-1, 3),
-                                                non_blocking=True)
+            self.on[: n * self.regions].copy_(torch.tensor(on, dtype=torch.int32).reshape(-1), non_blocking=True)
+            self.value[: n * self.regions].copy_(
+                torch.tensor(value, dtype=torch.float32).reshape(-1, 3), non_blocking=True
+            )
         return moved

@@ -5,6 +5,7 @@ StVK-Hencky with von Mises plasticity and linear hardening (metal), Drucker–Pr
 Klár et al. 2016). Every parameter is per particle. The float64 torch twin of `compute_stress`
 is `fracture_gs.sim.reference.stress`; tests compare the two on random inputs.
 """
+
 from __future__ import annotations
 
 import math

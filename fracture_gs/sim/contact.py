@@ -13,12 +13,29 @@ normal n_ab ∝ ∇m_b − ∇m_a from the fragments' band-mass gradients (Barde
 & Herbold 2017), falling back to the direction between the fragments' centroids, then to n_Π,
 where the gradient is degenerate.
 """
+
 from __future__ import annotations
 
 import warp as wp
 
-from .layout import (PAIR_DPX, PAIR_DPY, PAIR_DPZ, PAIR_FIRST_T, PAIR_GATED, PAIR_PNORM, STAT_DPX, STAT_DPY, STAT_DPZ,
-                     STAT_DVT, STAT_FIRST_T, STAT_GATED, STAT_PNORM, STAT_PROJECTED, STAT_UN_AFTER, N_PAIR_STATS)
+from .layout import (
+    N_PAIR_STATS,
+    PAIR_DPX,
+    PAIR_DPY,
+    PAIR_DPZ,
+    PAIR_FIRST_T,
+    PAIR_GATED,
+    PAIR_PNORM,
+    STAT_DPX,
+    STAT_DPY,
+    STAT_DPZ,
+    STAT_DVT,
+    STAT_FIRST_T,
+    STAT_GATED,
+    STAT_PNORM,
+    STAT_PROJECTED,
+    STAT_UN_AFTER,
+)
 
 NORMAL_LATCHED = 0
 NORMAL_MASS_GRADIENT = 1
@@ -60,9 +77,20 @@ def contact_projection(v0: wp.vec3, v1: wp.vec3, m0: float, m1: float, n: wp.vec
 
 
 @wp.func
-def record_contact(stats: wp.array(dtype=float), pair_stats: wp.array(dtype=float), pair: int, t: float,
-                   v0: wp.vec3, v1: wp.vec3, w0: wp.vec3, w1: wp.vec3, m0: float, m1: float, normal: wp.vec3,
-                   project: int):
+def record_contact(
+    stats: wp.array(dtype=float),
+    pair_stats: wp.array(dtype=float),
+    pair: int,
+    t: float,
+    v0: wp.vec3,
+    v1: wp.vec3,
+    w0: wp.vec3,
+    w1: wp.vec3,
+    m0: float,
+    m1: float,
+    normal: wp.vec3,
+    project: int,
+):
     """Contact diagnostics of one gated pair at one node: count, first time, momentum change, residual
     approach speed, change of tangential relative velocity; the same per fragment pair."""
     wp.atomic_add(stats, STAT_GATED, 1.0)

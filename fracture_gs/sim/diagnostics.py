@@ -10,6 +10,7 @@ crossings and penetration between the pieces themselves, particles behind a plan
 Contact: the statistics the grid kernels accumulate, also per fragment pair. Fragment–plane: first
 contact per fragment, penetration into the plane, speeds near it, gravity-compensated momentum.
 """
+
 from __future__ import annotations
 
 import math
@@ -21,9 +22,26 @@ from ..config import PlaneBoundary
 from ..profiling import phases
 from . import metrics as M
 from .grid import Grid
-from .layout import (COUNT_CLAMPED, COUNT_POOL_OVERFLOW, N_COUNTS, N_PAIR_STATS, NEVER, PAIR_DPX, PAIR_DPY, PAIR_DPZ,
-                     PAIR_FIRST_T, PAIR_GATED, PAIR_PNORM, STAT_DPX, STAT_DPZ, STAT_DVT, STAT_FIRST_T, STAT_GATED,
-                     STAT_PNORM, STAT_UN_AFTER)
+from .layout import (
+    COUNT_CLAMPED,
+    COUNT_POOL_OVERFLOW,
+    N_COUNTS,
+    N_PAIR_STATS,
+    NEVER,
+    PAIR_DPX,
+    PAIR_DPY,
+    PAIR_DPZ,
+    PAIR_FIRST_T,
+    PAIR_GATED,
+    PAIR_PNORM,
+    STAT_DPX,
+    STAT_DPZ,
+    STAT_DVT,
+    STAT_FIRST_T,
+    STAT_GATED,
+    STAT_PNORM,
+    STAT_UN_AFTER,
+)
 from .metrics import SEPARATION, reapproach_ratio  # noqa: F401 (re-exported: the tracker's thresholds)
 from .penetration import collider_crossing, fragment_overlap
 
@@ -47,7 +65,7 @@ class Packed:
         out, i = {}, 0
         for name, t in self.parts:
             n = t.numel()
-            out[name] = flat[i:i + n]
+            out[name] = flat[i : i + n]
             i += n
         return out
 
@@ -68,8 +86,12 @@ class Diagnostics:
         self.shadow: Grid | None = None
         self.shadow_stress = None
         self.first_contact_time = None
-        self.contact_max = {"cp_momentum_residual": 0.0, "rel_normal_velocity_after": 0.0, "max_delta_vt": 0.0,
-                            "approach_speed": 0.0}
+        self.contact_max = {
+            "cp_momentum_residual": 0.0,
+            "rel_normal_velocity_after": 0.0,
+            "max_delta_vt": 0.0,
+            "approach_speed": 0.0,
+        }
         P = sim.particles
         self.M = float(P.mass.double().sum())
         self.P0 = M.momentum(P)
@@ -99,15 +121,22 @@ class Diagnostics:
         self.opening0 = float(M.raw_opening(P.x, self.pairs, self.n))
         self.open_max = 0.0
         g = sim.grid
-        self.shadow = Grid(g.origin, g.dx, g.shape, sim.device, slots=sim.cfg.field_slots,
-                           max_fragments=sim.cfg.max_fragments)  # per-fragment fields of the current state
+        self.shadow = Grid(
+            g.origin, g.dx, g.shape, sim.device, slots=sim.cfg.field_slots, max_fragments=sim.cfg.max_fragments
+        )  # per-fragment fields of the current state
         self.shadow_stress = torch.zeros_like(sim.stress)
         self.shadow_stress_wp = wp.from_torch(self.shadow_stress, dtype=wp.mat33)
         self.shadow_counts = torch.zeros(N_COUNTS, dtype=torch.int32, device=sim.device)
         self.shadow_counts_wp = wp.from_torch(self.shadow_counts)
         counts = topo.counts()
-        self.latch_info = {"latch_frame": topo.latch_frame, "latch_time": topo.latch_time, "point": list(topo.point),
-                           "normal": list(topo.normal), **counts, "interface_pairs": int(self.pairs[0].numel())}
+        self.latch_info = {
+            "latch_frame": topo.latch_frame,
+            "latch_time": topo.latch_time,
+            "point": list(topo.point),
+            "normal": list(topo.normal),
+            **counts,
+            "interface_pairs": int(self.pairs[0].numel()),
+        }
 
     def on_frame(self):
         with phases.section("diagnostics"):
@@ -139,14 +168,22 @@ class Diagnostics:
             dev.add("pair_stats", sim.grid.pair_stats)
         frag = P.fragment if sim.latched else torch.zeros_like(P.fragment)
         planes = [M.plane_state(P.x, P.v, frag, b, sim.grid.dx, max(2, sim.n_fragments)) for b in self.planes[:1]]
-        for k, t in (planes[0].items() if planes else ()):
+        for k, t in planes[0].items() if planes else ():
             dev.add("plane_" + k, t)
         h = dev.read()
         if sim.latched:
             self._transfer_again(h)
-        row = {"frame": sim.frame, "time": sim.time, "substeps": sim.substeps, "dt": sim.dt, "latched": sim.latched,
-               "clamped": int(h["clamped"][0]), "frame_redos": sim.frame_redos, "momentum": h["momentum"],
-               "kinetic_energy": h["kinetic_energy"][0]}
+        row = {
+            "frame": sim.frame,
+            "time": sim.time,
+            "substeps": sim.substeps,
+            "dt": sim.dt,
+            "latched": sim.latched,
+            "clamped": int(h["clamped"][0]),
+            "frame_redos": sim.frame_redos,
+            "momentum": h["momentum"],
+            "kinetic_energy": h["kinetic_energy"][0],
+        }
         if sim.latched:
             row.update(fragments=sim.n_fragments, slot_overflow=sim.slot_overflow, pool_rows=sim.pool_rows)
             row.update(self._transfer_row(h))
@@ -165,8 +202,9 @@ class Diagnostics:
             self.shadow.n_fields = sim.n_fragments
             self.shadow.ensure_pool(max(rows, sim.pool_rows, 256))
             self.shadow_counts.zero_()
-            sim.p2g(sim.dt, target=self.shadow, multifield=True, stress=self.shadow_stress_wp,
-                    counts=self.shadow_counts_wp)
+            sim.p2g(
+                sim.dt, target=self.shadow, multifield=True, stress=self.shadow_stress_wp, counts=self.shadow_counts_wp
+            )
         dev.add("shadow_overflow", self.shadow_counts[COUNT_POOL_OVERFLOW])
         cf, shared = self.shadow.mixing(sim.eps_m)
         dev.add("mixing_cf", cf)
@@ -192,8 +230,12 @@ class Diagnostics:
         sim = self.sim
         per_fragment = sim.multifield or (sim.latched and sim.spec.per_fragment_pass)
         cf = h["mixing_cf"][0]
-        return {"mixing_counterfactual": cf, "mixing_realized": 0.0 if per_fragment else cf,
-                "shared_support_pct": h["shared"][0], "mass_residual": h["mass_residual"]}
+        return {
+            "mixing_counterfactual": cf,
+            "mixing_realized": 0.0 if per_fragment else cf,
+            "shared_support_pct": h["shared"][0],
+            "mass_residual": h["mass_residual"],
+        }
 
     def _interface(self, dev: Packed) -> None:
         sim = self.sim
@@ -214,11 +256,18 @@ class Diagnostics:
         for pair, depth in overlap["pairs"].items():
             self.pair_penetration[pair] = max(self.pair_penetration.get(pair, 0.0), depth / dx)
         below, depth = collider_crossing(P.x, self.planes, COLLIDER_TOLERANCE * dx)
-        return {"opening": opening, "reapproach": self.reapproach, "stringing": h["stringing"][0],
-                "separated": opening > SEPARATION, "penetration": h["penetration"][0] / dx,
-                "identity_crossing": int(h["identity_crossing"][0]),
-                "fragment_crossing": overlap["crossing"], "fragment_penetration": overlap["depth"] / dx,
-                "collider_crossing": below, "collider_depth": depth / dx}
+        return {
+            "opening": opening,
+            "reapproach": self.reapproach,
+            "stringing": h["stringing"][0],
+            "separated": opening > SEPARATION,
+            "penetration": h["penetration"][0] / dx,
+            "identity_crossing": int(h["identity_crossing"][0]),
+            "fragment_crossing": overlap["crossing"],
+            "fragment_penetration": overlap["depth"] / dx,
+            "collider_crossing": below,
+            "collider_depth": depth / dx,
+        }
 
     def _contact_row(self, h: dict) -> dict:
         stats = h["stats"]
@@ -228,7 +277,7 @@ class Diagnostics:
             self.first_contact_time = first
         out = {"contact_nodes": gated, "first_contact_time": self.first_contact_time}
         if gated > 0:
-            resid = math.sqrt(sum(c * c for c in stats[STAT_DPX:STAT_DPZ + 1])) / max(stats[STAT_PNORM], 1e-30)
+            resid = math.sqrt(sum(c * c for c in stats[STAT_DPX : STAT_DPZ + 1])) / max(stats[STAT_PNORM], 1e-30)
             cm = self.contact_max
             cm["cp_momentum_residual"] = max(cm["cp_momentum_residual"], resid)
             cm["rel_normal_velocity_after"] = max(cm["rel_normal_velocity_after"], stats[STAT_UN_AFTER])
@@ -243,12 +292,15 @@ class Diagnostics:
         K = self.sim.grid.max_fragments
         out = {}
         for k in range(K * K):
-            r = flat[k * N_PAIR_STATS:(k + 1) * N_PAIR_STATS]
+            r = flat[k * N_PAIR_STATS : (k + 1) * N_PAIR_STATS]
             if r[PAIR_GATED] <= 0:
                 continue
             resid = (r[PAIR_DPX] ** 2 + r[PAIR_DPY] ** 2 + r[PAIR_DPZ] ** 2) ** 0.5 / max(r[PAIR_PNORM], 1e-30)
-            out[f"{k // K}-{k % K}"] = {"first_contact_time": r[PAIR_FIRST_T], "cp_momentum_residual": resid,
-                                        "contact_nodes": r[PAIR_GATED]}
+            out[f"{k // K}-{k % K}"] = {
+                "first_contact_time": r[PAIR_FIRST_T],
+                "cp_momentum_residual": resid,
+                "contact_nodes": r[PAIR_GATED],
+            }
         for (a, b), depth in self.pair_penetration.items():
             key = f"{min(a, b)}-{max(a, b)}"
             out.setdefault(key, {})["penetration"] = max(out.get(key, {}).get("penetration", 0.0), depth)
@@ -272,6 +324,10 @@ class Diagnostics:
         scale = self.M * math.sqrt(sum(a * a for a in g)) * elapsed
         mom_h = h["momentum"]
         resid = math.sqrt(sum((mom_h[i] - expected[i]) ** 2 for i in range(3))) / scale if scale > 0 else 0.0
-        return {"plane_first_contact": list(st["first_contact"]), "plane_penetration": st["penetration"],
-                "plane_max_vt_near": st["max_vt_near"], "plane_max_vn_post": st["max_vn_post"],
-                "plane_momentum_residual": resid}
+        return {
+            "plane_first_contact": list(st["first_contact"]),
+            "plane_penetration": st["penetration"],
+            "plane_max_vt_near": st["max_vt_near"],
+            "plane_max_vn_post": st["max_vn_post"],
+            "plane_momentum_residual": resid,
+        }

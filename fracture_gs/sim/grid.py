@@ -8,6 +8,7 @@ slots for tests and small diagnostics; `fragment_mass` and `mixing` reduce the s
 name a node's fragments from its claims, which the solver's "solo" particles skip (`Simulator.solo`):
 read them from a grid filled with claims everywhere (the diagnostics' shadow grid, or solo off).
 """
+
 from __future__ import annotations
 
 import math
@@ -18,8 +19,17 @@ import warp as wp
 from ..config import SimConfig
 from ..errors import SimulationError
 from ..runtime import ensure_warp
-from .layout import (EMPTY_KEY, N_PAIR_STATS, N_STATS, NEVER, OWNER_MASK, PAIR_FIRST_T, STAT_FIRST_T, GridView,
-                     pool_capacity)
+from .layout import (
+    EMPTY_KEY,
+    N_PAIR_STATS,
+    N_STATS,
+    NEVER,
+    OWNER_MASK,
+    PAIR_FIRST_T,
+    STAT_FIRST_T,
+    GridView,
+    pool_capacity,
+)
 
 EPS = 1e-30
 
@@ -44,7 +54,7 @@ def fit_grid(cfg: SimConfig, x: torch.Tensor) -> tuple[tuple, float, tuple]:
         lo = torch.minimum(lo, torch.tensor(cfg.grid_bounds[0], dtype=torch.float64) - (cfg.wall_cells + 2) * dx)
         hi = torch.maximum(hi, torch.tensor(cfg.grid_bounds[1], dtype=torch.float64) + (cfg.wall_cells + 2) * dx)
     if not bool(torch.isfinite(lo).all() and torch.isfinite(hi).all()):
-        raise SimulationError("sim.grid = \"auto\": the particles' bounds are not finite; remove NaN or inf positions")
+        raise SimulationError('sim.grid = "auto": the particles\' bounds are not finite; remove NaN or inf positions')
     origin = tuple(math.floor(float(a) / dx) * dx for a in lo)
     shape = tuple(int(math.ceil((float(b) - o) / dx)) + 1 for o, b in zip(origin, hi))
     check_grid_size(shape, dx, cfg.max_grid_cells, "an automatic grid fitted to the particles")
@@ -65,7 +75,8 @@ def check_grid_size(shape, dx: float, cap: int, what: str) -> None:
         raise SimulationError(
             f"{what} would be {dims} = {count} nodes (≈ {nodes * BYTES_PER_NODE / 2**30:.3g} GiB at Δx = {dx:g} m), "
             f"over sim.max_grid_cells = {cap:,}; remove far-away particles (floaters), lower sim.grid_margin, "
-            f"raise sim.dx, or raise sim.max_grid_cells if the memory is there")
+            f"raise sim.dx, or raise sim.max_grid_cells if the memory is there"
+        )
 
 
 class Grid:
@@ -113,8 +124,8 @@ class Grid:
         self.pool_owner = torch.full((max(1, extra),), -1, dtype=torch.int32, device=self.device)
         self.band = torch.zeros(cap * self.slots, dtype=torch.float32, device=self.device)
         self._owner.zero_()
-        self.mp = self._mp[:self.n_nodes].view(*self.shape, 4)
-        self.vel = self._vel[:self.n_nodes].view(*self.shape, 3)
+        self.mp = self._mp[: self.n_nodes].view(*self.shape, 4)
+        self.vel = self._vel[: self.n_nodes].view(*self.shape, 3)
         v = GridView()
         v.mp = wp.from_torch(self._mp, dtype=wp.vec4)
         v.vel = wp.from_torch(self._vel, dtype=wp.vec3)
@@ -144,7 +155,7 @@ class Grid:
             self.key.fill_(EMPTY_KEY)
             self.pool_owner.fill_(-1)
             self.band.zero_()
-            self._mp[self.n_nodes:].zero_()  # a row claimed anew must start empty (clear_pool skips free rows)
+            self._mp[self.n_nodes :].zero_()  # a row claimed anew must start empty (clear_pool skips free rows)
 
     def clear(self) -> None:
         """Reset every accumulator (dense slot 0, owners, the pool)."""
@@ -169,7 +180,7 @@ class Grid:
         """(nodes [R], pool fragment [R, S−1], pool buffer index [R, S−1], row index [R]) of used rows."""
         rows = torch.nonzero(self.key >= 0).flatten()
         s1 = self.slots - 1
-        frag = self.pool_owner[:self.capacity * s1].view(self.capacity, s1)[rows].long()
+        frag = self.pool_owner[: self.capacity * s1].view(self.capacity, s1)[rows].long()
         index = self.n_nodes + rows[:, None] * s1 + torch.arange(s1, device=self.device)[None, :]
         return self.key[rows].long(), frag, index, rows
 
@@ -188,7 +199,7 @@ class Grid:
         return out
 
     def _logical(self, buf: torch.Tensor) -> torch.Tensor:
-        return self._expand(buf[:self.n_nodes], buf[self.n_nodes:])
+        return self._expand(buf[: self.n_nodes], buf[self.n_nodes :])
 
     @property
     def mass(self) -> torch.Tensor:  # [K, X, Y, Z]
@@ -222,7 +233,7 @@ class Grid:
         out = torch.zeros(K, dtype=torch.float64, device=self.device)
         f0 = self._slot0_fragment()
         ok = (f0 >= 0) & (f0 < K)
-        out.index_add_(0, f0.clamp(0, K - 1), torch.where(ok, m[:self.n_nodes], 0.0))
+        out.index_add_(0, f0.clamp(0, K - 1), torch.where(ok, m[: self.n_nodes], 0.0))
         if self.multi:
             frag, index, used = self._pool_all()
             ok = used[:, None] & (frag >= 0) & (frag < K)
@@ -232,7 +243,7 @@ class Grid:
     def _pool_all(self):
         """(pool fragment [C, S−1], buffer index [C, S−1], row used [C]) over every row (no host read)."""
         s1, C = self.slots - 1, self.capacity
-        frag = self.pool_owner[:C * s1].view(C, s1).long()
+        frag = self.pool_owner[: C * s1].view(C, s1).long()
         index = self.n_nodes + torch.arange(C * s1, device=self.device).view(C, s1)
         return frag, index, self.key >= 0
 
@@ -250,13 +261,14 @@ class Grid:
         nodes = self.key.long().clamp_min(0)
         on_pool = used[:, None] & (frag >= 0)
         mm = torch.cat([torch.where(used, m[nodes], 0.0)[:, None], torch.where(on_pool, m[index], 0.0)], 1)  # [C, S]
-        pp = torch.cat([torch.where(used[:, None], p[nodes], 0.0)[:, None],
-                        torch.where(on_pool[..., None], p[index], 0.0)], 1)  # [C, S, 3]
+        pp = torch.cat(
+            [torch.where(used[:, None], p[nodes], 0.0)[:, None], torch.where(on_pool[..., None], p[index], 0.0)], 1
+        )  # [C, S, 3]
         on = mm > eps_m
         vbar = pp.sum(1) / mm.sum(1).clamp_min(EPS)[:, None]
         v = torch.where(on[..., None], pp / mm.clamp_min(EPS)[..., None], torch.zeros_like(pp))
         cf = (mm * on * ((vbar[:, None] - v) ** 2).sum(-1)).sum() / total
-        count = (m[:self.n_nodes] > eps_m).long()
+        count = (m[: self.n_nodes] > eps_m).long()
         count.index_add_(0, nodes, torch.where(used, on[:, 1:].sum(1), 0))
         shared = 100.0 * (count >= 2).sum().double() / (count >= 1).sum().clamp_min(1).double()
         return cf, shared

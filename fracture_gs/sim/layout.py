@@ -23,6 +23,7 @@ full is a *pool overflow*: the frame is redone with a larger pool.
 Node boxes are (lo, hi) node ranges, hi exclusive. With one field (shared variants, or before a
 latch) the owner word and the pool are not touched: the kernels take the dense path only.
 """
+
 from __future__ import annotations
 
 import warp as wp
@@ -69,8 +70,14 @@ def pool_capacity(rows: int) -> int:
 
 @wp.func
 def inside(node: wp.vec3i, lo: wp.vec3i, hi: wp.vec3i):
-    return (node[0] >= lo[0] and node[0] < hi[0] and node[1] >= lo[1] and node[1] < hi[1]
-            and node[2] >= lo[2] and node[2] < hi[2])
+    return (
+        node[0] >= lo[0]
+        and node[0] < hi[0]
+        and node[1] >= lo[1]
+        and node[1] < hi[1]
+        and node[2] >= lo[2]
+        and node[2] < hi[2]
+    )
 
 
 @wp.func

@@ -2,6 +2,7 @@
 (or small) float64 tensors and never reads back to the host, so the tracker (`diagnostics.py`)
 packs a whole frame's numbers into one tensor and reads it once.
 """
+
 from __future__ import annotations
 
 import torch
@@ -27,7 +28,7 @@ def interface_pairs(x, fragment, band, radius: float, chunk: int = 2048):
     xb = x[b].double()
     ps, qs = [], []
     for start in range(0, a.numel(), chunk):
-        ia = a[start:start + chunk]
+        ia = a[start : start + chunk]
         d, j = torch.cdist(x[ia].double(), xb).min(dim=1)
         keep = d < radius
         ps.append(ia[keep])
@@ -63,7 +64,7 @@ def penetration(x, members, n, radius: float, chunk: int = 2048) -> torch.Tensor
     x = x.double()
     xb, sb = x[b], x[b] @ n
     for start in range(0, a.numel(), chunk):
-        xa = x[a[start:start + chunk]]
+        xa = x[a[start : start + chunk]]
         near = torch.cdist(xa, xb) < radius
         depth = (xa @ n)[:, None] - sb[None, :]
         worst = torch.maximum(worst, torch.where(near, depth, torch.zeros_like(depth)).max())
@@ -114,5 +115,9 @@ def plane_state(x, v, fragment, plane, dx: float, K: int) -> dict:
     k = fragment.long().clamp(0, K - 1)
     touch = torch.zeros(K, dtype=torch.float64, device=x.device).index_add_(0, k, (near & ok).double())
     zero = torch.zeros((), dtype=torch.float64, device=x.device)
-    return {"touch": touch > 0, "penetration": (-d).clamp_min(0).max(),
-            "vt_near": torch.where(near, vt, zero).max(), "vn_close": torch.where(d < 2 * dx, vn.abs(), zero).max()}
+    return {
+        "touch": touch > 0,
+        "penetration": (-d).clamp_min(0).max(),
+        "vt_near": torch.where(near, vt, zero).max(),
+        "vn_close": torch.where(d < 2 * dx, vn.abs(), zero).max(),
+    }

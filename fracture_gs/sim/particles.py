@@ -1,14 +1,14 @@
 """`Particles`: MLS-MPM particle state as torch tensors (float32 on the simulation device)."""
+
 from __future__ import annotations
 
 from typing import Optional
 
 import torch
 
-from ..errors import SimulationError
 from ..config import MATERIALS, MaterialConfig, SceneConfig
+from ..errors import SimulationError
 from .constitutive import MATERIAL_IDS, dp_alpha
-
 
 
 def _per_particle(value, n: int, name: str, device) -> torch.Tensor:
@@ -66,7 +66,9 @@ class Particles:
         self.sigma_R = _per_particle(sigma_R, n, "sigma_R", dev)
         self.fragment = torch.full((n,), -1, dtype=torch.int32, device=dev)
         self.band = torch.zeros(n, dtype=torch.int32, device=dev)
-        self.interior = torch.zeros(n, dtype=torch.bool, device=dev) if interior is None else interior.to(dev, torch.bool)
+        self.interior = (
+            torch.zeros(n, dtype=torch.bool, device=dev) if interior is None else interior.to(dev, torch.bool)
+        )
         self.validate()
 
     @staticmethod
@@ -114,8 +116,24 @@ class Particles:
         if len({t.device for t in tensors}) != 1:
             raise SimulationError("Particles tensors live on different devices; move them all to one device")
 
-    TENSORS = ("x", "v", "C", "F", "mass", "volume", "E", "nu", "material", "yield_stress", "hardening",
-               "alpha", "sigma_R", "fragment", "band", "interior")
+    TENSORS = (
+        "x",
+        "v",
+        "C",
+        "F",
+        "mass",
+        "volume",
+        "E",
+        "nu",
+        "material",
+        "yield_stress",
+        "hardening",
+        "alpha",
+        "sigma_R",
+        "fragment",
+        "band",
+        "interior",
+    )
 
     def __len__(self) -> int:
         return self.x.shape[0]
@@ -124,13 +142,13 @@ class Particles:
     def device(self) -> torch.device:
         return self.x.device
 
-    def to(self, device) -> "Particles":
+    def to(self, device) -> Particles:
         """Move every tensor (in place) to `device`; returns self."""
         for k in self.TENSORS:
             setattr(self, k, getattr(self, k).to(device).contiguous())
         return self
 
-    def clone(self) -> "Particles":
+    def clone(self) -> Particles:
         out = object.__new__(Particles)
         for k in self.TENSORS:
             setattr(out, k, getattr(self, k).clone())
@@ -142,7 +160,7 @@ class Particles:
             getattr(self, k).copy_(getattr(self, k)[order])
 
     @staticmethod
-    def from_gaussians(gs, cfg: SceneConfig, dx: Optional[float] = None) -> "Particles":
+    def from_gaussians(gs, cfg: SceneConfig, dx: Optional[float] = None) -> Particles:
         """Particles from a GaussianSet: x = means, volume = Δx³ / (particles in its cell) (as in
         PhysGaussian), mass = ρ V, material parameters from the config's defaults and its
         per-label material map."""
@@ -157,15 +175,21 @@ class Particles:
 
 
 def _by_label(default: MaterialConfig, table, labels, n, field):
-    out = torch.full((n,), float(getattr(default, field)) if field != "model" else MATERIAL_IDS[default.model],
-                     dtype=torch.float32 if field != "model" else torch.int32, device=labels.device)
+    out = torch.full(
+        (n,),
+        float(getattr(default, field)) if field != "model" else MATERIAL_IDS[default.model],
+        dtype=torch.float32 if field != "model" else torch.int32,
+        device=labels.device,
+    )
     for entry in table:
         value = getattr(entry, field)
         if value is None:
             continue
         if field == "model":
             if value not in MATERIAL_IDS:
-                raise SimulationError(f"material_map label {entry.label}: model '{value}' is unknown; use one of {', '.join(MATERIALS)}")
+                raise SimulationError(
+                    f"material_map label {entry.label}: model '{value}' is unknown; use one of {', '.join(MATERIALS)}"
+                )
             value = MATERIAL_IDS[value]
         out[labels == entry.label] = value
     return out

@@ -10,6 +10,7 @@ identity crossing; its depth is the number of erosions its voxel survives, times
 on how far it is inside b). Vectorised torch on the particles' device (sorted keys and binary
 searches, no dense grid).
 """
+
 from __future__ import annotations
 
 import torch
@@ -46,7 +47,8 @@ def fragment_overlap(x: torch.Tensor, fragment: torch.Tensor, h: float, max_dept
     top = counts == best[inverse]
     # the owner of each voxel: its most numerous fragment (ties: the lowest id, the first key of the run)
     winner = torch.zeros(voxels.numel(), dtype=torch.long, device=x.device).scatter_reduce(
-        0, inverse[top], torch.arange(pairs.numel(), device=x.device)[top], "amin", include_self=False)
+        0, inverse[top], torch.arange(pairs.numel(), device=x.device)[top], "amin", include_self=False
+    )
     occ = pairs[winner]  # one (voxel, owner) key per voxel, sorted
     level = torch.zeros(occ.numel(), dtype=torch.long, device=x.device)
     alive = torch.arange(occ.numel(), device=x.device)
@@ -82,8 +84,11 @@ def fragment_overlap(x: torch.Tensor, fragment: torch.Tensor, h: float, max_dept
     worst = torch.zeros(K * K, dtype=torch.float64, device=x.device).scatter_reduce(0, pair, depth, "amax")
     hits = torch.nonzero(worst > 0).flatten().tolist()
     values = worst[hits].tolist()
-    return {"crossing": int(torch.unique(p).numel()), "depth": float(depth.max()),
-            "pairs": {(k // K, k % K): v for k, v in zip(hits, values)}}
+    return {
+        "crossing": int(torch.unique(p).numel()),
+        "depth": float(depth.max()),
+        "pairs": {(k // K, k % K): v for k, v in zip(hits, values)},
+    }
 
 
 def collider_crossing(x: torch.Tensor, planes, tolerance: float) -> tuple[int, float]:

@@ -2,6 +2,7 @@
 
 Readable rather than fast: each function is the paper's equation in vectorized torch.
 """
+
 from __future__ import annotations
 
 import torch
@@ -75,8 +76,17 @@ def stencil(x, origin, dx):
     wa = torch.stack([w[:, off[:, a], a] for a in range(3)], -1)  # [N,27,3]
     dwa = torch.stack([dw[:, off[:, a], a] for a in range(3)], -1)
     weight = wa.prod(-1)
-    grad = torch.stack([dwa[..., 0] * wa[..., 1] * wa[..., 2], wa[..., 0] * dwa[..., 1] * wa[..., 2],
-                        wa[..., 0] * wa[..., 1] * dwa[..., 2]], -1) / dx
+    grad = (
+        torch.stack(
+            [
+                dwa[..., 0] * wa[..., 1] * wa[..., 2],
+                wa[..., 0] * dwa[..., 1] * wa[..., 2],
+                wa[..., 0] * wa[..., 1] * dwa[..., 2],
+            ],
+            -1,
+        )
+        / dx
+    )
     dpos = (off[None].double() - f[:, None, :]) * dx
     nodes = base.long()[:, None, :] + off[None]
     return nodes, weight, grad, dpos

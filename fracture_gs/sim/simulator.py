@@ -3,10 +3,10 @@
 Per substep (Algorithm 1): particle regions → stress (plastic return, band release) → grid reset
 → P2G (shared or fragment-conditioned, any number of fragments) → grid update (normalize + gravity
 per field; at multi-fragment nodes the contact projection between every pair of fields; then
-boundaries) → G2P (own field only). A frame is a whole number of substeps ending exactly on the
-frame time; after it one host read (divergence, box escapes, slot and pool overflows) and the
-fracture event provider, which may latch again (repeated fracture).
+boundaries) → G2P (own field only). Frames of substeps (checks, redo, CUDA graph replay, the
+event provider) are `frame_loop.FrameLoop`, mixed in.
 """
+
 from __future__ import annotations
 
 import math
@@ -15,23 +15,23 @@ from typing import Optional
 import torch
 import warp as wp
 
-from ..errors import SimulationDiverged
 from ..config import MATERIALS, SimConfig
-from ..variants import VARIANTS, variant_spec
 from ..runtime import cpu_ranges, ensure_warp, run_ranges, torch_stream
+from ..variants import VARIANTS, variant_spec
 from .boundary import Boundaries
+from .clock import FrameClock
 from .constitutive import compute_stress, lame
 from .contact import NORMAL_LATCHED, NORMAL_MASS_GRADIENT
-from .clock import FrameClock, tick
+from .frame_loop import FrameLoop
 from .grid import Grid, fit_grid
-from .layout import COUNT_CLAMPED, COUNT_ESCAPED, COUNT_POOL_OVERFLOW, COUNT_SLOT_OVERFLOW, MAX_SLOTS, N_COUNTS
+from .layout import COUNT_CLAMPED, MAX_SLOTS, N_COUNTS
+from .neighbourhood import cell_order, fragment_centroids, solo_mask
 from .particles import Particles, SimulationError
 from .topology import Topology
 from .transfer_kernels import clear_dense, clear_pool, g2p, grid_update_dense, grid_update_pool, p2g
 
 MULTIFIELD_VARIANTS = tuple(v for v, s in VARIANTS.items() if s.multifield)
 RELEASE_VARIANTS = tuple(v for v, s in VARIANTS.items() if s.release)
-
 
 
 def validate_sim_config(cfg: SimConfig) -> None:
@@ -68,7 +68,7 @@ def normalize_device(device) -> str:
     return device
 
 
-class Simulator:
+class Simulator(FrameLoop):
     """MLS-MPM on torch tensors with Warp kernels; `particles` is shared with the kernels."""
 
     MUTABLE = ("x", "v", "C", "F", "yield_stress")  # what a substep writes into the particles
@@ -131,8 +131,23 @@ class Simulator:
         P = self.particles
         self.wp = {k: wp.from_torch(getattr(P, k), dtype=wp.vec3) for k in ("x", "v")}
         self.wp.update({k: wp.from_torch(getattr(P, k), dtype=wp.mat33) for k in ("C", "F")})
-        self.wp.update({k: wp.from_torch(getattr(P, k)) for k in ("mass", "volume", "E", "nu", "material", "yield_stress",
-                                                                   "hardening", "alpha", "fragment", "band")})
+        self.wp.update(
+            {
+                k: wp.from_torch(getattr(P, k))
+                for k in (
+                    "mass",
+                    "volume",
+                    "E",
+                    "nu",
+                    "material",
+                    "yield_stress",
+                    "hardening",
+                    "alpha",
+                    "fragment",
+                    "band",
+                )
+            }
+        )
         self.wp["stress"] = wp.from_torch(self.stress, dtype=wp.mat33)
         self.wp["counts"] = wp.from_torch(self.counts)
         self.wp["solo"] = wp.from_torch(self.solo)
@@ -169,8 +184,10 @@ class Simulator:
         travel = vmax * horizon + 0.5 * math.hypot(*self.cfg.gravity) * horizon**2
         pad = 3 + math.ceil(travel / g.dx) + self.box_slack
         lo = [max(0, int(math.floor((float(stats[a]) - o) / g.dx)) - pad) for a, o in enumerate(g.origin)]
-        hi = [min(s, int(math.floor((float(stats[3 + a]) - o) / g.dx)) + 1 + pad)
-              for a, (o, s) in enumerate(zip(g.origin, g.shape))]
+        hi = [
+            min(s, int(math.floor((float(stats[3 + a]) - o) / g.dx)) + 1 + pad)
+            for a, (o, s) in enumerate(zip(g.origin, g.shape))
+        ]
         box = tuple(lo) + tuple(hi)
         moved = g.ensure_pool(self.pool_rows) if self.multifield else False
         if box != self.box or moved:
@@ -185,37 +202,19 @@ class Simulator:
     def _update_solo(self, travel: float) -> None:
         """Mark the particles no other fragment can reach this frame ("solo": every node of their stencil
         holds their fragment only, so P2G and G2P take the dense path with no slot claims; bitwise the
-        same fields). Conservative: no particle of another fragment within 4Δx + twice the travel (and
-        the box slack) — cells of 2Δx, fragment id min and max pooled over that reach."""
+        same fields): no particle of another fragment within 4Δx + twice the travel (and the box slack)."""
         P, g = self.particles, self.grid
-        h = 2.0 * g.dx
-        r = math.ceil((4.0 * g.dx + 2.0 * travel + self.box_slack * g.dx) / h)
-        if r > 6:  # fast or escaping particles: everybody claims
+        reach = 4.0 * g.dx + 2.0 * travel + self.box_slack * g.dx
+        mask = solo_mask(P.x, P.fragment, g.origin, g.dx, g.shape, reach)
+        if mask is None:
             self.solo.zero_()
-            return
-        dims = [int(math.ceil(s * g.dx / h)) + 1 for s in g.shape]
-        cell = torch.floor((P.x - torch.tensor(g.origin, device=P.x.device)) / h).long()
-        cell = torch.minimum(cell.clamp_min(0), torch.tensor(dims, device=P.x.device) - 1)
-        lin = (cell[:, 0] * dims[1] + cell[:, 1]) * dims[2] + cell[:, 2]
-        frag = P.fragment.float()
-        size = dims[0] * dims[1] * dims[2]
-        inf = torch.full((size,), float("inf"), device=P.x.device)
-        lo = inf.scatter_reduce(0, lin, frag, "amin").view(1, 1, *dims)
-        hi = (-inf).scatter_reduce(0, lin, frag, "amax").view(1, 1, *dims)
-        pool = torch.nn.functional.max_pool3d
-        lo = -pool(-lo, 2 * r + 1, stride=1, padding=r).flatten()
-        hi = pool(hi, 2 * r + 1, stride=1, padding=r).flatten()
-        self.solo.copy_((lo[lin] == hi[lin]).to(torch.int32))
+        else:
+            self.solo.copy_(mask)
 
     def _update_centroids(self) -> None:
         """Mass centroid of every fragment (the contact normal's fallback), on the device."""
         P = self.particles
-        k = P.fragment.long().clamp(0, self.cfg.max_fragments - 1)
-        mx = torch.zeros(self.cfg.max_fragments, 3, dtype=torch.float32, device=self.device)
-        m = torch.zeros(self.cfg.max_fragments, dtype=torch.float32, device=self.device)
-        mx.index_add_(0, k, P.mass[:, None] * P.x)
-        m.index_add_(0, k, P.mass)
-        self.centroids.copy_(mx / m.clamp_min(1e-30)[:, None])
+        self.centroids.copy_(fragment_centroids(P.x, P.mass, P.fragment, self.cfg.max_fragments))
 
     def _stream_scope(self):
         """Launch Warp on torch's current stream (DESIGN.md "Performance rules")."""
@@ -262,58 +261,6 @@ class Simulator:
         else:
             self._grid_pass(only_fragment=-1)
 
-    def _set_clock(self, dt: float, times: list) -> list:
-        """Write a frame's clock table (Δt, substep times, region activity); returns the activity flags."""
-        on, value = self.boundaries.region_table(times, dt)
-        if self.clock.set(dt, times, on, value):
-            self._graph = None
-        return on
-
-    def _substep_launches(self, on: Optional[list], step: int = 0) -> None:
-        """Every launch of one substep, the clock's tick last. `on`: the frame's region flags (only the
-        regions active in substep `step` are launched), or None to launch them all (graph capture:
-        each checks the clock's table itself)."""
-        R = len(self.boundaries.regions)
-        active = None if on is None else on[step * R:(step + 1) * R]
-        self.boundaries.apply_regions(self.wp["x"], self.wp["v"], len(self.particles), self.clock.view, self.device,
-                                      active)
-        self.compute_stress(self.stress, commit=True)
-        self.transfer()
-        wp.launch(tick, dim=1, device=self.device, inputs=[self.clock.view])
-
-    def _graph_key(self) -> tuple:
-        """Everything a recorded substep bakes in besides the clock: a change means recording again."""
-        g = self.grid
-        return (self.box, g.capacity, id(g.view), self.multifield, self.latched, self.n_fragments, self.normal_mode,
-                self.topology.release_events if self.topology else 0, self.record_contact, self.cfg.wall_cells,
-                self.clock.capacity)
-
-    def _frame_substeps_run(self, n: int, dt: float, start: float) -> None:
-        """The frame's n substeps: on CUDA one recorded substep (a CUDA graph on the simulator's own
-        stream) replayed n times, recorded again when something it bakes in changed; else launches."""
-        times, t = [], start
-        for _ in range(n):
-            times.append(t)
-            t += dt
-        on = self._set_clock(dt, times)
-        self.grid.reset_claims()  # claims last one frame
-        graphs = self.use_graphs and self.device.startswith("cuda") and self.frame > 0
-        if graphs and (self._graph is None or self._graph_key() != self._graph_key_value):
-            with self._stream_scope():
-                with wp.ScopedCapture(device=self.device, stream=wp.get_stream(self.device),
-                                      force_module_load=False) as capture:
-                    self._substep_launches(None)
-            self._graph, self._graph_key_value = capture.graph, self._graph_key()
-        with self._stream_scope():
-            for i in range(n):
-                if graphs:
-                    wp.capture_launch(self._graph)
-                else:
-                    self._substep_launches(on, i)
-        for _ in range(n):
-            self.time += dt
-            self.substeps += 1
-
     def compute_stress(self, out: torch.Tensor, commit: bool) -> None:
         """Kirchhoff stress into `out` ([N,3,3]); `commit` writes the plastic return into F. A per-particle
         kernel: on the CPU it runs as one launch per core's share of the particles (bitwise the same)."""
@@ -323,8 +270,12 @@ class Simulator:
         release = self.topology.release_events if self.release else 0
 
         def launch(a: int, b: int) -> None:
-            wp.launch(compute_stress, dim=b - a, device=self.device,
-                      inputs=[t[a:b] for t in arrays] + [release, int(commit), out_wp[a:b]])
+            wp.launch(
+                compute_stress,
+                dim=b - a,
+                device=self.device,
+                inputs=[t[a:b] for t in arrays] + [release, int(commit), out_wp[a:b]],
+            )
 
         n = len(self.particles)
         if self.device == "cpu":
@@ -362,35 +313,79 @@ class Simulator:
         multi = int(self.multifield if multifield is None else multifield)
         if target is None:
             b = self.box
-            wp.launch(clear_dense, dim=(b[3] - b[0], b[4] - b[1], b[5] - b[2]), device=self.device,
-                      inputs=[g.view, self._box_lo])
+            wp.launch(
+                clear_dense,
+                dim=(b[3] - b[0], b[4] - b[1], b[5] - b[2]),
+                device=self.device,
+                inputs=[g.view, self._box_lo],
+            )
             if multi:
                 wp.launch(clear_pool, dim=g.capacity, device=self.device, inputs=[g.view])
             lo, hi = self._box_lo, self._box_hi
         else:
             g.clear()
             lo, hi = wp.vec3i(0, 0, 0), wp.vec3i(*g.shape)
-        wp.launch(p2g, dim=len(self.particles), device=self.device,
-                  inputs=[w["x"], w["v"], w["C"], w["mass"], w["volume"], w["stress"] if stress is None else stress,
-                          w["fragment"], w["band"], w["solo"] if target is None else w["no_solo"], multi, only_fragment,
-                          self.clock.view, g.view, lo, hi,
-                          w["counts"] if counts is None else counts])
+        wp.launch(
+            p2g,
+            dim=len(self.particles),
+            device=self.device,
+            inputs=[
+                w["x"],
+                w["v"],
+                w["C"],
+                w["mass"],
+                w["volume"],
+                w["stress"] if stress is None else stress,
+                w["fragment"],
+                w["band"],
+                w["solo"] if target is None else w["no_solo"],
+                multi,
+                only_fragment,
+                self.clock.view,
+                g.view,
+                lo,
+                hi,
+                w["counts"] if counts is None else counts,
+            ],
+        )
 
     def _update_grid(self) -> None:
         g, multi = self.grid, int(self.multifield)
         self.boundaries.colliders.wall_cells = int(self.cfg.wall_cells)  # the config may change between calls
         b = self.box
-        wp.launch(grid_update_dense, dim=(b[3] - b[0], b[4] - b[1], b[5] - b[2]), device=self.device,
-                  inputs=[g.view, self._box_lo, multi, self.eps_m, self.clock.view, self._gravity,
-                          self.boundaries.colliders])
+        wp.launch(
+            grid_update_dense,
+            dim=(b[3] - b[0], b[4] - b[1], b[5] - b[2]),
+            device=self.device,
+            inputs=[g.view, self._box_lo, multi, self.eps_m, self.clock.view, self._gravity, self.boundaries.colliders],
+        )
         if multi:
             c = self.cfg.contact
-            wp.launch(grid_update_pool, dim=g.capacity, device=self.device,
-                      inputs=[g.view, self.eps_m, self.eps_b, c.fill * self.node_mass, multi, int(self.spec.contact),
-                              self.normal_mode,
-                              self._normal, self.wp["centroids"], float(self.cfg.restitution), float(c.friction),
-                              self.clock.view, self._gravity, self.boundaries.colliders, int(self.record_contact),
-                              g.wp["stats"], g.wp["pair_stats"], g.max_fragments])
+            wp.launch(
+                grid_update_pool,
+                dim=g.capacity,
+                device=self.device,
+                inputs=[
+                    g.view,
+                    self.eps_m,
+                    self.eps_b,
+                    c.fill * self.node_mass,
+                    multi,
+                    int(self.spec.contact),
+                    self.normal_mode,
+                    self._normal,
+                    self.wp["centroids"],
+                    float(self.cfg.restitution),
+                    float(c.friction),
+                    self.clock.view,
+                    self._gravity,
+                    self.boundaries.colliders,
+                    int(self.record_contact),
+                    g.wp["stats"],
+                    g.wp["pair_stats"],
+                    g.max_fragments,
+                ],
+            )
 
     def _g2p(self, only_fragment: int = -1) -> None:
         """Per particle but for the clamp counter: on the CPU one launch per core's share, each with its
@@ -400,9 +395,13 @@ class Simulator:
         multi = int(self.multifield)
 
         def launch(a: int, b: int, counts) -> None:
-            wp.launch(g2p, dim=b - a, device=self.device,
-                      inputs=[t[a:b] for t in arrays] + [multi, only_fragment, self.clock.view, g.view, self._lower,
-                                                         self._upper, counts])
+            wp.launch(
+                g2p,
+                dim=b - a,
+                device=self.device,
+                inputs=[t[a:b] for t in arrays]
+                + [multi, only_fragment, self.clock.view, g.view, self._lower, self._upper, counts],
+            )
 
         ranges = self._ranges or [(0, len(self.particles))]
         if len(ranges) == 1:
@@ -416,137 +415,6 @@ class Simulator:
         self.counts += self._range_counts.sum(0, dtype=torch.int32)
 
     # ---- frames -------------------------------------------------------------------------------
-    def frame_substeps(self, frame_dt: float, vmax: Optional[float] = None) -> tuple[int, float]:
-        """(n, Δt) with n·Δt = frame_dt exactly and Δt ≤ cfg.dt (and the CFL bound if adaptive;
-        `vmax`, the largest particle speed, is read from the device when not given)."""
-        dt = self.cfg.dt
-        if self.cfg.adaptive_dt:
-            if vmax is None:
-                vmax = float(self.particles.v.norm(dim=1).max())
-            if math.isfinite(vmax):
-                dt = min(dt, self.cfl_dt(vmax))
-        n = max(1, math.ceil(frame_dt / dt - 1e-9))
-        if n > self.cfg.max_substeps_per_frame:
-            raise SimulationError(f"a frame of {frame_dt}s needs {n} substeps of {dt:.3g}s, "
-                                  f"over sim.max_substeps_per_frame")
-        return n, frame_dt / n
-
-    MAX_TRIES = 8
-
-    def advance(self, frame_dt: float) -> int:
-        """Simulate one frame: n substeps, then the divergence check and the event provider.
-
-        The frame runs on an active box fitted at its start. If a particle's stencil left the box
-        (P2G counts it) or the pool of multi-fragment nodes filled up, the frame is rolled back and
-        redone: with more box slack (the second escape runs on the whole grid, where nothing can
-        escape) or with a pool twice as large. One host read per try. On CUDA the frame runs on the
-        simulator's own stream (graphs are recorded on a non-default stream), ordered after the
-        caller's current stream and before it again at the end."""
-        if not self.device.startswith("cuda"):
-            return self._advance(frame_dt)
-        if self._cuda_stream is None:
-            self._cuda_stream = torch.cuda.Stream(self.device)
-        caller = torch.cuda.current_stream(self.device)
-        self._cuda_stream.wait_stream(caller)
-        with torch.cuda.stream(self._cuda_stream):
-            n = self._advance(frame_dt)
-        caller.wait_stream(self._cuda_stream)
-        return n
-
-    def _advance(self, frame_dt: float) -> int:
-        if self.substeps == 0:
-            self._poll_provider()  # an oracle may latch before the first substep
-        start, substeps0 = self.time, self.substeps
-        self._save_state()
-        escapes = 0
-        for attempt in range(self.MAX_TRIES):
-            if escapes < 2:
-                vmax = self.fit_active_box(frame_dt)  # the frame's one host read also gives max |v|
-            else:
-                if self.multifield:
-                    self.grid.ensure_pool(self.pool_rows)
-                self._reset_boxes()
-                self.grid.zero()
-                self.solo.zero_()  # the whole grid, every particle claims its slots
-                vmax = None
-            n, dt = self.frame_substeps(frame_dt, vmax)
-            self.dt = dt
-            self.counts[COUNT_ESCAPED:] = 0
-            self._frame_substeps_run(n, dt, start)
-            bad, escaped, slot_overflow, pool_overflow, rows = self._frame_check(dt)
-            self.pool_rows = max(rows, self.pool_rows // 2)
-            if (escaped == 0 and pool_overflow == 0) or attempt == self.MAX_TRIES - 1:
-                break
-            self._restore_state()
-            self.time, self.substeps = start, substeps0
-            if escaped:
-                escapes += 1
-                self.box_slack = 2 * self.box_slack + 2
-            if pool_overflow:
-                self.pool_rows = 2 * self.grid.capacity
-            self.frame_redos += 1
-        self.slot_overflow, self.pool_overflow = slot_overflow, pool_overflow
-        self.slot_overflow_total += slot_overflow
-        self.time = start + frame_dt  # end exactly on the frame time (no drift from summing Δt)
-        self.frame += 1
-        if bad:
-            self._raise_diverged(dt, bad)
-        self._poll_provider()
-        if self._diagnostics is not None:
-            self._diagnostics.on_frame()
-        return n
-
-    def _save_state(self) -> None:
-        """Copy what a frame can change into buffers made once (device copies, no sync)."""
-        P, g = self.particles, self.grid
-        keep = {"stats": g.contact_stats, "pair_stats": g.pair_stats, "counts": self.counts}
-        if self._saved is None:
-            self._saved = {k: torch.empty_like(getattr(P, k)) for k in self.MUTABLE}
-            self._saved.update({k: torch.empty_like(t) for k, t in keep.items()})
-        for k in self.MUTABLE:
-            self._saved[k].copy_(getattr(P, k))
-        for k, t in keep.items():
-            self._saved[k].copy_(t)
-
-    def _restore_state(self) -> None:
-        P, g = self.particles, self.grid
-        for k in self.MUTABLE:
-            getattr(P, k).copy_(self._saved[k])
-        g.contact_stats.copy_(self._saved["stats"])
-        g.pair_stats.copy_(self._saved["pair_stats"])
-        self.counts.copy_(self._saved["counts"])
-
-    def _poll_provider(self) -> None:
-        """Ask the event provider for a new topology (it returns one per fracture event) and latch it."""
-        if self.provider is not None:
-            topology = self.provider(self)
-            if topology is not None:
-                self.latch(topology)
-
-    def _bad_particles(self, dt: float) -> torch.Tensor:
-        """Particles that are non-finite or faster than Δx/Δt (a device count)."""
-        P = self.particles
-        speed = P.v.norm(dim=1)
-        bad = ~torch.isfinite(speed) | ~torch.isfinite(P.x).all(dim=1) | (speed > self.grid.dx / dt)
-        return bad.sum()
-
-    def _frame_check(self, dt: float) -> tuple[int, int, int, int, int]:
-        """(diverged particles, box escapes, slot overflows, pool overflows, pool rows used) of the
-        frame, in one host read."""
-        c = self.counts.long()
-        values = torch.stack([self._bad_particles(dt), c[COUNT_ESCAPED], c[COUNT_SLOT_OVERFLOW],
-                              c[COUNT_POOL_OVERFLOW], self.grid.rows_used().to(c.device)]).tolist()
-        return tuple(int(v) for v in values)
-
-    def _raise_diverged(self, dt: float, count: int) -> None:
-        bound = self.cfl_dt()
-        cause = (f"Δt = {dt:.3g}s is over the CFL bound {bound:.3g}s for this stiffness "
-                 f"(wave speed {self.wave_speed:.3g} m/s)" if dt > bound else "an extreme deformation or boundary velocity")
-        raise SimulationDiverged(
-            f"simulation diverged at frame {self.frame} (t = {self.time:.4g}s): {count} of {len(self.particles)} "
-            f"particles have a non-finite or exploding velocity; likely cause: {cause}. Lower sim.dt or set "
-            f"sim.adaptive_dt = true.", frame=self.frame, count=count, cause=cause)
-
     # ---- topology -----------------------------------------------------------------------------
     def latch(self, topology: Topology) -> None:
         """Impulse-free latch (Eq. state_inheritance): only o_p, γ_p (and the contact normal) are
@@ -556,10 +424,13 @@ class Simulator:
         if topology.fragment.shape != (len(P),) or topology.band.shape != (len(P),):
             raise SimulationError(f"Topology labels must have shape [{len(P)}] like the particles")
         fragment = topology.fragment.to(P.fragment.device, torch.int32)
-        k, bands = (int(v) for v in torch.stack([fragment.max().long(), topology.band.to(fragment.device).bool().sum()]))
+        k, bands = (
+            int(v) for v in torch.stack([fragment.max().long(), topology.band.to(fragment.device).bool().sum()])
+        )
         if not (0 <= int(fragment.min()) and k < self.cfg.max_fragments):
-            raise SimulationError(f"Topology fragment ids must lie in [0, sim.max_fragments = {self.cfg.max_fragments}); "
-                                  f"got up to {k}")
+            raise SimulationError(
+                f"Topology fragment ids must lie in [0, sim.max_fragments = {self.cfg.max_fragments}); got up to {k}"
+            )
         first = self.topology is None
         P.fragment.copy_(fragment)
         P.band.copy_(topology.band.to(P.band.device, torch.int32))
@@ -600,24 +471,10 @@ class Simulator:
         return self._diagnostics
 
     def sort_particles(self, mode: str = "interleaved") -> torch.Tensor:
-        """Reorder particles for P2G's atomics; returns `order` (new particle i was old order[i]).
-
-        `cell`: grid-cell order (locality, but the ~8 particles of a cell sit in one warp and hit the
-        same 27 nodes). `interleaved`: the k-th particle of every cell, in cell order, then the
-        (k+1)-th, ... — neighbours in memory are neighbouring cells, so a warp keeps locality while
-        few of its lanes add to the same node."""
+        """Reorder particles for P2G's atomics (`neighbourhood.cell_order`); returns `order` (new
+        particle i was old order[i])."""
         P, g = self.particles, self.grid
-        cell = torch.floor((P.x - torch.tensor(g.origin, device=P.x.device)) / g.dx).long()
-        key = (cell[:, 0] * g.shape[1] + cell[:, 1]) * g.shape[2] + cell[:, 2]
-        order = torch.argsort(key, stable=True)
-        if mode == "interleaved":
-            sorted_key = key[order]
-            _, counts = torch.unique_consecutive(sorted_key, return_counts=True)
-            starts = torch.repeat_interleave(torch.cumsum(counts, 0) - counts, counts)
-            rank = torch.arange(len(order), device=key.device) - starts
-            order = order[torch.argsort(rank * (int(sorted_key.max()) + 1) + sorted_key, stable=True)]
-        elif mode != "cell":
-            raise ValueError(f"sort mode '{mode}' is not 'cell' or 'interleaved'")
+        order = cell_order(P.x, g.origin, g.dx, g.shape, mode)
         P.permute(order)
         self.solo.zero_()  # recomputed for the new order at the next frame
         return order

@@ -7,6 +7,7 @@ snapshot of a run to one `topology.npz`, so each variant replays the same histor
 
 Who produces one is `fracture_gs.sim.providers`; the simulator only reads it (`Simulator.latch`).
 """
+
 from __future__ import annotations
 
 import json
@@ -46,8 +47,15 @@ class Topology:
     release_events: int = 1  # band particles of events 1 … release_events get stress release (0: none)
 
     @staticmethod
-    def from_plane(x: torch.Tensor, point, normal, band_width: float, latch_time: float = 0.0, latch_frame: int = 0,
-                   pair_radius: float = 1.5) -> "Topology":
+    def from_plane(
+        x: torch.Tensor,
+        point,
+        normal,
+        band_width: float,
+        latch_time: float = 0.0,
+        latch_frame: int = 0,
+        pair_radius: float = 1.5,
+    ) -> Topology:
         """Labels by the sign of the signed distance to the plane; band = |distance| < band_width [m]."""
         n = torch.tensor(normal, dtype=torch.float64)
         n = n / n.norm()
@@ -71,42 +79,62 @@ class Topology:
 
     def counts(self) -> dict:
         frag = self.fragment.cpu()
-        out = {"fragment0": int((frag == 0).sum()), "fragment1": int((frag == 1).sum()),
-               "band": int(self.band.cpu().bool().sum())}
+        out = {
+            "fragment0": int((frag == 0).sum()),
+            "fragment1": int((frag == 1).sum()),
+            "band": int(self.band.cpu().bool().sum()),
+        }
         if self.n_fragments > 2:
             out["fragments"] = self.n_fragments
         return out
 
-    def refined(self, fragment: torch.Tensor, band: torch.Tensor, event: FractureEvent) -> "Topology":
+    def refined(self, fragment: torch.Tensor, band: torch.Tensor, event: FractureEvent) -> Topology:
         """The snapshot after one more event (labels replaced, event appended; n_Π stays the first's)."""
-        return replace(self, fragment=fragment.to(torch.int32), band=band.to(torch.int32), latch_time=event.time,
-                       latch_frame=event.frame, events=list(self.events) + [event])
+        return replace(
+            self,
+            fragment=fragment.to(torch.int32),
+            band=band.to(torch.int32),
+            latch_time=event.time,
+            latch_frame=event.frame,
+            events=list(self.events) + [event],
+        )
 
     def _arrays(self) -> dict:
-        return dict(fragment=self.fragment.cpu().numpy().astype(np.int32), band=self.band.cpu().numpy().astype(np.uint8),
-                    normal=np.asarray(self.normal), point=np.asarray(self.point), latch_time=self.latch_time,
-                    latch_frame=self.latch_frame, pair_radius=self.pair_radius,
-                    events=json.dumps([asdict(e) for e in self.events]), release_events=self.release_events)
+        return dict(
+            fragment=self.fragment.cpu().numpy().astype(np.int32),
+            band=self.band.cpu().numpy().astype(np.uint8),
+            normal=np.asarray(self.normal),
+            point=np.asarray(self.point),
+            latch_time=self.latch_time,
+            latch_frame=self.latch_frame,
+            pair_radius=self.pair_radius,
+            events=json.dumps([asdict(e) for e in self.events]),
+            release_events=self.release_events,
+        )
 
     def save(self, path) -> None:
         np.savez_compressed(path, **self._arrays())
 
     @staticmethod
-    def _from_arrays(z, device, suffix: str = "") -> "Topology":
+    def _from_arrays(z, device, suffix: str = "") -> Topology:
         events = json.loads(str(z["events" + suffix])) if "events" + suffix in z else []
         return Topology(
             fragment=torch.from_numpy(np.asarray(z["fragment" + suffix])).to(device),
             band=torch.from_numpy(np.asarray(z["band" + suffix]).astype(np.int32)).to(device),
-            normal=tuple(float(a) for a in z["normal" + suffix]), point=tuple(float(a) for a in z["point" + suffix]),
-            latch_time=float(z["latch_time" + suffix]), latch_frame=int(z["latch_frame" + suffix]),
+            normal=tuple(float(a) for a in z["normal" + suffix]),
+            point=tuple(float(a) for a in z["point" + suffix]),
+            latch_time=float(z["latch_time" + suffix]),
+            latch_frame=int(z["latch_frame" + suffix]),
             pair_radius=float(z["pair_radius" + suffix]) if "pair_radius" + suffix in z else 1.5,
             release_events=int(z["release_events" + suffix]) if "release_events" + suffix in z else 1,
-            events=[FractureEvent(**{k: (tuple(v) if isinstance(v, list) and k != "seeds" else v) for k, v in e.items()})
-                    for e in events],
+            events=[
+                FractureEvent(**{k: (tuple(v) if isinstance(v, list) and k != "seeds" else v) for k, v in e.items()})
+                for e in events
+            ],
         )
 
     @staticmethod
-    def load(path, device="cpu") -> "Topology":
+    def load(path, device="cpu") -> Topology:
         """The last snapshot of a saved run (one file holds one snapshot or a whole history)."""
         return load_history(path, device)[-1]
 

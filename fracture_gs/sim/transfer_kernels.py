@@ -8,6 +8,7 @@ the field of its own fragment k = o_p only, wherever the slot storage keeps it a
 (`layout.py`); otherwise every particle uses the dense field. The float64 torch twins (dense
 fields) are in `fracture_gs.sim.reference`.
 """
+
 from __future__ import annotations
 
 import warp as wp
@@ -15,9 +16,26 @@ import warp as wp
 from .boundary import Colliders, apply_boundaries
 from .clock import Clock, clock_dt, clock_time
 from .contact import NORMAL_MASS_GRADIENT, contact_normal, contact_projection, record_contact
-from .layout import (COUNT_CLAMPED, COUNT_ESCAPED, COUNT_POOL_OVERFLOW, COUNT_SLOT_OVERFLOW, EMPTY_KEY, MAX_SLOTS,
-                     OWNER_MASK, ROW_FLAG, GridView, claim_pool_slot, claim_row, claim_slot0, field_index, find_pool_slot,
-                     find_row, flat, inside, unflat)
+from .layout import (
+    COUNT_CLAMPED,
+    COUNT_ESCAPED,
+    COUNT_POOL_OVERFLOW,
+    COUNT_SLOT_OVERFLOW,
+    EMPTY_KEY,
+    MAX_SLOTS,
+    OWNER_MASK,
+    ROW_FLAG,
+    GridView,
+    claim_pool_slot,
+    claim_row,
+    claim_slot0,
+    field_index,
+    find_pool_slot,
+    find_row,
+    flat,
+    inside,
+    unflat,
+)
 
 wp.set_module_options({"enable_backward": False})  # forward-only kernels compile in half the time
 
@@ -85,7 +103,6 @@ def node_terms(i: int, j: int, l: int, f: wp.vec3, w: wp.mat33, dw: wp.mat33, dx
     return weight, grad, dpos
 
 
-
 @wp.func
 def axis_terms(i: int, f: float):
     """Quadratic B-spline weight and its ξ-derivative of stencil offset i ∈ {0, 1, 2} along one axis,
@@ -130,8 +147,8 @@ def deposit_index(g: GridView, n: int, k: int, in_band: int, counts: wp.array(dt
     claims it; else a pool slot of the node's row; else (slot overflow) slot 0 of another fragment.
     Band particles also make sure the node has a row, which holds the band mass the gate reads."""
     own = claim_slot0(g.owner, n, k)
-    row = int(-1)
-    j = int(0)
+    row = -1
+    j = 0
     if own != k + 1 or in_band != 0:
         row = claim_row(g.key, g.owner, n, g.mask)
         if row < 0:
@@ -264,8 +281,9 @@ def grid_update_dense(
 @wp.func
 def field_mass(g: GridView, node: wp.vec3i, k: int):
     """Mass of fragment k's field at `node` (0 if absent; the node is clamped into the grid)."""
-    c = wp.vec3i(wp.clamp(node[0], 0, g.shape[0] - 1), wp.clamp(node[1], 0, g.shape[1] - 1),
-                 wp.clamp(node[2], 0, g.shape[2] - 1))
+    c = wp.vec3i(
+        wp.clamp(node[0], 0, g.shape[0] - 1), wp.clamp(node[1], 0, g.shape[1] - 1), wp.clamp(node[2], 0, g.shape[2] - 1)
+    )
     n = flat(c, wp.vec3i(0, 0, 0), g.shape)
     word = g.owner[n]
     if (word & OWNER_MASK) == k + 1:
@@ -429,8 +447,9 @@ def g2p(
     C[p] = B * (4.0 * g.inv_dx * g.inv_dx)
     F[p] = (wp.identity(n=3, dtype=float) + dt * gradv) * F[p]
     xn = x[p] + dt * vp
-    xc = wp.vec3(wp.clamp(xn[0], lower[0], upper[0]), wp.clamp(xn[1], lower[1], upper[1]),
-                 wp.clamp(xn[2], lower[2], upper[2]))
+    xc = wp.vec3(
+        wp.clamp(xn[0], lower[0], upper[0]), wp.clamp(xn[1], lower[1], upper[1]), wp.clamp(xn[2], lower[2], upper[2])
+    )
     if xc[0] != xn[0] or xc[1] != xn[1] or xc[2] != xn[2]:
         wp.atomic_add(counts, COUNT_CLAMPED, 1)
     x[p] = xc

@@ -36,6 +36,7 @@ Rules:
     preset's Δx, rescales the explicit grid shape to cover the same box (64³ ↔ 128³) and rescales
     `sim.dt` by the same ratio so the CFL number stays put. It is idempotent.
 """
+
 from ...config import BOUNDARY_TYPES, BUILTIN_SCENES, PRESETS, PROVIDERS
 from ...errors import ConfigError
 from .dump import config_to_dict, dump_config
@@ -44,7 +45,20 @@ from .overrides import apply_overrides, parse_resolution, parse_variants
 from .validate import validate
 
 __all__ = [
-    "BOUNDARY_TYPES", "BUILTIN_SCENES", "CONFIG_DIR", "ConfigError", "PRESETS", "PROVIDERS", "apply_overrides",
-    "builtin_configs", "config_from_dict", "config_to_dict", "dump_config", "find_config", "load_config", "parse_resolution",
-    "parse_variants", "validate",
+    "BOUNDARY_TYPES",
+    "BUILTIN_SCENES",
+    "CONFIG_DIR",
+    "ConfigError",
+    "PRESETS",
+    "PROVIDERS",
+    "apply_overrides",
+    "builtin_configs",
+    "config_from_dict",
+    "config_to_dict",
+    "dump_config",
+    "find_config",
+    "load_config",
+    "parse_resolution",
+    "parse_variants",
+    "validate",
 ]

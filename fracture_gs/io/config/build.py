@@ -3,6 +3,7 @@
 Strict: an unknown key gets the closest valid name, a value of the wrong type or outside a
 `Literal` field's choices gets one sentence naming the file, the dotted field and the fix.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -11,8 +12,15 @@ import math
 import typing
 from typing import Any, Iterable, Literal, Sequence, Union
 
-from ...config import (BOUNDARY_TYPES, MaterialMapEntry, OraclePlane, PlaneBoundary, SceneConfig, SimConfig,
-                       TopologyConfig)
+from ...config import (
+    BOUNDARY_TYPES,
+    MaterialMapEntry,
+    OraclePlane,
+    PlaneBoundary,
+    SceneConfig,
+    SimConfig,
+    TopologyConfig,
+)
 from ...errors import ConfigError
 from .dump import to_plain_value, toml_value
 
@@ -140,7 +148,9 @@ def _build(cls: type, data: Any, prefix: str, src: str, skip: Iterable[str] = ()
     """Build dataclass `cls` from table `data`, rejecting unknown keys and wrong types."""
     if not isinstance(data, dict):
         what = f"[{prefix}]" if prefix else "the config"
-        raise ConfigError(src, prefix, f"{what} must be a table, not {describe(data)}; write it as a [{prefix}] section.")
+        raise ConfigError(
+            src, prefix, f"{what} must be a table, not {describe(data)}; write it as a [{prefix}] section."
+        )
     hints = _hints(cls)
     valid = [f.name for f in dataclasses.fields(cls)]
     kwargs = {}
@@ -157,7 +167,9 @@ def _build(cls: type, data: Any, prefix: str, src: str, skip: Iterable[str] = ()
 
 def _array(value: Any, dotted: str, src: str, what: str, example: str) -> list:
     if not isinstance(value, (list, tuple)):
-        raise ConfigError(src, dotted, f"{dotted} must be an array of {what}, not {describe(value)}; write it like {example}.")
+        raise ConfigError(
+            src, dotted, f"{dotted} must be an array of {what}, not {describe(value)}; write it like {example}."
+        )
     return list(value)
 
 
@@ -174,7 +186,9 @@ def _build_boundaries(value: Any, dotted: str, src: str) -> list:
         if kind not in BOUNDARY_TYPES:
             out_of = ", ".join(repr(k) for k in BOUNDARY_TYPES)
             close = difflib.get_close_matches(str(kind), list(BOUNDARY_TYPES), n=1)
-            fix = f"did you mean type = {close[0]!r}?" if close and kind is not None else f"set type to one of {out_of}."
+            fix = (
+                f"did you mean type = {close[0]!r}?" if close and kind is not None else f"set type to one of {out_of}."
+            )
             got = "has no type" if kind is None else f"has type = {kind!r}"
             raise ConfigError(src, f"{path}.type", f"{path} {got}; {fix}")
         out.append(_build(BOUNDARY_TYPES[kind], item, path, src, skip=("type",)))
@@ -192,7 +206,11 @@ def _build_variants(value: Any, dotted: str, src: str) -> list:
     items = _array(value, dotted, src, "strings", 'variants = ["baseline", "full"]')
     for i, item in enumerate(items):
         if not isinstance(item, str):
-            raise ConfigError(src, f"{dotted}[{i}]", f"{dotted}[{i}] must be a string, not {describe(item)}; write it like variants = [\"baseline\", \"full\"].")
+            raise ConfigError(
+                src,
+                f"{dotted}[{i}]",
+                f'{dotted}[{i}] must be a string, not {describe(item)}; write it like variants = ["baseline", "full"].',
+            )
     return items
 
 
@@ -223,7 +241,12 @@ def _sync_material(cfg: SceneConfig, data: dict, src: str) -> None:
     in_sim = isinstance(data.get("sim"), dict) and "material" in data["sim"]
     in_mat = isinstance(data.get("material"), dict) and "model" in data["material"]
     if in_sim and in_mat and cfg.sim.material != cfg.material.model:
-        raise ConfigError(src, "sim.material", f"sim.material = {cfg.sim.material!r} disagrees with material.model = {cfg.material.model!r}; set only material.model.")
+        raise ConfigError(
+            src,
+            "sim.material",
+            f"sim.material = {cfg.sim.material!r} disagrees with material.model = {cfg.material.model!r}; "
+            "set only material.model.",
+        )
     if in_sim and not in_mat:
         cfg.material.model = cfg.sim.material
     elif in_mat:

@@ -1,4 +1,5 @@
 """Writing a SceneConfig as TOML that `load_config` reads back to an equal SceneConfig."""
+
 from __future__ import annotations
 
 import dataclasses

@@ -4,13 +4,15 @@
 deep-merge key by key; scalars and arrays replace), build the dataclasses (`build.py`) and check
 every value (`validate.py`).
 """
+
 from __future__ import annotations
 
 import dataclasses
 import os
-import tomllib
 from pathlib import Path
 from typing import Any, Optional, Union
+
+import tomllib
 
 from ...config import SceneConfig
 from ...errors import ConfigError
@@ -43,7 +45,12 @@ def find_config(name_or_path: Union[str, os.PathLike]) -> Path:
         if candidate.is_file():
             return candidate
     if path.suffix.lower() == ".ply":
-        raise ConfigError(text, None, f"this is a 3DGS scene, not a config; write a TOML config with scene = \"{text}\" (for instance extends = \"bread\" plus that line) and pass the TOML instead.")
+        raise ConfigError(
+            text,
+            None,
+            f'this is a 3DGS scene, not a config; write a TOML config with scene = "{text}" '
+            '(for instance extends = "bread" plus that line) and pass the TOML instead.',
+        )
     names = ", ".join(builtin_configs()) or "none installed"
     raise ConfigError(text, None, f"no such config file; pass a path to a TOML file or a built-in name ({names}).")
 
@@ -65,13 +72,17 @@ def _read_toml(path: Path) -> dict:
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(src, None, f"invalid TOML ({exc}); fix the syntax there.") from None
     except OSError as exc:
-        raise ConfigError(src, None, f"cannot read the file ({exc.strerror}); check the path and permissions.") from None
+        raise ConfigError(
+            src, None, f"cannot read the file ({exc.strerror}); check the path and permissions."
+        ) from None
 
 
 def _resolve_extends(value: Any, base_dir: Optional[Path], src: str) -> Path:
     """Find the file an `extends` key names: relative to the extending file, then built-ins."""
     if not isinstance(value, str) or not value:
-        raise ConfigError(src, "extends", "extends must be a config name or path string; write it like extends = \"bread\".")
+        raise ConfigError(
+            src, "extends", 'extends must be a config name or path string; write it like extends = "bread".'
+        )
     if base_dir is not None:
         for candidate in (base_dir / value, base_dir / f"{value}.toml"):
             if candidate.is_file():
@@ -80,7 +91,11 @@ def _resolve_extends(value: Any, base_dir: Optional[Path], src: str) -> Path:
         return find_config(value)
     except ConfigError:
         names = ", ".join(builtin_configs())
-        raise ConfigError(src, "extends", f"extends = {value!r} names no config file; use a path relative to this file or a built-in name ({names}).") from None
+        raise ConfigError(
+            src,
+            "extends",
+            f"extends = {value!r} names no config file; use a path relative to this file or a built-in name ({names}).",
+        ) from None
 
 
 def _deep_merge(base: dict, over: dict) -> dict:

@@ -5,6 +5,7 @@ Presets: `preset` is `small` (Δx = 1/64) or `paper` (Δx = 1/128). A file is ta
 preset's Δx, rescales the explicit grid shape to cover the same box (64³ ↔ 128³) and rescales
 `sim.dt` by the same ratio so the CFL number stays put. It is idempotent.
 """
+
 from __future__ import annotations
 
 import copy
@@ -21,7 +22,11 @@ def parse_resolution(text: Union[str, Sequence[int]], source: str = "") -> tuple
     if isinstance(text, str):
         parts = text.lower().replace("×", "x").split("x")
         if len(parts) != 2 or not all(p.strip().isdigit() for p in parts):
-            raise ConfigError(source, "--resolution", f"--resolution {text!r} is not WIDTHxHEIGHT; write it like --resolution 640x480.")
+            raise ConfigError(
+                source,
+                "--resolution",
+                f"--resolution {text!r} is not WIDTHxHEIGHT; write it like --resolution 640x480.",
+            )
         w, h = (int(p) for p in parts)
     else:
         w, h = (int(v) for v in text)
@@ -80,7 +85,9 @@ def apply_overrides(
         _apply_preset(out, preset, "")
     if frames is not None:
         if isinstance(frames, bool) or not isinstance(frames, int) or frames < 1:
-            raise ConfigError("", "--frames", f"--frames {frames!r} must be a positive integer; write it like --frames 30.")
+            raise ConfigError(
+                "", "--frames", f"--frames {frames!r} must be a positive integer; write it like --frames 30."
+            )
         out.frames = frames
     if resolution is not None:
         out.render.width, out.render.height = parse_resolution(resolution)

@@ -1,13 +1,31 @@
 """Value checks of a SceneConfig: one sentence naming the source, the field and the fix, on the first problem."""
+
 from __future__ import annotations
 
 import difflib
 import math
 from typing import Any, Sequence
 
-from ...config import (BUILTIN_SCENES, GRID_KINDS, MATERIALS, PLANE_MODES, PRESETS, PROVIDERS, REGION_KINDS, RENDER_BACKENDS,
-                       RENDER_MODES, VARIANTS, CuboidBoundary, MaterialMapEntry, ParticleRegion, PlaneBoundary, RenderConfig,
-                       SceneConfig, SimConfig, TopologyConfig)
+from ...config import (
+    BUILTIN_SCENES,
+    GRID_KINDS,
+    MATERIALS,
+    PLANE_MODES,
+    PRESETS,
+    PROVIDERS,
+    REGION_KINDS,
+    RENDER_BACKENDS,
+    RENDER_MODES,
+    VARIANTS,
+    CuboidBoundary,
+    MaterialMapEntry,
+    ParticleRegion,
+    PlaneBoundary,
+    RenderConfig,
+    SceneConfig,
+    SimConfig,
+    TopologyConfig,
+)
 from ...errors import ConfigError
 from ...variants import variant_spec
 
@@ -50,11 +68,19 @@ class _Checker:
 
     def box(self, prefix: str, lower: tuple, upper: tuple) -> None:
         if not all(lo < hi for lo, hi in zip(lower, upper)):
-            self.fail(f"{prefix}.lower", f"{prefix}.lower {list(lower)} is not below {prefix}.upper {list(upper)} on every axis", "swap or fix the corners so lower < upper")
+            self.fail(
+                f"{prefix}.lower",
+                f"{prefix}.lower {list(lower)} is not below {prefix}.upper {list(upper)} on every axis",
+                "swap or fix the corners so lower < upper",
+            )
 
     def interval(self, prefix: str, start: float, end: float) -> None:
         if not (0 <= start <= end):
-            self.fail(f"{prefix}.start", f"{prefix}.start = {start!r} and end = {end!r} do not form a time interval", "use 0 <= start <= end (seconds)")
+            self.fail(
+                f"{prefix}.start",
+                f"{prefix}.start = {start!r} and end = {end!r} do not form a time interval",
+                "use 0 <= start <= end (seconds)",
+            )
 
 
 def validate(cfg: SceneConfig, source: str = "<config>") -> SceneConfig:
@@ -74,12 +100,20 @@ def _check_scene(c: _Checker, cfg: SceneConfig) -> None:
     if not cfg.name or any(ch in cfg.name for ch in "/\\:") or cfg.name.strip() != cfg.name:
         c.fail("name", f"name = {cfg.name!r} cannot be used as a folder name", "use letters, digits, '_', '-' or '.'")
     if cfg.scene not in BUILTIN_SCENES and not cfg.scene.lower().endswith(".ply"):
-        c.fail("scene", f"scene = {cfg.scene!r} is neither a built-in scene nor a .ply path", f"use one of {', '.join(BUILTIN_SCENES)} or a path ending in .ply")
+        c.fail(
+            "scene",
+            f"scene = {cfg.scene!r} is neither a built-in scene nor a .ply path",
+            f"use one of {', '.join(BUILTIN_SCENES)} or a path ending in .ply",
+        )
     c.choice("preset", cfg.preset, list(PRESETS))
     c.at_least("frames", cfg.frames, 1, "simulate at least one frame")
     c.positive("frame_dt", cfg.frame_dt, "give the time between frames in seconds, e.g. frame_dt = 0.01")
     if cfg.material_property is not None and not cfg.material_property:
-        c.fail("material_property", "material_property is empty", "name the PLY property holding the labels or remove the key")
+        c.fail(
+            "material_property",
+            "material_property is empty",
+            "name the PLY property holding the labels or remove the key",
+        )
     _check_variants(c, cfg)
 
 
@@ -96,15 +130,28 @@ def _check_provider_needed(c: _Checker, cfg: SceneConfig) -> None:
     """Every variant but baseline needs fragment labels, hence an event provider."""
     needing = [v for v in cfg.variants if variant_spec(v).needs_provider]
     if needing and cfg.topology.provider == "none":
-        c.fail("topology.provider", f"variants {needing} need a fracture event provider but topology.provider = 'none'", "set topology.provider = \"stress\" or \"oracle\", or run only baseline")
+        c.fail(
+            "topology.provider",
+            f"variants {needing} need a fracture event provider but topology.provider = 'none'",
+            'set topology.provider = "stress" or "oracle", or run only baseline',
+        )
 
 
 def _check_sim(c: _Checker, s: SimConfig, frame_dt: float) -> None:
     c.positive("sim.dt", s.dt, "give the substep in seconds, e.g. dt = 1e-4")
     if s.dt > frame_dt:
-        c.fail("sim.dt", f"sim.dt = {s.dt!r} is longer than frame_dt = {frame_dt!r}", "use a substep no longer than one frame")
+        c.fail(
+            "sim.dt",
+            f"sim.dt = {s.dt!r} is longer than frame_dt = {frame_dt!r}",
+            "use a substep no longer than one frame",
+        )
     if not s.adaptive_dt and frame_dt / s.dt > s.max_substeps_per_frame * (1 + 1e-9):
-        c.fail("sim.max_substeps_per_frame", f"frame_dt / sim.dt = {frame_dt / s.dt:.0f} substeps exceeds sim.max_substeps_per_frame = {s.max_substeps_per_frame}", "raise max_substeps_per_frame or sim.dt")
+        c.fail(
+            "sim.max_substeps_per_frame",
+            f"frame_dt / sim.dt = {frame_dt / s.dt:.0f} substeps exceeds "
+            f"sim.max_substeps_per_frame = {s.max_substeps_per_frame}",
+            "raise max_substeps_per_frame or sim.dt",
+        )
     c.within("sim.cfl", s.cfl, 1e-12, 1.0, "use a CFL number in (0, 1], e.g. cfl = 0.4")
     c.choice("sim.variant", s.variant, VARIANTS)
     c.choice("sim.grid", s.grid, GRID_KINDS)
@@ -112,18 +159,29 @@ def _check_sim(c: _Checker, s: SimConfig, frame_dt: float) -> None:
     c.at_least("sim.wall_cells", s.wall_cells, 0, "use 0 or more cells")
     for i, n in enumerate(s.grid_shape):
         if n < max(4, 2 * s.wall_cells + 2):
-            c.fail(f"sim.grid_shape[{i}]", f"sim.grid_shape[{i}] = {n} is too small for the B-spline stencil and {s.wall_cells} wall cells", f"use at least {max(4, 2 * s.wall_cells + 2)} nodes per axis")
+            c.fail(
+                f"sim.grid_shape[{i}]",
+                f"sim.grid_shape[{i}] = {n} is too small for the B-spline stencil and {s.wall_cells} wall cells",
+                f"use at least {max(4, 2 * s.wall_cells + 2)} nodes per axis",
+            )
     c.at_least("sim.grid_margin", s.grid_margin, 0.0, "use a non-negative fraction, e.g. grid_margin = 0.5")
     c.at_least("sim.max_grid_cells", s.max_grid_cells, 125, "allow at least 5×5×5 nodes")
     nodes = s.grid_shape[0] * s.grid_shape[1] * s.grid_shape[2]
     if s.grid == "explicit" and nodes > s.max_grid_cells:
-        c.fail("sim.grid_shape", f"sim.grid_shape = {list(s.grid_shape)} is {nodes:,} nodes, over sim.max_grid_cells = "
-               f"{s.max_grid_cells:,} (≈ {nodes * 32 / 2**30:.3g} GiB of grid buffers)",
-               "use a coarser grid (raise sim.dx, fewer nodes) or raise sim.max_grid_cells if the memory is there")
+        c.fail(
+            "sim.grid_shape",
+            f"sim.grid_shape = {list(s.grid_shape)} is {nodes:,} nodes, over sim.max_grid_cells = "
+            f"{s.max_grid_cells:,} (≈ {nodes * 32 / 2**30:.3g} GiB of grid buffers)",
+            "use a coarser grid (raise sim.dx, fewer nodes) or raise sim.max_grid_cells if the memory is there",
+        )
     if s.grid_bounds is not None:
         c.box("sim.grid_bounds", s.grid_bounds[0], s.grid_bounds[1])
     if not all(math.isfinite(g) for g in s.gravity):
-        c.fail("sim.gravity", f"sim.gravity = {list(s.gravity)} is not finite", "give three finite numbers in m/s², e.g. [0, 0, -9.8]")
+        c.fail(
+            "sim.gravity",
+            f"sim.gravity = {list(s.gravity)} is not finite",
+            "give three finite numbers in m/s², e.g. [0, 0, -9.8]",
+        )
     c.choice("sim.material", s.material, MATERIALS)
     c.within("sim.restitution", s.restitution, 0.0, 1.0, "use a restitution in [0, 1]")
     c.at_least("sim.eps_mass", s.eps_mass, 0.0, "use a non-negative threshold, e.g. eps_mass = 1e-3")
@@ -193,7 +251,11 @@ def _check_topology(c: _Checker, t: TopologyConfig, frames: int) -> None:
     c.nonzero("topology.normal", t.normal, "give the plane normal, e.g. normal = [1, 0, 0]")
     c.at_least("topology.latch_frame", t.latch_frame, 0, "use a frame index >= 0")
     if t.latch_frame > frames:
-        c.fail("topology.latch_frame", f"topology.latch_frame = {t.latch_frame} is after the last frame ({frames})", "latch within the run or raise frames")
+        c.fail(
+            "topology.latch_frame",
+            f"topology.latch_frame = {t.latch_frame} is after the last frame ({frames})",
+            "latch within the run or raise frames",
+        )
     if t.latch_time is not None:
         c.at_least("topology.latch_time", t.latch_time, 0.0, "use a time in seconds >= 0")
     c.at_least("topology.min_particles", t.min_particles, 1, "need at least one over-stressed particle")
@@ -206,7 +268,11 @@ def _check_topology(c: _Checker, t: TopologyConfig, frames: int) -> None:
     c.at_least("topology.cells", t.cells, 1, "shatter into at least one cell")
     c.positive("topology.impact_radius", t.impact_radius, "give the spread of the cells in metres, e.g. 0.1")
     if t.impact_point is not None and not all(math.isfinite(v) for v in t.impact_point):
-        c.fail("topology.impact_point", f"topology.impact_point = {list(t.impact_point)} is not finite", "give a point in metres")
+        c.fail(
+            "topology.impact_point",
+            f"topology.impact_point = {list(t.impact_point)} is not finite",
+            "give a point in metres",
+        )
     for i, plane in enumerate(t.planes):
         p = f"topology.planes[{i}]"
         c.nonzero(f"{p}.normal", plane.normal, "give the plane normal, e.g. normal = [1, 0, 0]")
@@ -232,6 +298,16 @@ def _check_render(c: _Checker, r: RenderConfig) -> None:
     c.nonzero("render.camera.up", cam.up, "give an up vector, e.g. up = [0, 0, 1]")
     view = tuple(t - e for t, e in zip(cam.target, cam.eye))
     c.nonzero("render.camera.target", view, "put the camera eye and target at different points")
-    cross = (view[1] * cam.up[2] - view[2] * cam.up[1], view[2] * cam.up[0] - view[0] * cam.up[2], view[0] * cam.up[1] - view[1] * cam.up[0])
-    if math.sqrt(sum(x * x for x in cross)) <= 1e-9 * math.sqrt(sum(x * x for x in view)) * math.sqrt(sum(x * x for x in cam.up)):
-        c.fail("render.camera.up", f"render.camera.up = {list(cam.up)} is parallel to the viewing direction", "tilt the eye or choose another up vector")
+    cross = (
+        view[1] * cam.up[2] - view[2] * cam.up[1],
+        view[2] * cam.up[0] - view[0] * cam.up[2],
+        view[0] * cam.up[1] - view[1] * cam.up[0],
+    )
+    if math.sqrt(sum(x * x for x in cross)) <= 1e-9 * math.sqrt(sum(x * x for x in view)) * math.sqrt(
+        sum(x * x for x in cam.up)
+    ):
+        c.fail(
+            "render.camera.up",
+            f"render.camera.up = {list(cam.up)} is parallel to the viewing direction",
+            "tilt the eye or choose another up vector",
+        )

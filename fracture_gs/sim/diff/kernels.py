@@ -8,6 +8,7 @@ written by hand from the polar rotation's derivative, which divides only by s_i 
 (`corotated_kirchhoff_grad`). Contact projection branches (approach or not, stick or slip) are
 replayed as taken in the forward pass, which is their exact derivative almost everywhere.
 """
+
 from __future__ import annotations
 
 import warp as wp
@@ -40,9 +41,16 @@ def polar_svd(F: wp.mat33):
 def cofactor(F: wp.mat33):
     """∂ det F / ∂F (= det F · F⁻ᵀ, defined for singular F too)."""
     return wp.mat33(
-        F[1, 1] * F[2, 2] - F[1, 2] * F[2, 1], F[1, 2] * F[2, 0] - F[1, 0] * F[2, 2], F[1, 0] * F[2, 1] - F[1, 1] * F[2, 0],
-        F[0, 2] * F[2, 1] - F[0, 1] * F[2, 2], F[0, 0] * F[2, 2] - F[0, 2] * F[2, 0], F[0, 1] * F[2, 0] - F[0, 0] * F[2, 1],
-        F[0, 1] * F[1, 2] - F[0, 2] * F[1, 1], F[0, 2] * F[1, 0] - F[0, 0] * F[1, 2], F[0, 0] * F[1, 1] - F[0, 1] * F[1, 0])
+        F[1, 1] * F[2, 2] - F[1, 2] * F[2, 1],
+        F[1, 2] * F[2, 0] - F[1, 0] * F[2, 2],
+        F[1, 0] * F[2, 1] - F[1, 1] * F[2, 0],
+        F[0, 2] * F[2, 1] - F[0, 1] * F[2, 2],
+        F[0, 0] * F[2, 2] - F[0, 2] * F[2, 0],
+        F[0, 1] * F[2, 0] - F[0, 0] * F[2, 1],
+        F[0, 1] * F[1, 2] - F[0, 2] * F[1, 1],
+        F[0, 2] * F[1, 0] - F[0, 0] * F[1, 2],
+        F[0, 0] * F[1, 1] - F[0, 1] * F[1, 0],
+    )
 
 
 @wp.func
@@ -138,8 +146,14 @@ def p2g(
 
 
 @wp.kernel
-def normalize(grid_m: wp.array(dtype=float), grid_p: wp.array(dtype=wp.vec3), eps_m: float, dt: float,
-              gravity: wp.vec3, grid_v: wp.array(dtype=wp.vec3)):
+def normalize(
+    grid_m: wp.array(dtype=float),
+    grid_p: wp.array(dtype=wp.vec3),
+    eps_m: float,
+    dt: float,
+    gravity: wp.vec3,
+    grid_v: wp.array(dtype=wp.vec3),
+):
     """v = p/m + Δt g where m > ε_m, else 0."""
     n = wp.tid()
     v = wp.vec3(0.0)
@@ -195,8 +209,18 @@ def contact_pair(
 
 
 @wp.kernel
-def boundaries(grid_m: wp.array(dtype=float), v_in: wp.array(dtype=wp.vec3), eps_m: float, origin: wp.vec3, dx: float,
-               shape: wp.vec3i, lo: wp.vec3i, t: float, colliders: Colliders, v_out: wp.array(dtype=wp.vec3)):
+def boundaries(
+    grid_m: wp.array(dtype=float),
+    v_in: wp.array(dtype=wp.vec3),
+    eps_m: float,
+    origin: wp.vec3,
+    dx: float,
+    shape: wp.vec3i,
+    lo: wp.vec3i,
+    t: float,
+    colliders: Colliders,
+    v_out: wp.array(dtype=wp.vec3),
+):
     """Every grid-side boundary operator on every active field (after contact). The fields cover a box
     of the grid: `origin` is its node 0, `lo` that node's index in the whole grid (for the walls)."""
     i = wp.tid()
@@ -247,5 +271,6 @@ def g2p(
     C_out[p] = B * (4.0 * inv_dx * inv_dx)
     F_out[p] = (wp.identity(n=3, dtype=float) + dt * gradv) * F[p]
     xn = x[p] + dt * vp
-    x_out[p] = wp.vec3(wp.clamp(xn[0], lower[0], upper[0]), wp.clamp(xn[1], lower[1], upper[1]),
-                       wp.clamp(xn[2], lower[2], upper[2]))
+    x_out[p] = wp.vec3(
+        wp.clamp(xn[0], lower[0], upper[0]), wp.clamp(xn[1], lower[1], upper[1]), wp.clamp(xn[2], lower[2], upper[2])
+    )

@@ -1,6 +1,7 @@
 """Float64 pure-torch twin of a differentiable frame (`DiffSimulator.substeps`), for gradient checks by
 central finite differences: the same equations on dense per-fragment fields, without boundaries
 (checked scenes stay away from the walls and have no colliders)."""
+
 from __future__ import annotations
 
 import torch
@@ -33,16 +34,26 @@ def frame(sim, plan: FramePlan, x, v, C, F, mu, lam, mass, volume):
     for _ in range(plan.n):
         tau = stress(F, sim.material.cpu(), mu, lam, plan.released.cpu())
         origin = tuple(o + i * sim.dx for o, i in zip(sim.origin, plan.lo))
-        gm, gp, gb = R.p2g(x, v, C, mass, volume, tau, field, K, plan.shape, origin, sim.dx, plan.dt,
-                           band=plan.band.cpu())
+        gm, gp, gb = R.p2g(
+            x, v, C, mass, volume, tau, field, K, plan.shape, origin, sim.dx, plan.dt, band=plan.band.cpu()
+        )
         gv = R.grid_update(gm, gp, gb, eps_m, eps_b, plan.dt, sim.cfg.gravity)
         if sim.spec.contact and K > 1:
             M = gm[0].numel()
             vv = gv.reshape(K, M, 3).transpose(0, 1)
             mm, bb = gm.reshape(K, M).T, gb.reshape(K, M).T
             frag = torch.arange(K).expand(M, K)
-            vv = R.contact_fields(vv, mm, frag, bb, eps_m, eps_b, lambda a, b, lo, hi: n.expand(M, 3),
-                                  e=float(sim.cfg.restitution), mu=float(sim.cfg.contact.friction))
+            vv = R.contact_fields(
+                vv,
+                mm,
+                frag,
+                bb,
+                eps_m,
+                eps_b,
+                lambda a, b, lo, hi, M=M: n.expand(M, 3),
+                e=float(sim.cfg.restitution),
+                mu=float(sim.cfg.contact.friction),
+            )
             gv = vv.transpose(0, 1).reshape(gv.shape)
         x, v, C, F = R.g2p(x, F, gv, field, origin, sim.dx, plan.dt)
     return x, v, C, F

@@ -14,6 +14,7 @@ fragment's own dynamics on both sides of a latch, as through a fixed contact set
 corotated and neo-Hookean materials, every variant but the global fragment pass, plane and cuboid
 boundaries and domain walls, fragment contact with the latched normal (restitution, friction).
 """
+
 from __future__ import annotations
 
 import math
@@ -58,22 +59,34 @@ class DiffSimulator:
     [N] ids; `topologies` is a list of Topology snapshots (e.g. from a plain run) replayed at their
     latch frames."""
 
-    def __init__(self, cfg: SimConfig, x0: torch.Tensor, device: str = "cpu", material="fixed_corotated",
-                 topologies: Optional[list] = None, wave_speed: float = 0.0):
+    def __init__(
+        self,
+        cfg: SimConfig,
+        x0: torch.Tensor,
+        device: str = "cpu",
+        material="fixed_corotated",
+        topologies: Optional[list] = None,
+        wave_speed: float = 0.0,
+    ):
         ensure_warp()
         self.cfg, self.device = cfg, str(device)
         self.spec = variant_spec(cfg.variant)
         if self.spec.per_fragment_pass:
-            raise SimulationError("sim.variant = 'global_fragment_pass' is not differentiable; use local_multifield or full")
+            raise SimulationError(
+                "sim.variant = 'global_fragment_pass' is not differentiable; use local_multifield or full"
+            )
         n = x0.shape[0]
-        ids = torch.full((n,), MATERIAL_IDS[material], dtype=torch.int32) if isinstance(material, str) else \
-            torch.as_tensor(material, dtype=torch.int32)
+        ids = (
+            torch.full((n,), MATERIAL_IDS[material], dtype=torch.int32)
+            if isinstance(material, str)
+            else torch.as_tensor(material, dtype=torch.int32)
+        )
         if bool((ids > 1).any()):
             raise SimulationError(f"only {', '.join(DIFF_MATERIALS)} are differentiable; plasticity is not yet")
         self.material = ids.to(self.device).contiguous()
         self.boundaries = Boundaries(cfg.boundaries, self.device, (1, 1, 1), cfg.wall_cells)
         if self.boundaries.regions:
-            raise SimulationError("timed particle regions (sim.boundaries type = \"region\") are not differentiable yet")
+            raise SimulationError('timed particle regions (sim.boundaries type = "region") are not differentiable yet')
         self.origin, self.dx, self.shape = fit_grid(cfg, x0.detach())
         self.boundaries = Boundaries(cfg.boundaries, self.device, self.shape, cfg.wall_cells)
         self.n_nodes = self.shape[0] * self.shape[1] * self.shape[2]
@@ -114,15 +127,18 @@ class DiffSimulator:
             frag = topo.fragment.to(self.device).long()
             fields = int(frag.max()) + 1 if self.spec.multifield else 1
             if fields > MAX_FIELDS:
-                raise SimulationError(f"the differentiable path holds up to {MAX_FIELDS} fragments; this run has {fields}")
+                raise SimulationError(
+                    f"the differentiable path holds up to {MAX_FIELDS} fragments; this run has {fields}"
+                )
             field = (frag if self.spec.multifield else torch.zeros_like(frag)).to(torch.int32)
             b = topo.band.to(self.device)
             band = (b != 0).float()
             rel = (b != 0) & (b <= topo.release_events) if self.spec.release else torch.zeros_like(b, dtype=torch.bool)
             released = (~rel).float()
         lo, shape = self._box(v, frame_dt)
-        return FramePlan(n, frame_dt / n, self.time, field.contiguous(), released.contiguous(), band.contiguous(), fields,
-                         lo, shape)
+        return FramePlan(
+            n, frame_dt / n, self.time, field.contiguous(), released.contiguous(), band.contiguous(), fields, lo, shape
+        )
 
     def _box(self, v: torch.Tensor, frame_dt: float) -> tuple[tuple, tuple]:
         """Grid nodes the frame's particles can reach: their bounding box plus the stencil, twice their
@@ -133,8 +149,10 @@ class DiffSimulator:
         g = math.sqrt(sum(float(a) ** 2 for a in self.cfg.gravity))
         pad = 5 + math.ceil(2 * (vmax * frame_dt + 0.5 * g * frame_dt**2) / self.dx)
         lo = tuple(max(0, int(math.floor((float(lo_w[a]) - o) / self.dx)) - pad) for a, o in enumerate(self.origin))
-        hi = tuple(min(s, int(math.floor((float(hi_w[a]) - o) / self.dx)) + 1 + pad)
-                   for a, (o, s) in enumerate(zip(self.origin, self.shape)))
+        hi = tuple(
+            min(s, int(math.floor((float(hi_w[a]) - o) / self.dx)) + 1 + pad)
+            for a, (o, s) in enumerate(zip(self.origin, self.shape))
+        )
         return lo, tuple(h - l for l, h in zip(lo, hi))  # noqa: E741
 
     def substeps(self, p: FramePlan, state: list, params: list, record: bool) -> list:
@@ -159,27 +177,57 @@ class DiffSimulator:
             wp.launch(K.stress, dim=N, inputs=[F, self.material, mu, lam, released], outputs=[tau], device=self.device)
             gm, gb = wp.zeros(KN, dtype=float, **kw), wp.zeros(KN, dtype=float, **kw)
             gp = wp.zeros(KN, dtype=wp.vec3, **kw)
-            wp.launch(K.p2g, dim=N, inputs=[x, v, C, tau, mass, volume, field, band, p.dt, origin, self.dx, 1.0 / self.dx,
-                                            shape], outputs=[gm, gp, gb], device=self.device)
+            wp.launch(
+                K.p2g,
+                dim=N,
+                inputs=[x, v, C, tau, mass, volume, field, band, p.dt, origin, self.dx, 1.0 / self.dx, shape],
+                outputs=[gm, gp, gb],
+                device=self.device,
+            )
             gv = wp.zeros(KN, dtype=wp.vec3, **kw)
             wp.launch(K.normalize, dim=KN, inputs=[gm, gp, eps_m, p.dt, g], outputs=[gv], device=self.device)
             if self.spec.contact and p.fields > 1:
                 for a in range(p.fields):
                     for b in range(a + 1, p.fields):
                         out = wp.zeros(KN, dtype=wp.vec3, **kw)
-                        wp.launch(K.contact_pair, dim=nodes,
-                                  inputs=[gm, gb, gv, a, b, nodes, p.fields, normal, eps_m, eps_b,
-                                          float(cfg.restitution), float(cfg.contact.friction)],
-                                  outputs=[out], device=self.device)
+                        wp.launch(
+                            K.contact_pair,
+                            dim=nodes,
+                            inputs=[
+                                gm,
+                                gb,
+                                gv,
+                                a,
+                                b,
+                                nodes,
+                                p.fields,
+                                normal,
+                                eps_m,
+                                eps_b,
+                                float(cfg.restitution),
+                                float(cfg.contact.friction),
+                            ],
+                            outputs=[out],
+                            device=self.device,
+                        )
                         gv = out
             gvb = wp.zeros(KN, dtype=wp.vec3, **kw)
-            wp.launch(K.boundaries, dim=KN, inputs=[gm, gv, eps_m, origin, self.dx, shape, lo, t,
-                                                    self.boundaries.colliders],
-                      outputs=[gvb], device=self.device)
+            wp.launch(
+                K.boundaries,
+                dim=KN,
+                inputs=[gm, gv, eps_m, origin, self.dx, shape, lo, t, self.boundaries.colliders],
+                outputs=[gvb],
+                device=self.device,
+            )
             x1, v1 = wp.zeros(N, dtype=wp.vec3, **kw), wp.zeros(N, dtype=wp.vec3, **kw)
             C1, F1 = wp.zeros(N, dtype=wp.mat33, **kw), wp.zeros(N, dtype=wp.mat33, **kw)
-            wp.launch(K.g2p, dim=N, inputs=[x, F, field, gvb, p.dt, origin, self.dx, 1.0 / self.dx, shape, self._lower,
-                                            self._upper], outputs=[x1, v1, C1, F1], device=self.device)
+            wp.launch(
+                K.g2p,
+                dim=N,
+                inputs=[x, F, field, gvb, p.dt, origin, self.dx, 1.0 / self.dx, shape, self._lower, self._upper],
+                outputs=[x1, v1, C1, F1],
+                device=self.device,
+            )
             x, v, C, F = x1, v1, C1, F1
         return [x, v, C, F]
 
@@ -194,7 +242,7 @@ class DiffSimulator:
         """Advance one frame; every argument a torch tensor ([N,3], [N,3], [N,3,3], [N,3,3], [N] × 4),
         every output differentiable with respect to every input."""
         if not self.plans:
-            node = float((mass.detach().sum() / volume.detach().sum())) * self.dx**3
+            node = float(mass.detach().sum() / volume.detach().sum()) * self.dx**3
             self.eps = (self.cfg.eps_mass * node, self.cfg.eps_band * node)
         self._x = x
         plan = self.plan(self.frame, v, frame_dt, 0.0)

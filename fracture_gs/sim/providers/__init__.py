@@ -6,6 +6,7 @@ impulse-free, and a provider may return a newer topology later (repeated fractur
 `oracle` (timed analytic planes), `stress` (stress-guided detection, optionally repeated),
 `voronoi` (a shatter into cells), `replay` (a saved history, so every variant of a run shares one).
 """
+
 from __future__ import annotations
 
 from typing import Optional, Protocol

@@ -8,6 +8,7 @@ Connectivity is decided on the grid: a fragment's particles are binned into cell
 three pieces. Components smaller than `min_particles` stay with their parent id, and no id is
 created at or above `max_fragments` (the pieces that would need one stay with their parent).
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -17,8 +18,17 @@ from scipy import ndimage
 _STRUCTURE = np.ones((3, 3, 3), dtype=bool)  # 26-connectivity
 
 
-def plane_cut(x: torch.Tensor, fragment: torch.Tensor, band: torch.Tensor, point, normal, band_width: float,
-              max_fragments: int, targets=None, tag: int = 1) -> tuple[torch.Tensor, torch.Tensor, list, list]:
+def plane_cut(
+    x: torch.Tensor,
+    fragment: torch.Tensor,
+    band: torch.Tensor,
+    point,
+    normal,
+    band_width: float,
+    max_fragments: int,
+    targets=None,
+    tag: int = 1,
+) -> tuple[torch.Tensor, torch.Tensor, list, list]:
     """Cut the `targets` fragments (all when None) by the plane through `point` with `normal`: in each
     fragment with particles on both sides, the positive side gets a new id. The band grows by the
     cut fragments' particles within `band_width` [m] of the plane, tagged with `tag` (the event's
@@ -59,8 +69,9 @@ def voronoi_labels(x: torch.Tensor, seeds: torch.Tensor, band_width: float) -> t
     return cell.to(torch.int32), (gap < band_width).to(torch.int32)
 
 
-def split_components(x: torch.Tensor, fragment: torch.Tensor, h: float, max_fragments: int,
-                     min_particles: int = 8) -> tuple[torch.Tensor, list, list]:
+def split_components(
+    x: torch.Tensor, fragment: torch.Tensor, h: float, max_fragments: int, min_particles: int = 8
+) -> tuple[torch.Tensor, list, list]:
     """Give every disconnected piece of a fragment its own id (the largest piece keeps the old id).
     Returns (fragment [N], parents, children)."""
     xs = x.detach().double().cpu().numpy()
@@ -102,8 +113,9 @@ def finish_event(sim, cfg, base, fragment: torch.Tensor, band: torch.Tensor, eve
     from ..topology import Topology
 
     if cfg.split_components:
-        fragment, parents, children = split_components(sim.particles.x, fragment, sim.grid.dx, sim.cfg.max_fragments,
-                                                       cfg.min_fragment_particles)
+        fragment, parents, children = split_components(
+            sim.particles.x, fragment, sim.grid.dx, sim.cfg.max_fragments, cfg.min_fragment_particles
+        )
         event.parents = tuple(event.parents) + tuple(p for p in parents if p not in event.parents)
         event.children = tuple(event.children) + tuple(children)
     if isinstance(base, Topology):

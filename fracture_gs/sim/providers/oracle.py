@@ -4,6 +4,7 @@ One plane (`topology.point`, `normal`, `latch_frame` / `latch_time`) is the pape
 experiment. A list of timed planes (`[[topology.planes]]`) cuts again and again: each plane splits
 every fragment it crosses (the new piece on its positive side), then connected components split.
 """
+
 from __future__ import annotations
 
 from typing import Optional
@@ -41,17 +42,26 @@ class OracleProvider:
             plane = self.planes[self.next]
             self.next += 1
             if t is None:
-                t = Topology.from_plane(x, plane.point, plane.normal, width, latch_time=sim.time, latch_frame=sim.frame,
-                                        pair_radius=cfg.pair_radius)
+                t = Topology.from_plane(
+                    x,
+                    plane.point,
+                    plane.normal,
+                    width,
+                    latch_time=sim.time,
+                    latch_frame=sim.frame,
+                    pair_radius=cfg.pair_radius,
+                )
                 t.release_events = RELEASE_EVENTS[cfg.release]
                 if cfg.split_components:
                     first, t = t.events[0], Topology(**{**t.__dict__, "events": []})
                     t = finish_event(sim, cfg, t, t.fragment, t.band, first)
                 continue
-            fragment, band, parents, children = plane_cut(x, t.fragment, t.band, plane.point, plane.normal, width,
-                                                          sim.cfg.max_fragments, tag=len(t.events) + 1)
-            event = FractureEvent("plane", sim.time, sim.frame, tuple(parents), tuple(children), tuple(plane.point),
-                                  tuple(plane.normal))
+            fragment, band, parents, children = plane_cut(
+                x, t.fragment, t.band, plane.point, plane.normal, width, sim.cfg.max_fragments, tag=len(t.events) + 1
+            )
+            event = FractureEvent(
+                "plane", sim.time, sim.frame, tuple(parents), tuple(children), tuple(plane.point), tuple(plane.normal)
+            )
             t = finish_event(sim, cfg, t, fragment, band, event)
         self.topology = t
         return t

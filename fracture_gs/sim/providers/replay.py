@@ -1,6 +1,7 @@
 """Replay provider: latches a saved history of topologies, each at its recorded frame, so every variant
 of a run uses the same fragments (the first variant's provider decided them; `topology.npz` holds
 every snapshot)."""
+
 from __future__ import annotations
 
 from dataclasses import replace
@@ -27,5 +28,10 @@ class ReplayProvider:
             self.next += 1
         if out is None:
             return None
-        return replace(out, fragment=out.fragment.to(sim.device), band=out.band.to(sim.device), latch_time=sim.time,
-                       latch_frame=sim.frame)
+        return replace(
+            out,
+            fragment=out.fragment.to(sim.device),
+            band=out.band.to(sim.device),
+            latch_time=sim.time,
+            latch_frame=sim.frame,
+        )

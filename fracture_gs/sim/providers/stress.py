@@ -10,6 +10,7 @@ principal direction, or the least-variance axis of their positions (PCA) when th
 disagree; every particle, visible or interior, is labelled by the sign of its signed distance.
 The simulator latches the first topology a provider returns and never calls it again.
 """
+
 from __future__ import annotations
 
 from dataclasses import replace
@@ -20,7 +21,6 @@ import torch
 from ...config import TopologyConfig
 from ..topology import FractureEvent, Topology
 from .cuts import RELEASE_EVENTS, finish_event, plane_cut, split_components
-
 
 EIGH_CHUNK = 32768  # batched CUDA eigh (cusolver) fails for batches of ≥ 65,536 in torch 2.11 + CUDA 13
 
@@ -117,8 +117,10 @@ class StressProvider:
         if self.tau is None:
             self.tau = torch.zeros(len(P), 3, 3, dtype=torch.float32, device=P.x.device)
         elif self.tau.shape[0] != len(P) or self.tau.device != P.x.device:
-            raise ValueError(f"StressProvider was built for {self.tau.shape[0]} particles on {self.tau.device}; "
-                             f"use one provider per simulation")
+            raise ValueError(
+                f"StressProvider was built for {self.tau.shape[0]} particles on {self.tau.device}; "
+                f"use one provider per simulation"
+            )
         return self.tau
 
     def over_stressed(self, sim) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
@@ -167,7 +169,7 @@ class StressProvider:
             groups = over_stressed_clusters(sim.particles.x, over, sim.grid.dx, self.cfg.min_particles)
             if len(groups) > 1:  # several cracks at once: one cut each, largest first
                 t = self._latch(sim, groups[0], d)
-                return self._cut_clusters(sim, t, groups[1:self.cfg.max_events], d)
+                return self._cut_clusters(sim, t, groups[1 : self.cfg.max_events], d)
         return self._latch(sim, over, d)
 
     def _cut_clusters(self, sim, t: Topology, groups: list, d: torch.Tensor) -> Topology:
@@ -176,12 +178,27 @@ class StressProvider:
         for sel in groups:
             f = int(torch.mode(t.fragment.to(x.device)[sel].long()).values)
             point, normal = self.plane(x[sel].double(), d[sel])
-            frag, band, parents, children = plane_cut(x, t.fragment.to(x.device), t.band.to(x.device), point.tolist(),
-                                                      normal.tolist(), width, sim.cfg.max_fragments, [f],
-                                                      tag=len(t.events) + 1)
+            frag, band, parents, children = plane_cut(
+                x,
+                t.fragment.to(x.device),
+                t.band.to(x.device),
+                point.tolist(),
+                normal.tolist(),
+                width,
+                sim.cfg.max_fragments,
+                [f],
+                tag=len(t.events) + 1,
+            )
             if children:
-                event = FractureEvent("plane", sim.time, sim.frame, tuple(parents), tuple(children),
-                                      tuple(point.tolist()), tuple(normal.tolist()))
+                event = FractureEvent(
+                    "plane",
+                    sim.time,
+                    sim.frame,
+                    tuple(parents),
+                    tuple(children),
+                    tuple(point.tolist()),
+                    tuple(normal.tolist()),
+                )
                 t = finish_event(sim, self.cfg, t, frag, band, event)
                 self.events += 1
         self.topology = t
@@ -201,8 +218,14 @@ class StressProvider:
         point, normal = self.plane(x[over], d[over])
         self.latch_frame = sim.frame
         t = Topology.from_plane(
-            sim.particles.x, point.tolist(), normal.tolist(), self.cfg.band_width * sim.grid.dx,
-            latch_time=sim.time, latch_frame=sim.frame, pair_radius=self.cfg.pair_radius)
+            sim.particles.x,
+            point.tolist(),
+            normal.tolist(),
+            self.cfg.band_width * sim.grid.dx,
+            latch_time=sim.time,
+            latch_frame=sim.frame,
+            pair_radius=self.cfg.pair_radius,
+        )
         t.release_events = RELEASE_EVENTS[self.cfg.release]
         if self.cfg.split_components:
             first, t = t.events[0], replace(t, events=[])
@@ -238,12 +261,20 @@ class StressProvider:
         for f in due[: self.cfg.max_events - self.events]:
             sel = over & (fragment == f)
             point, normal = self.plane(x[sel].double(), d[sel])
-            frag, band, parents, children = plane_cut(x, frag, band, point.tolist(), normal.tolist(), width, K, [f],
-                                                     tag=len(t.events) + 1)
+            frag, band, parents, children = plane_cut(
+                x, frag, band, point.tolist(), normal.tolist(), width, K, [f], tag=len(t.events) + 1
+            )
             if not children:
                 continue
-            event = FractureEvent("plane", sim.time, sim.frame, tuple(parents), tuple(children),
-                                  tuple(point.tolist()), tuple(normal.tolist()))
+            event = FractureEvent(
+                "plane",
+                sim.time,
+                sim.frame,
+                tuple(parents),
+                tuple(children),
+                tuple(point.tolist()),
+                tuple(normal.tolist()),
+            )
             t = finish_event(sim, self.cfg, t, frag, band, event)
             frag, band = t.fragment, t.band
             self.events += 1
@@ -256,11 +287,19 @@ class StressProvider:
     def summary(self) -> dict:
         """Run-summary record: latch frame/time, plane, per-fragment and band counts, detection stats."""
         out = {
-            "provider": "stress", "latched": self.topology is not None, "latch_frame": self.latch_frame, "events": self.events,
-            "first_exceed_frame": self.first_exceed_frame, "over_stressed": self.over_count,
-            "min_particles": self.cfg.min_particles, "persist_frames": self.cfg.persist_frames,
-            "used_pca": self.used_pca, "direction_agreement": self.agreement, "max_ratio": self.max_ratio,
-            "peak_ratio": self.peak_ratio, "band_width": self.cfg.band_width,
+            "provider": "stress",
+            "latched": self.topology is not None,
+            "latch_frame": self.latch_frame,
+            "events": self.events,
+            "first_exceed_frame": self.first_exceed_frame,
+            "over_stressed": self.over_count,
+            "min_particles": self.cfg.min_particles,
+            "persist_frames": self.cfg.persist_frames,
+            "used_pca": self.used_pca,
+            "direction_agreement": self.agreement,
+            "max_ratio": self.max_ratio,
+            "peak_ratio": self.peak_ratio,
+            "band_width": self.cfg.band_width,
         }
         if self.topology is not None:
             t = self.topology

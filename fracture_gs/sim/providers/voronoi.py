@@ -7,6 +7,7 @@ cell face; connected components split non-convex cells. It latches at `latch_fra
 `latch_time`, or at the first frame end where a particle comes within Δx of a plane collider
 (`latch_on_contact`). One event, impulse-free like every latch.
 """
+
 from __future__ import annotations
 
 from typing import Optional
@@ -18,7 +19,9 @@ from ..topology import FractureEvent, Topology
 from .cuts import RELEASE_EVENTS, finish_event, voronoi_labels
 
 
-def voronoi_sites(x: torch.Tensor, cells: int, seed: int, impact_point=None, impact_radius: float = 0.1) -> torch.Tensor:
+def voronoi_sites(
+    x: torch.Tensor, cells: int, seed: int, impact_point=None, impact_radius: float = 0.1
+) -> torch.Tensor:
     """`cells` distinct particles of x [N,3] as sites [cells,3] (float64, on x's device)."""
     g = torch.Generator().manual_seed(int(seed))
     xd = x.detach().double().cpu()
@@ -58,13 +61,25 @@ class VoronoiProvider:
         if self.topology is not None or not self.due(sim):
             return None
         cfg, x = self.cfg, sim.particles.x
-        self.sites = voronoi_sites(x, min(cfg.cells, sim.cfg.max_fragments), cfg.seed, cfg.impact_point, cfg.impact_radius)
+        self.sites = voronoi_sites(
+            x, min(cfg.cells, sim.cfg.max_fragments), cfg.seed, cfg.impact_point, cfg.impact_radius
+        )
         fragment, band = voronoi_labels(x, self.sites, cfg.band_width * sim.grid.dx)
         k = int(fragment.max()) + 1
         first = FractureEvent("voronoi", sim.time, sim.frame, (-1,), tuple(range(k)), seeds=self.sites.tolist())
-        base = Topology(fragment=fragment, band=band, normal=(1.0, 0.0, 0.0), point=tuple(self.sites[0].tolist()),
-                        latch_time=sim.time, latch_frame=sim.frame, pair_radius=cfg.pair_radius,
-                        release_events=RELEASE_EVENTS[cfg.release])
-        self.topology = finish_event(sim, cfg, base, fragment, band, first) if cfg.split_components else \
-            base.refined(fragment, band, first)
+        base = Topology(
+            fragment=fragment,
+            band=band,
+            normal=(1.0, 0.0, 0.0),
+            point=tuple(self.sites[0].tolist()),
+            latch_time=sim.time,
+            latch_frame=sim.frame,
+            pair_radius=cfg.pair_radius,
+            release_events=RELEASE_EVENTS[cfg.release],
+        )
+        self.topology = (
+            finish_event(sim, cfg, base, fragment, band, first)
+            if cfg.split_components
+            else base.refined(fragment, band, first)
+        )
         return self.topology

@@ -1,0 +1,77 @@
+"""`fracture-gs` command line: render-sim, bench, figures, info, validate.
+
+Every user error (bad config, bad PLY, missing file, bad flag) ends as one line
+`fracture-gs: error: <sentence>` on stderr and exit code 2, never a traceback (set
+FRACTURE_GS_DEBUG=1 to get the traceback instead). The heavy work lives
+in modules imported only when a command needs them (`fracture_gs.runner`, `fracture_gs.paper`), so
+`--help`, `info` and `validate` stay fast and work on any machine.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from typing import Optional, Sequence
+
+from .devices import _prepare_warp, resolve_device
+from .parser import PROG, CliError, build_parser
+from .report import cmd_info, cmd_validate
+from .run import cmd_bench, cmd_figures, cmd_render_sim
+
+__all__ = ["CliError", "build_parser", "main", "resolve_device"]
+
+_WARP_COMMANDS = ("render-sim", "bench", "figures")
+_COMMANDS = {
+    "render-sim": cmd_render_sim,
+    "bench": cmd_bench,
+    "figures": cmd_figures,
+    "info": cmd_info,
+    "validate": cmd_validate,
+}
+
+
+# --------------------------------------------------------------------------------------------
+# entry point
+
+
+def _user_error_types() -> tuple[type, ...]:
+    """Exceptions reported as one line: flags, config, PLY, scene, output folder, missing files, bad values."""
+    from ..errors import ConfigError, OutputError, PlyError, SceneError
+
+    return (CliError, ConfigError, PlyError, SceneError, OutputError, FileNotFoundError, ValueError)
+
+
+def _one_line(exc: BaseException) -> str:
+    """The error as one line (FileNotFoundError gets its path)."""
+    if isinstance(exc, FileNotFoundError) and exc.filename:
+        return f"{exc.filename}: no such file or directory; check the path."
+    text = " ".join(str(exc).split()) or type(exc).__name__
+    return text
+
+
+def main(argv: Optional[Sequence[str]] = None) -> int:
+    """Console entry point; returns the exit code (0 ok, 2 user error, 130 interrupted)."""
+    args = None
+    try:
+        parser = build_parser()
+        argv = list(argv) if argv is not None else sys.argv[1:]
+        args = parser.parse_args(argv)
+        args.argv = argv  # what was typed, for the commands that record it
+        if not args.command:
+            parser.print_help()
+            return 0
+        if args.command in _WARP_COMMANDS:
+            _prepare_warp()
+        return _COMMANDS[args.command](args)
+    except SystemExit as exc:  # --help / --version: keep main() returning an exit code
+        return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 2)
+    except KeyboardInterrupt:
+        partial = getattr(args, "partial_out", None)  # set by a command once it knows its output folder
+        where = f"partial outputs are in {partial}" if partial else "nothing was written"
+        print(f"\n{PROG}: interrupted; {where}.", file=sys.stderr)
+        return 130
+    except Exception as exc:  # noqa: BLE001 - user errors become one line, bugs keep their traceback
+        if not isinstance(exc, _user_error_types()) or os.environ.get("FRACTURE_GS_DEBUG"):
+            raise
+        print(f"{PROG}: error: {_one_line(exc)}", file=sys.stderr)
+        return 2

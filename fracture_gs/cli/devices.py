@@ -1,0 +1,70 @@
+"""Device choice (`auto|cpu|cuda[:N]`) and Warp's set-up for the commands that simulate."""
+
+from __future__ import annotations
+
+import os
+import re
+import sys
+
+from .parser import CliError
+
+DEVICE_RE = re.compile(r"^(auto|cpu|cuda(:\d+)?)$")
+
+
+def _cuda_devices() -> tuple[bool, int, str]:
+    """(available, count, reason) from torch, imported lazily; never touches gsplat."""
+    try:
+        import torch
+    except Exception as exc:  # noqa: BLE001 - report, do not crash
+        return False, 0, f"torch cannot be imported ({exc})"
+    if not torch.cuda.is_available():
+        build = "CPU-only torch build" if torch.version.cuda is None else "no CUDA device or driver"
+        return False, 0, f"torch.cuda.is_available() is False ({build})"
+    return True, torch.cuda.device_count(), "torch.cuda.is_available() is True"
+
+
+def resolve_device(spec: str) -> str:
+    """Check `auto|cpu|cuda[:N]` and resolve `auto`; a CUDA device must exist."""
+    spec = (spec or "auto").strip().lower()
+    if not DEVICE_RE.match(spec):
+        raise CliError(f"--device {spec!r} is not a device; use auto, cpu, cuda or cuda:N (e.g. cuda:0).")
+    if spec == "cpu":
+        return "cpu"
+    available, count, reason = _cuda_devices()
+    if spec == "auto":
+        return "cuda:0" if available else "cpu"
+    if not available:
+        raise CliError(
+            f"--device {spec} was requested but CUDA is not available here ({reason}); use --device cpu or auto."
+        )
+    index = int(spec.split(":")[1]) if ":" in spec else 0
+    if index >= count:
+        raise CliError(
+            f"--device {spec} does not exist; this machine has {count} CUDA device(s), cuda:0 to cuda:{count - 1}."
+        )
+    return f"cuda:{index}"
+
+
+def _prepare_warp() -> None:
+    """The CLI is an application, so it sets Warp up for the whole process: no per-module load
+    lines (log level WARNING), and on a machine without a CUDA driver Warp's native start-up
+    warning is kept off stderr so user errors stay one line (`fracture-gs info` reports devices).
+    The library itself never does this (`fracture_gs.runtime`)."""
+    import warp as wp
+
+    from ..runtime import ensure_warp
+
+    wp.config.log_level = max(wp.config.log_level, wp.LOG_WARNING)
+    available, _, _ = _cuda_devices()
+    if available:
+        ensure_warp()
+        return
+    sys.stderr.flush()
+    saved, devnull = os.dup(2), os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, 2)
+    try:
+        ensure_warp()
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+        os.close(devnull)

@@ -1,0 +1,226 @@
+"""The argparse tree of `fracture-gs`: every command, flag, default and the examples its --help teaches."""
+
+from __future__ import annotations
+
+import argparse
+import re
+
+PROG = "fracture-gs"
+DEVICE_RE = re.compile(r"^(auto|cpu|cuda(:\d+)?)$")
+
+
+class CliError(Exception):
+    """A user-facing error: its message is one sentence, printed without a traceback."""
+
+
+class _Parser(argparse.ArgumentParser):
+    """ArgumentParser whose usage errors become CliError (one line, exit 2)."""
+
+    def error(self, message: str):  # type: ignore[override]
+        raise CliError(f"{message} (see '{self.prog} --help')")
+
+
+_MAIN_EPILOG = """\
+examples:
+  fracture-gs info                                  versions, GPU, renderer backend
+  fracture-gs validate bread                        check a built-in or your own config
+  fracture-gs render-sim bread                      simulate + render the default variants
+  fracture-gs render-sim configs/recontact.toml --variants local_multifield,full
+  fracture-gs render-sim my_scene.toml --preset paper --device cuda:0 --out runs/mine
+  fracture-gs bench --device cuda:0                 transfer timings (paper Table 2)
+  fracture-gs figures --out figures/out             every table and figure of the paper
+
+A CONFIG is a path to a TOML file or a built-in name ({names}).
+"""
+
+_RENDER_EPILOG = """\
+examples:
+  fracture-gs render-sim bread
+  fracture-gs render-sim bread --variants baseline,full --frames 20 --resolution 320x240
+  fracture-gs render-sim configs/exp_table3_bread.toml --preset paper --device cuda:0
+  fracture-gs render-sim my_scene.toml --out runs/my_scene
+
+Writes one folder per variant (frames, metrics.jsonl, topology) and a side-by-side comparison
+video under --out (default runs/<config name>). Ctrl-C keeps what was written so far.
+"""
+
+_BENCH_EPILOG = """\
+examples:
+  fracture-gs bench --device cuda:0                 Table 2 at the paper's 171,553 ficus particles
+  fracture-gs bench --device cpu --particles 20000 --steps 20   a CPU smoke run
+  fracture-gs bench --accuracy --quick              speed against error (Δx and Δt sweeps)
+  fracture-gs bench --accuracy --from-json runs/accuracy/accuracy.json   redraw a saved sweep
+
+Table 2 scope (as in the paper): grid reset, P2G, normalization (+ contact), G2P, timed on the
+ficus with a latched plane through the trunk (128³ grid, Δx = 1/128). On CUDA: medians of CUDA
+events over --steps substeps after warm-up, each branch built --placements times on fresh memory,
+plus a per-kernel breakdown. On the CPU: wall-clock medians (Warp runs kernels single-threaded).
+Writes bench.json and bench.md (or accuracy.{md,csv,tex,json} and accuracy_pareto.png).
+"""
+
+_FIGURES_EPILOG = """\
+examples:
+  fracture-gs figures                               CPU: quick protocol, every table and figure
+  fracture-gs figures --device cuda:0 --out figures/gpu       GPU: paper protocol
+  fracture-gs figures --device cuda:0 --only ficus --out figures/gpu            split a long job
+  fracture-gs figures --device cuda:0 --only bread,interaction,bench --reuse --out figures/gpu
+  fracture-gs figures --readme-only --out figures   rewrite README.md from what the folder holds
+
+Reruns every experiment config (exp_table*.toml) under the paper's protocol and writes Tables 1–5
+(Markdown, CSV, LaTeX), the figures, summary.json and a README with the command that made each.
+Protocols: quick (CPU sized, the default on the CPU) and paper (Δx = 1/128, the paper's particle
+counts, the default on CUDA). Groups for --only: ficus, bread, interaction, bench.
+"""
+
+_INFO_EPILOG = """\
+examples:
+  fracture-gs info
+
+Reports Python, torch, Warp and gsplat versions, CUDA devices, which renderer `--device auto`
+picks and why, and Warp's kernel cache directory. Nothing is compiled.
+"""
+
+_VALIDATE_EPILOG = """\
+examples:
+  fracture-gs validate bread
+  fracture-gs validate configs/exp_table5_bread_vlm.toml --dump
+
+Loads the config (following `extends`), checks every key and value, and prints a summary; exit
+code 0 when valid, 2 with a one-sentence error otherwise. --dump prints the fully resolved TOML.
+"""
+
+
+def _add_common_run_flags(p: argparse.ArgumentParser, out_help: str) -> None:
+    p.add_argument(
+        "--device",
+        default="auto",
+        metavar="DEVICE",
+        help="auto (default: cuda:0 if available, else cpu), cpu, cuda or cuda:N",
+    )
+    p.add_argument("--out", metavar="DIR", help=out_help)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The full argparse tree (also used by the docs and tests)."""
+    from ..io.config import builtin_configs
+
+    fmt = argparse.RawDescriptionHelpFormatter
+    parser = _Parser(
+        prog=PROG,
+        description="Simulate 3D Gaussian Splatting scenes as MLS-MPM particles that fracture "
+        "(FractureFields) and render comparison videos.",
+        epilog=_MAIN_EPILOG.format(names=", ".join(builtin_configs())),
+        formatter_class=fmt,
+    )
+    from .. import __version__
+
+    parser.add_argument("--version", action="version", version=f"{PROG} {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+
+    p = sub.add_parser(
+        "render-sim",
+        help="simulate a scene and render side-by-side variant videos",
+        formatter_class=fmt,
+        description="Simulate a scene config with several transfer variants and render comparison videos.",
+        epilog=_RENDER_EPILOG,
+    )
+    p.add_argument("config", metavar="CONFIG_OR_SCENE", help="TOML path or built-in name (e.g. bread)")
+    p.add_argument("--variants", metavar="A,B,C", help="comma-separated variants (default: the config's `variants`)")
+    p.add_argument(
+        "--preset", metavar="small|paper", help="small (dx 1/64, CPU sized) or paper (dx 1/128, paper particle counts)"
+    )
+    p.add_argument("--frames", metavar="N", type=_positive_int, help="number of frames (default: the config's)")
+    p.add_argument(
+        "--particles",
+        metavar="N",
+        type=_positive_int,
+        help="built-in scenes only: override the preset's particle count (quick looks)",
+    )
+    p.add_argument("--resolution", metavar="WxH", help="image size, e.g. 640x480 (default: the config's)")
+    p.add_argument(
+        "--profile",
+        action="store_true",
+        help="print where the wall time goes by phase (simulate, diagnostics, render, compose, encode, io); "
+        "also written to profile.md",
+    )
+    _add_common_run_flags(p, "output folder (default: runs/<config name>)")
+
+    p = sub.add_parser(
+        "bench",
+        help="time the transfer branches (paper Table 2), or speed against error",
+        formatter_class=fmt,
+        description="Benchmark the transfer branches of the paper's Table 2: speed "
+        "and grid memory; with --accuracy, error against wall time on cases with known answers.",
+        epilog=_BENCH_EPILOG,
+    )
+    p.add_argument(
+        "--particles", metavar="N", type=_positive_int, help="ficus particle count (default: the paper's 171,553)"
+    )
+    p.add_argument(
+        "--steps", metavar="N", type=_positive_int, default=200, help="substeps per timing sample (default 200)"
+    )
+    p.add_argument("--warmup", metavar="N", type=_positive_int, default=20, help="untimed substeps first (default 20)")
+    p.add_argument("--trials", metavar="N", type=_positive_int, default=3, help="timing samples per build (default 3)")
+    p.add_argument(
+        "--placements",
+        metavar="N",
+        type=_positive_int,
+        help="fresh-memory builds per branch (default: 5 on CUDA, 1 on the CPU)",
+    )
+    p.add_argument("--no-graph", action="store_true", help="time plain launches, no CUDA graph")
+    p.add_argument(
+        "--sort", choices=("interleaved", "cell"), default="interleaved", help="particle order (default interleaved)"
+    )
+    p.add_argument("--accuracy", action="store_true", help="run the speed-against-error sweeps instead of Table 2")
+    p.add_argument("--quick", action="store_true", help="with --accuracy: the short sweep (CPU: a few minutes)")
+    p.add_argument("--cases", metavar="A,B", help="with --accuracy: a subset of bar, spin, recontact")
+    p.add_argument(
+        "--from-json", metavar="FILE", help="with --accuracy: only redraw the table and plot of a saved sweep"
+    )
+    _add_common_run_flags(p, "output folder (default: runs/bench, or runs/accuracy with --accuracy)")
+
+    p = sub.add_parser(
+        "figures",
+        help="regenerate every table and figure of the paper",
+        formatter_class=fmt,
+        description="Rerun the paper's experiments and write its tables and figures.",
+        epilog=_FIGURES_EPILOG,
+    )
+    p.add_argument("--protocol", choices=("quick", "paper"), help="quick (CPU default) or paper (CUDA default)")
+    p.add_argument("--only", metavar="G1,G2", help="groups to (re)run: ficus, bread, interaction, bench (default: all)")
+    p.add_argument("--reuse", action="store_true", help="load runs cached in OUT/data instead of rerunning them")
+    p.add_argument(
+        "--backend", choices=("auto", "gsplat", "torch"), help="renderer of the scene panels (default: the configs')"
+    )
+    p.add_argument("--readme-only", action="store_true", help="only rewrite OUT/README.md from what OUT holds")
+    _add_common_run_flags(p, "output folder (default: figures/out)")
+
+    sub.add_parser(
+        "info",
+        help="versions, GPU and renderer backend",
+        formatter_class=fmt,
+        description="Show the software and hardware fracture-gs sees.",
+        epilog=_INFO_EPILOG,
+    )
+
+    p = sub.add_parser(
+        "validate",
+        help="check a config and print a summary",
+        formatter_class=fmt,
+        description="Load and check a config without simulating anything.",
+        epilog=_VALIDATE_EPILOG,
+    )
+    p.add_argument("config", metavar="CONFIG", help="TOML path or built-in name")
+    p.add_argument("--dump", action="store_true", help="also print the fully resolved config as TOML")
+    return parser
+
+
+def _positive_int(text: str) -> int:
+    """argparse type for --frames."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer; write it like --frames 30") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"{value} must be at least 1")
+    return value

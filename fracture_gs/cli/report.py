@@ -1,0 +1,159 @@
+"""The commands that only report: info (software and hardware) and validate (a config's summary)."""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import os
+import platform
+import sys
+from pathlib import Path
+from typing import Any, Optional, Sequence
+
+from .devices import _cuda_devices
+
+
+def _version_of(module: str) -> tuple[Optional[Any], str]:
+    """Import a module lazily: (module or None, version or the failure)."""
+    try:
+        mod = importlib.import_module(module)
+    except Exception as exc:  # noqa: BLE001 - info reports every failure
+        return None, f"not importable ({type(exc).__name__}: {exc})"
+    return mod, str(getattr(mod, "__version__", getattr(getattr(mod, "config", None), "version", "unknown")))
+
+
+def _warp_cache_dir(wp: Any) -> str:
+    """Warp's kernel cache directory, found the way warp.init() would, without initializing it."""
+    configured = getattr(wp.config, "kernel_cache_dir", None)
+    if configured:
+        return str(configured)
+    if os.environ.get("WARP_CACHE_PATH"):
+        return os.path.realpath(os.environ["WARP_CACHE_PATH"]) + "  (WARP_CACHE_PATH)"
+    try:
+        from warp._src.build import appdirs  # private: only used to print the default location
+
+        return appdirs.user_cache_dir(appname="warp", appauthor="NVIDIA", version=wp.config.version)
+    except Exception:  # noqa: BLE001
+        return "(default location; set WARP_CACHE_PATH to choose one)"
+
+
+def _info_lines() -> list[tuple[str, str]]:
+    """Rows of `fracture-gs info`."""
+    from .. import __version__
+
+    rows = [
+        ("fracture-gs", f"{__version__}  ({Path(__file__).resolve().parent})"),
+        ("python", f"{platform.python_version()}  ({sys.executable})"),
+        ("platform", platform.platform()),
+    ]
+    torch, version = _version_of("torch")
+    rows.append(("torch", version))
+    available, count, reason = _cuda_devices()
+    if torch is not None:
+        rows.append(
+            ("cuda", f"{count} device(s), CUDA {torch.version.cuda}" if available else f"not available: {reason}")
+        )
+        for i in range(count):
+            props = torch.cuda.get_device_properties(i)
+            rows.append(
+                (f"  cuda:{i}", f"{props.name}, {props.total_memory / 2**30:.1f} GiB, sm_{props.major}{props.minor}")
+            )
+    wp, version = _version_of("warp")
+    rows.append(("warp", version))
+    if wp is not None:
+        rows.append(("  kernel cache", _warp_cache_dir(wp)))
+    _, version = _version_of("gsplat")
+    rows.append(("gsplat", version))
+    if available:
+        rows.append(("renderer", f"auto -> gsplat rasterization on cuda:0 ({reason})"))
+    else:
+        rows.append(
+            (
+                "renderer",
+                f"auto -> torch reference rasterizer on cpu ({reason}; gsplat's CUDA code is never compiled here)",
+            )
+        )
+    rows.append(("device", f"--device auto -> {'cuda:0' if available else 'cpu'}"))
+    return rows
+
+
+def cmd_info(args: argparse.Namespace) -> int:
+    """info: versions, CUDA devices, renderer choice, warp kernel cache."""
+    for key, value in _info_lines():
+        print(f"{key:<16}{value}")
+    return 0
+
+
+def _describe_boundary(b: Any) -> str:
+    """One short phrase per boundary for `validate`."""
+    from ..config import CuboidBoundary, ParticleRegion, PlaneBoundary
+
+    def v(t: Sequence[float]) -> str:
+        return "(" + ", ".join(f"{x:g}" for x in t) + ")"
+
+    if isinstance(b, PlaneBoundary):
+        return f"plane {b.mode} through {v(b.point)} normal {v(b.normal)}"
+    if isinstance(b, CuboidBoundary):
+        return f"cuboid {v(b.lower)}-{v(b.upper)} velocity {v(b.velocity)}"
+    if isinstance(b, ParticleRegion):
+        what = f"delta_v {v(b.delta_v)}" if b.kind == "impulse" else f"velocity {v(b.velocity)}"
+        return f"region {b.kind} {v(b.lower)}-{v(b.upper)} {what} t=[{b.start:g}, {b.end:g}]"
+    return type(b).__name__
+
+
+def _provider_summary(cfg: Any) -> str:
+    t = cfg.topology
+    if t.provider == "oracle":
+        when = f"time {t.latch_time:g} s" if t.latch_time is not None else f"frame {t.latch_frame}"
+        normal = tuple(round(c, 4) for c in t.normal)
+        return f"oracle plane through {tuple(t.point)} normal {normal}, latch at {when}, band {t.band_width:g} dx"
+    if t.provider == "stress":
+        return (
+            f"stress (sigma_R {cfg.material.sigma_R:g} Pa, min_particles {t.min_particles}, "
+            f"persist_frames {t.persist_frames}, band {t.band_width:g} dx)"
+        )
+    return "none"
+
+
+def cmd_validate(args: argparse.Namespace) -> int:
+    """validate: load + check a config, print a summary (and optionally the resolved TOML)."""
+    from ..io.config import dump_config, find_config, load_config
+
+    path = find_config(args.config)
+    cfg = load_config(path)
+    s, m = cfg.sim, cfg.material
+    grid = (
+        f"explicit {'x'.join(map(str, s.grid_shape))}, dx {s.dx:g} m, origin {tuple(s.grid_origin)}"
+        if s.grid == "explicit"
+        else f"auto, dx {s.dx:g} m, margin {s.grid_margin:g}"
+    )
+    rows = [
+        ("config", str(path)),
+        ("scene", f"{cfg.scene} (name {cfg.name}, preset {cfg.preset})"),
+        (
+            "frames",
+            f"{cfg.frames} x {cfg.frame_dt:g} s = {cfg.frames * cfg.frame_dt:g} s, substep {s.dt:g} s "
+            f"({cfg.frame_dt / s.dt:.0f} per frame{', adaptive' if s.adaptive_dt else ''})",
+        ),
+        ("variants", ", ".join(cfg.variants)),
+        ("grid", grid),
+        ("gravity", str(tuple(s.gravity))),
+        (
+            "material",
+            f"{m.model} E {m.E:g} Pa, nu {m.nu:g}, density {m.density:g} kg/m3"
+            + (f", {len(cfg.material_map)} material_map label(s)" if cfg.material_map else ""),
+        ),
+        ("boundaries", f"{len(s.boundaries)}" if s.boundaries else "none"),
+    ]
+    rows += [(f"  [{i}]", _describe_boundary(b)) for i, b in enumerate(s.boundaries)]
+    rows += [
+        ("provider", _provider_summary(cfg)),
+        ("render", f"{cfg.render.width}x{cfg.render.height} @ {cfg.render.fps} fps, backend {cfg.render.backend}"),
+    ]
+    for key, value in rows:
+        print(f"{key:<12}{value}")
+    print("ok: config is valid")
+    if args.dump:
+        print()
+        print(dump_config(cfg, header=f"resolved from {path}"), end="")
+    return 0

@@ -1,0 +1,134 @@
+"""The commands that run work: render-sim, bench, figures (their modules imported only here, on demand)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+from .devices import resolve_device
+from .parser import CliError
+
+
+def _print_summary(summary: Any) -> None:
+    """Print a runner's summary dict as `key: value` lines (JSON for nested values)."""
+    if not isinstance(summary, dict):
+        if summary is not None:
+            print(summary)
+        return
+    for key, value in summary.items():
+        text = value if isinstance(value, (str, int, float)) else json.dumps(value, default=str)
+        print(f"{key}: {text}")
+
+
+def cmd_render_sim(args: argparse.Namespace) -> int:
+    """render-sim: load, override, validate, then hand over to fracture_gs.runner."""
+    from ..io.config import apply_overrides, find_config, load_config
+
+    path = find_config(args.config)
+    cfg = load_config(path)
+    device = resolve_device(args.device)
+    cfg = apply_overrides(
+        cfg,
+        preset=args.preset,
+        frames=args.frames,
+        resolution=args.resolution,
+        variants=args.variants,
+        source=f"{path} with command-line overrides",
+    )
+    out_dir = Path(args.out) if args.out else Path("runs") / cfg.name
+    from ..runner import run_render_sim as run
+
+    args.partial_out = out_dir
+    if getattr(args, "particles", None):
+        cfg.particles = args.particles
+    print(
+        f"render-sim: {cfg.name} ({cfg.scene}, preset {cfg.preset}), {cfg.frames} frames, "
+        f"variants {', '.join(cfg.variants)}, device {device} -> {out_dir}"
+    )
+    summary = run(cfg, list(cfg.variants), device, out_dir, profile=args.profile) or {}
+    table = out_dir / "summary.md"
+    print(table.read_text() if table.exists() else json.dumps(summary, indent=2, default=str))
+    print(
+        f"outputs in {out_dir}: comparison.mp4, one <variant>.mp4 each, frames/, metrics.jsonl, summary.json, "
+        "topology.npz, config.toml"
+    )
+    if summary.get("profile"):
+        print(summary["profile"], end="")
+    failed = [f"{v['variant']} {v['status']}" for v in summary.get("variants", []) if v.get("status", "ok") != "ok"]
+    if failed:
+        print(
+            f"fracture-gs: error: {'; '.join(failed)}; every frame and metric written before that is in {out_dir}",
+            file=sys.stderr,
+        )
+        return 1
+    return 0
+
+
+def cmd_bench(args: argparse.Namespace) -> int:
+    """bench: Table 2 branches (fracture_gs.paper.bench) or the accuracy sweeps (fracture_gs.paper.accuracy)."""
+    if args.accuracy:
+        from ..paper import accuracy
+
+        out_dir = Path(args.out) if args.out else Path("runs") / "accuracy"
+        args.partial_out = out_dir
+        if args.from_json:
+            accuracy.write_outputs(json.loads(Path(args.from_json).read_text()), out_dir)
+        else:
+            cases = [c.strip() for c in args.cases.split(",")] if args.cases else None
+            unknown = sorted(set(cases or ()) - set(accuracy.CASES))
+            if unknown:
+                raise CliError(f"--cases {', '.join(unknown)} unknown; choose from {', '.join(accuracy.CASES)}.")
+            _print_summary(accuracy.run_accuracy(resolve_device(args.device), out_dir, quick=args.quick, cases=cases))
+        print((out_dir / "accuracy.md").read_text())
+        return 0
+    from ..paper.bench import run_bench
+
+    out_dir = Path(args.out) if args.out else Path("runs") / "bench"
+    args.partial_out = out_dir
+    _print_summary(
+        run_bench(
+            device=resolve_device(args.device),
+            out_dir=out_dir,
+            particles=args.particles,
+            steps=args.steps,
+            warmup=args.warmup,
+            trials=args.trials,
+            graph=not args.no_graph,
+            sort=args.sort,
+            placements=args.placements,
+        )
+    )
+    return 0
+
+
+def cmd_figures(args: argparse.Namespace) -> int:
+    """figures: regenerate the paper's tables and figures (fracture_gs.paper.figures)."""
+    from ..paper.figures import GROUPS, run_figures
+    from ..paper.readme import refresh_readme
+
+    out_dir = Path(args.out) if args.out else Path("figures") / "out"
+    if args.readme_only:
+        print(refresh_readme(out_dir))
+        return 0
+    only = [g.strip() for g in args.only.split(",")] if args.only else None
+    unknown = sorted(set(only or ()) - set(GROUPS))
+    if unknown:
+        raise CliError(f"--only {', '.join(unknown)} unknown; choose from {', '.join(GROUPS)}.")
+    device = resolve_device(args.device)
+    args.partial_out = out_dir
+    command = "fracture-gs " + " ".join(args.argv)
+    _print_summary(
+        run_figures(
+            device,
+            out_dir,
+            protocol=args.protocol,
+            only=only,
+            reuse=args.reuse,
+            command=command,
+            render_backend=args.backend,
+        )
+    )
+    return 0
