@@ -26,6 +26,10 @@ RenderBackend = Literal["auto", "gsplat", "torch"]
 ColorBy = Literal["appearance", "fragment"]
 BandRelease = Literal["first", "all", "none"]
 Preset = Literal["small", "paper"]
+UpAxis = Literal["auto", "+x", "-x", "+y", "-y", "+z", "-z"]
+RoiKind = Literal["auto", "box", "sphere", "all"]
+LoadKind = Literal["pull", "drop", "impact", "none"]
+CameraSource = Literal["auto", "trainer", "config"]
 
 VARIANTS = VARIANT_NAMES
 MATERIALS = get_args(MaterialName)
@@ -325,6 +329,67 @@ class RenderConfig:
 
 
 @dataclass
+class CaptureConfig:
+    """How a captured 3DGS PLY (any trainer's output, in its own units and axes) becomes a simulated
+    object: clean-up, region of interest, a uniform fit into the grid, interior fill, a load that breaks
+    it and a camera that frames it. Positions below are in the scene's own coordinates; `auto` values
+    are resolved when the scene is loaded (`fracture-gs init scene.ply` writes them out)."""
+
+    fit: bool = True
+    """Fit the PLY into the simulation domain (false: use its coordinates as metres, as written)."""
+    up: UpAxis = "auto"
+    """The scene's up axis (`auto`: from the trainer's cameras.json beside the PLY, else `-y`, COLMAP's)."""
+    min_opacity: float = 0.01
+    """Floaters: Gaussians fainter than this are dropped."""
+    outlier_neighbours: int = 8
+    """Statistical outlier removal: neighbours averaged (0 = off)."""
+    outlier_std: float = 3.0
+    """A Gaussian whose mean distance to its neighbours exceeds mean + outlier_std·std is dropped."""
+    roi: RoiKind = "auto"
+    """Region simulated: `auto` (robust bounds of what is left), `box`, `sphere` or `all`; the rest is a
+    static background, rendered but not simulated."""
+    roi_lower: Optional[Vec3] = None
+    """Box ROI lower corner [scene units]."""
+    roi_upper: Optional[Vec3] = None
+    """Box ROI upper corner [scene units]."""
+    roi_center: Optional[Vec3] = None
+    """Sphere ROI centre [scene units]."""
+    roi_radius: Optional[float] = None
+    """Sphere ROI radius [scene units]."""
+    percentile: float = 1.0
+    """Auto ROI: per-axis bounds at this percentile and its complement (robust to stray Gaussians) [%]."""
+    size: float = 0.5
+    """Length of the object's longest side after the fit [m] (materials and loads are tuned at this scale)."""
+    cells_across: int = 24
+    """Grid cells across the object's longest side: Δx = size / cells_across."""
+    max_particles: int = 20000
+    """Budget of interior fill particles (the fill spacing grows to respect it)."""
+    fill_threshold: float = 0.2
+    """Fill: opacity-weighted density of an occupied voxel."""
+    fill_closing: int = 1
+    """Fill: holes narrower than about 2·fill_closing voxels are closed before the flood fill."""
+    load: LoadKind = "pull"
+    """What breaks the object: `pull` (grips at both ends of its longest axis), `drop` (falls onto a
+    floor), `impact` (a velocity kick at a point on its side) or `none`. Added only to a config without
+    [[sim.boundaries]] of its own (those are the load then)."""
+    load_speed: float = 0.0
+    """Grip speed [m/s] (pull), impact speed (impact) or initial downward speed (drop); 0 = automatic."""
+    camera: CameraSource = "auto"
+    """`auto` (frames the object), `trainer` (a view of the trainer's cameras.json) or `config`
+    ([render.camera] as written)."""
+    cameras_json: Optional[str] = None
+    """Path of the trainer's cameras.json (None: looked for beside the PLY and up to three folders up)."""
+    view: int = 0
+    """Index of the trainer view when camera = "trainer"."""
+    scale: Optional[float] = None
+    """Resolved fit: metres per scene unit (None = automatic)."""
+    rotation: Optional[tuple[Vec3, Vec3, Vec3]] = None
+    """Resolved fit: 3×3 rotation, scene axes → simulation axes (None = from `up` and the object's axes)."""
+    offset: Optional[Vec3] = None
+    """Resolved fit: x_sim = scale · rotation · x_scene + offset [m] (None = automatic)."""
+
+
+@dataclass
 class SceneConfig:
     """Everything a run needs: what to load, how to simulate it, how to break it and draw it."""
 
@@ -356,6 +421,8 @@ class SceneConfig:
     """Fracture event provider."""
     render: RenderConfig = field(default_factory=RenderConfig)
     """Rendering."""
+    capture: CaptureConfig = field(default_factory=CaptureConfig)
+    """How a captured PLY scene is cleaned, fitted, filled, loaded and framed (ignored for built-in scenes)."""
     variants: list = field(default_factory=lambda: ["baseline", "stress_zero", "full"])
     """Variants `render-sim` runs side by side by default."""
 

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import copy
 import functools
-from pathlib import Path
 from typing import Iterator, Optional, Union
 
 import torch
@@ -57,29 +56,33 @@ class FrameOutput:
         return polar_rotation(self.F)
 
 
-def load_scene(cfg: SceneConfig, device="cpu") -> GaussianSet:
-    """The config's scene: a built-in asset at the config's preset, or a 3DGS PLY (interior filled
-    when it has no interior particles and `fill_interior` is on)."""
-    if cfg.scene in assets.names():
-        return assets.build(cfg.scene, size=cfg.preset, n=cfg.particles).to(device)
-    from .io.ply import load_ply
+def prepare_scene(cfg: SceneConfig, device="cpu"):
+    """The config's scene, ready to simulate: a `capture.scene.Capture` holding the (resolved) config,
+    the simulated Gaussians on `device`, the static background and the capture fit. A built-in asset
+    comes at the config's preset; a PLY goes through `capture.resolve` (clean-up, fit, fill, load,
+    camera) and its material labels are read from `material_property`."""
+    from .capture.scene import Capture, resolve
 
-    path = Path(cfg.scene)
-    if not path.exists():
-        raise FileNotFoundError(
-            f"scene '{cfg.scene}' is neither a built-in scene ({', '.join(assets.names())}) nor an existing .ply file"
-        )
-    gs = load_ply(path)
-    if cfg.fill_interior and not bool(gs.interior.any()):
-        gs = assets.fill_interior(gs)
+    if cfg.scene in assets.names():
+        gs = assets.build(cfg.scene, size=cfg.preset, n=cfg.particles).to(device)
+        return Capture(cfg, gs, None, None, [])
+    cap = resolve(cfg)
+    gs = cap.gaussians
     if cfg.material_property:
         if cfg.material_property not in gs.extra:
             raise SimulationError(
-                f"{path}: material_property '{cfg.material_property}' is not a vertex property of the PLY; "
+                f"{cfg.scene}: material_property '{cfg.material_property}' is not a vertex property of the PLY; "
                 f"available: {', '.join(sorted(gs.extra)) or 'none'}"
             )
         gs.labels = gs.extra[cfg.material_property].to(torch.int32)
-    return gs.to(device)
+    cap.gaussians = gs.to(device)
+    return cap
+
+
+def load_scene(cfg: SceneConfig, device="cpu") -> GaussianSet:
+    """The simulated Gaussians of `prepare_scene` (a PLY's config should be the resolved one a run wrote,
+    so that the grid and loads match the fit)."""
+    return prepare_scene(cfg, device).gaussians
 
 
 def check_inside_grid(sim: Simulator, source: str) -> None:

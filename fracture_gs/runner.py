@@ -22,7 +22,7 @@ from tqdm import tqdm
 from .config import SceneConfig
 from .io.config import dump_config
 from .io.video import VideoWriter, save_png
-from .pipeline import FrameOutput, load_scene, make_simulator, simulate
+from .pipeline import FrameOutput, make_simulator, prepare_scene, simulate
 from .profiling import phases
 from .render import compose
 from .render.camera import from_config
@@ -35,8 +35,12 @@ from .sim.topology import save_history
 class Painter:
     """Per-scene render state: rest covariances, SH, visibility (interior hidden until exposed)."""
 
-    def __init__(self, gs, cfg: SceneConfig, device: str):
+    def __init__(self, gs, cfg: SceneConfig, device: str, background=None):
         self.cfg = cfg.render
+        self.background = None
+        if background is not None and len(background):  # static Gaussians outside the simulated region
+            bg = background.to(device)
+            self.background = (bg.means.float(), bg.covariances().float(), bg.sh.float(), bg.opacities.float())
         self.frames = max(cfg.frames, 1)
         self.cov0 = gs.covariances().to(device, torch.float32)
         self.sh = gs.sh.to(device, torch.float32)
@@ -81,11 +85,17 @@ class Painter:
         if self.cfg.color_by == "fragment":
             colors = self._fragment_colors(colors, out.fragment)
         keep = ~self.interior | exposed
+        means, covars, colors, opacities = out.means[keep], out.covars[keep], colors[keep], self.opacities[keep]
+        if self.background is not None:
+            bm, bc, bsh, bo = self.background
+            bcol = sh_colors(bsh, bm, cam.campos.to(bm))
+            means, covars = torch.cat([means, bm]), torch.cat([covars, bc])
+            colors, opacities = torch.cat([colors, bcol]), torch.cat([opacities, bo])
         img = render(
-            out.means[keep],
-            out.covars[keep],
-            colors[keep],
-            self.opacities[keep],
+            means,
+            covars,
+            colors,
+            opacities,
             cam.to(out.means.device),
             background=self.cfg.background,
             backend=self.cfg.backend,
@@ -226,8 +236,11 @@ class FrameSink:
             raise self.error
 
 
-def run_variant(cfg, gs, variant, device, out_dir: Path, painter: Painter, topology, metrics_file, frames_store: list):
-    """Simulate + render one variant; appends frames to `frames_store`; returns (summary, topology)."""
+def run_variant(
+    cfg, gs, variant, device, out_dir: Path, painter: Painter, topology, metrics_file, frames_store: list, export=None
+):
+    """Simulate + render one variant; appends frames to `frames_store`; returns (summary, topology).
+    `export`: (every N frames, Capture) to write the frames as 3DGS PLYs in the scene's frame."""
     sim = make_simulator(cfg, gs, variant, device, topology=topology)
     rows, status, t0 = [], "ok", time.perf_counter()
     bar = progress_bar(cfg.frames, f"{variant:>20s}")
@@ -238,6 +251,9 @@ def run_variant(cfg, gs, variant, device, out_dir: Path, painter: Painter, topol
                 metrics_file.write(json.dumps({"variant": variant, **out.metrics}, default=_json_default) + "\n")
                 metrics_file.flush()
             rows.append(out.metrics)
+            if export is not None and out.frame % export[0] == 0:
+                with phases.section("io"):
+                    _export(out, painter, export[1], out_dir / "ply" / variant / f"frame_{out.frame:04d}.ply")
             sink.put(out)
             if out.frame > 0:
                 elapsed = time.perf_counter() - t0
@@ -258,6 +274,14 @@ def run_variant(cfg, gs, variant, device, out_dir: Path, painter: Painter, topol
     if sim.topologies and topology is None:
         topology = list(sim.topologies)
     return summarize(variant, rows, status, time.perf_counter() - t0), topology
+
+
+def _export(out: FrameOutput, painter: Painter, cap, path: Path) -> None:
+    from .capture.export import export_ply, frame_gaussians
+
+    drawn = ~painter.interior | painter._exposed(out)
+    gs = frame_gaussians(cap.gaussians, out.means, out.covars, out.rotations, drawn)
+    export_ply(path, gs, cap.background, cap.transform.inverse() if cap.transform is not None else None)
 
 
 def progress_bar(total: int, desc: str) -> tqdm:
@@ -311,20 +335,32 @@ def compose_comparison(cfg, variants, frame_lists, topology: Optional[Topology],
 
 
 def run_render_sim(
-    cfg: SceneConfig, variants, device: str, out_dir, progress: bool = True, profile: bool = False
+    cfg: SceneConfig,
+    variants,
+    device: str,
+    out_dir,
+    progress: bool = True,
+    profile: bool = False,
+    export_ply: Optional[int] = None,
 ) -> dict:
     """The main job. Returns the summary dict (also written to summary.json / summary.md); with
-    `profile`, the time per phase is in summary["profile"] and profile.md."""
+    `profile`, the time per phase is in summary["profile"] and profile.md; with `export_ply` = N, every
+    N-th frame of every variant also goes to ply/<variant>/frame_NNNN.ply (3DGS, the scene's frame).
+    A captured PLY scene is resolved first (capture.resolve): config.toml is the resolved config."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     if profile:
         phases.enable(sync_device=device if device.startswith("cuda") else None)
     if device.startswith("cuda") and cfg.render.backend != "torch" and gsplat_needs_compile():
         tqdm.write("compiling gsplat's CUDA kernels once, about a minute (cached for later runs) ...")
-    (out_dir / "config.toml").write_text(dump_config(cfg))
     with phases.section("setup"):
-        gs = load_scene(cfg, device)
-        painter = Painter(gs, cfg, device)
+        scene = prepare_scene(cfg, device)
+        cfg, gs = scene.cfg, scene.gaussians
+        for note in scene.notes:
+            tqdm.write(f"{cfg.name}: {note}")
+        painter = Painter(gs, cfg, device, background=scene.background)
+    (out_dir / "config.toml").write_text(dump_config(cfg))
+    export = (int(export_ply), scene) if export_ply else None
     # a variant with a provider runs first; its latched topology is replayed by all the others
     order = sorted(variants, key=lambda v: v == "baseline")
     frames, summaries, topology = {}, {}, None
@@ -334,7 +370,7 @@ def run_render_sim(
             for variant in order:
                 frames[variant] = []
                 summaries[variant], topology = run_variant(
-                    cfg, gs, variant, device, out_dir, painter, topology, metrics_file, frames[variant]
+                    cfg, gs, variant, device, out_dir, painter, topology, metrics_file, frames[variant], export
                 )
                 if topology is not None and not (out_dir / "topology.npz").exists():
                     save_history(out_dir / "topology.npz", topology)
@@ -349,6 +385,7 @@ def run_render_sim(
         "preset": cfg.preset,
         "device": device,
         "particles": len(gs),
+        "capture": scene.notes,
         "frames": cfg.frames,
         "frame_dt": cfg.frame_dt,
         "variants": [summaries[v] for v in done],

@@ -108,7 +108,7 @@ BAD_CALLS = [
     (["bench", "--accuracy", "--cases", "bar,nope", "--device", "cpu"], "--cases nope unknown"),
     (["figures", "--only", "ficus,nope", "--device", "cpu"], "--only nope unknown"),
     (["figures", "--protocol", "fast"], "invalid choice"),
-    (["render-sim", "scene.ply"], "not a config"),
+    (["render-sim", "scene.ply"], "no such PLY file"),
 ]
 
 

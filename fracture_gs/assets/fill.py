@@ -6,11 +6,13 @@ A trained 3DGS scene puts its Gaussians on the visible surface; MPM needs mass i
    grid, with its standard deviations clamped to [½, `max_radius`/3] voxels so degenerate
    (1e-12) Gaussians still mark their own voxel and huge (1e6) ones cover at most a few voxels;
    each voxel also remembers the Gaussian that contributed most to it (its owner);
-2. voxels with density ≥ `threshold` are occupied (the surface shell);
-3. ray parity: along each axis, an unoccupied voxel is inside if an odd number of occupied runs
-   lies on each side of it; a voxel is inside when at least 2 of the 3 axes agree (robust to a
-   few holes in the shell), minus inside voxels within 2 face-steps of the exterior (the vote
-   admits thin skirts where a shell's footprint overhangs a flat face);
+2. voxels with density ≥ `threshold` are occupied (the surface shell); a faint capture whose
+   Gaussians never reach it uses half the median density at the Gaussians' own voxels instead;
+3. closing (dilate, then erode, `closing` voxels) bridges small holes in the shell; a flood fill
+   from the grid's border through free voxels marks the exterior; everything it cannot reach is
+   solid (enclosed volume and shell); the fill voxels are the solid minus its outer layer, so the
+   filled volume follows the middle of the shell. A surface that stays open after closing is
+   flooded: the fill then finds almost nothing (`stats["fill_fraction"]` tells);
 4. one particle per inside voxel, uniformly jittered in the voxel (spacing = voxel size), with
    the DC colour, label and extra properties of the owner of the nearest occupied voxel (exact
    Euclidean feature transform with scipy; without scipy, the nearest along the 6 axis rays).
@@ -103,18 +105,6 @@ def _splat(gs: GaussianSet, grid: _Grid, max_radius: int) -> tuple[torch.Tensor,
     return density, torch.where(owner >= 0, owner & ((1 << _IDX_BITS) - 1), owner)
 
 
-def _parity_inside(occ: torch.Tensor) -> torch.Tensor:  # [X, Y, Z] bool -> [X, Y, Z] bool
-    """Unoccupied voxels with an odd number of occupied runs on both sides along ≥ 2 axes."""
-    votes = torch.zeros(occ.shape, dtype=torch.int8)
-    for axis in range(3):  # three axes
-        n = occ.shape[axis]
-        prev = torch.cat([torch.zeros_like(occ.narrow(axis, 0, 1)), occ.narrow(axis, 0, n - 1)], axis)
-        before = (occ & ~prev).to(torch.int16).cumsum(axis, dtype=torch.int16)  # runs so far
-        after = before.narrow(axis, n - 1, 1) - before
-        votes += ((before & 1) & (after & 1)).to(torch.int8)
-    return (votes >= 2) & ~occ
-
-
 def _dilate6(m: torch.Tensor) -> torch.Tensor:  # [X, Y, Z] bool -> [X, Y, Z] bool
     """m or any of its 6 face neighbours."""
     out = m.clone()
@@ -125,13 +115,44 @@ def _dilate6(m: torch.Tensor) -> torch.Tensor:  # [X, Y, Z] bool -> [X, Y, Z] bo
     return out
 
 
-def _peel(inside: torch.Tensor, occ: torch.Tensor, steps: int = 2) -> torch.Tensor:
-    """inside minus voxels within `steps` face-steps of the exterior (unoccupied, not inside):
-    removes the thin 'skirts' the majority vote admits where a shell's footprint overhangs."""
-    outside = ~occ & ~inside
-    for _ in range(steps):
-        outside = _dilate6(outside) & ~occ
-    return inside & ~outside
+def _close(occ: torch.Tensor, steps: int) -> torch.Tensor:  # [X, Y, Z] bool -> [X, Y, Z] bool
+    """Morphological closing (`steps` dilations, then as many erosions, 26-neighbourhood): gaps in the
+    shell narrower than about 2·steps voxels are bridged; the shell does not grow."""
+    if steps <= 0:
+        return occ
+    x = occ[None, None].float()
+    k = 2 * steps + 1
+    grown = torch.nn.functional.max_pool3d(x, k, stride=1, padding=steps)
+    shrunk = -torch.nn.functional.max_pool3d(-grown, k, stride=1, padding=steps)
+    return (shrunk[0, 0] > 0.5) | occ
+
+
+def _exterior(occ: torch.Tensor) -> torch.Tensor:  # [X, Y, Z] bool -> [X, Y, Z] bool
+    """Unoccupied voxels reachable from the grid's border through face neighbours (a flood fill from
+    outside: whatever it cannot reach is enclosed, however the shell folds)."""
+    free = ~occ
+    ext = torch.zeros_like(occ)
+    for axis in range(3):
+        n = occ.shape[axis]
+        ext.narrow(axis, 0, 1).copy_(free.narrow(axis, 0, 1))
+        ext.narrow(axis, n - 1, 1).copy_(free.narrow(axis, n - 1, 1))
+    for i in range(8 * sum(occ.shape)):  # a path through the free voxels is at most this long in practice
+        grown = _dilate6(ext) & free
+        if i % 4 == 3 and torch.equal(grown, ext):
+            break
+        ext = grown
+    return ext
+
+
+def _solid(occ: torch.Tensor, closing: int) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """(fill voxels, solid voxels, enclosed voxels): solid = everything the closed shell encloses,
+    shell included; enclosed = solid minus the (closed) shell: empty for an open surface; fill = solid
+    minus its outer layer (voxels face-adjacent to the exterior), so the filled volume follows the
+    middle of the shell rather than its outside."""
+    closed = _close(occ, closing)
+    ext = _exterior(closed)
+    solid = ~ext
+    return solid & ~_dilate6(ext), solid, solid & ~closed
 
 
 def _axis_nearest(occ: torch.Tensor) -> torch.Tensor:  # [X, Y, Z] bool -> [X, Y, Z] int64 flat
@@ -166,12 +187,17 @@ def _nearest_occupied(occ: torch.Tensor, idx: torch.Tensor) -> torch.Tensor:  # 
     return near[0] * (occ.shape[1] * occ.shape[2]) + near[1] * occ.shape[2] + near[2]
 
 
-def _voxelize(gs, lo, hi, dv, pad, max_radius, threshold):
-    """(grid, occupied [X,Y,Z] bool, owner [X·Y·Z], inside voxel indices [K, 3]) at voxel dv."""
+def _voxelize(gs, lo, hi, dv, pad, max_radius, threshold, closing=1):
+    """(grid, occupied [X,Y,Z] bool, owner [X·Y·Z], fill voxel indices [K, 3], solid voxel count) at voxel dv."""
     grid = _Grid(lo, hi, dv, pad)
     density, owner = _splat(gs, grid, max_radius)
-    occ = (density >= threshold).reshape(grid.shape)
-    return grid, occ, owner, torch.nonzero(_peel(_parity_inside(occ), occ))
+    # a faint capture (many Gaussians of opacity ~0.05) may never reach `threshold`: then half the
+    # median density at the Gaussians' own voxels marks the surface instead
+    at = torch.floor((gs.means.to(torch.float64) - grid.origin) / grid.dv).long()
+    surface = float(density[(at * grid.strides).sum(1)].median())
+    occ = (density >= min(threshold, 0.5 * surface)).reshape(grid.shape)
+    fill, solid, enclosed = _solid(occ, closing)
+    return grid, occ, owner, torch.nonzero(fill), (int(solid.sum()), int(enclosed.sum()))
 
 
 def _interior_set(src: GaussianSet, pts: torch.Tensor, near: torch.Tensor, dv: float) -> GaussianSet:
@@ -226,6 +252,8 @@ def fill_interior(
     min_opacity: float = 0.05,
     max_radius: int = 3,
     seed: int = 0,
+    closing: int = 1,
+    stats: dict | None = None,
 ) -> GaussianSet:
     """`gs` followed by interior particles (interior=True) filling the volume its Gaussians
     enclose (see the module doc).
@@ -234,27 +262,45 @@ def fill_interior(
     Gaussians. It is enlarged so that the grid has ≤ max_grid voxels per axis and ≤ max_particles
     particles are added. threshold: density (summed α·exp(-½m²)) of an occupied voxel. Gaussians
     with opacity < min_opacity or non-finite/degenerate parameters are ignored. max_radius: splat
-    radius cap in voxels. Deterministic for a given seed (it only drives the jitter)."""
+    radius cap in voxels. closing: shell gaps up to about 2·closing voxels are bridged before the
+    flood fill. Deterministic for a given seed (it only drives the jitter). `stats`, if given,
+    receives `added`, `spacing`, `solid_voxels`, `fill_voxels`, `fill_fraction` (fill / solid) and
+    `enclosed_fraction` (solid voxels that are not shell / solid: near 0 for an open surface)."""
+    if stats is not None:
+        stats.update(added=0, spacing=None, solid_voxels=0, fill_voxels=0, fill_fraction=0.0, enclosed_fraction=0.0)
     ok = _valid(gs, min_opacity)
     if not ok.any() or max_particles < 1:
         return gs
     src = gs.subset(ok).to("cpu")
     means = src.means.to(torch.float64)
     lo, hi = means.min(0).values, means.max(0).values
-    pad = max_radius + 1
+    pad = max(max_radius, closing) + 2
     ext = max(float((hi - lo).max()), _TINY)
     dv = _voxel_size(src, spacing, ext, max_grid, pad)
+
+    def voxelize(d):
+        return _voxelize(src, lo, hi, d, pad, max_radius, threshold, closing)
+
     coarse = max(dv, ext / max(1, min(max_grid, 64) - 2 * pad - 1))
     if coarse > dv:  # estimate the inside volume on a coarse grid to respect the budget at once
-        inside = len(_voxelize(src, lo, hi, coarse, pad, max_radius, threshold)[3])
+        inside = len(voxelize(coarse)[3])
         dv = max(dv, (inside / max_particles) ** (1 / 3) * coarse)
-    grid, occ, owner, idx = _voxelize(src, lo, hi, dv, pad, max_radius, threshold)
+    grid, occ, owner, idx, solid = voxelize(dv)
     for _ in range(3):  # coarsen until the particle budget holds
         if len(idx) <= max_particles:
             break
         dv *= (len(idx) / max_particles) ** (1 / 3) * 1.02
-        grid, occ, owner, idx = _voxelize(src, lo, hi, dv, pad, max_radius, threshold)
+        grid, occ, owner, idx, solid = voxelize(dv)
     gen = torch.Generator().manual_seed(int(seed))
+    if stats is not None:
+        solid, enclosed = solid
+        stats.update(
+            spacing=dv,
+            solid_voxels=solid,
+            fill_voxels=len(idx),
+            fill_fraction=len(idx) / max(solid, 1),
+            enclosed_fraction=enclosed / max(solid, 1),
+        )
     if len(idx) > max_particles:
         idx = idx[torch.randperm(len(idx), generator=gen)[:max_particles].sort().values]
     if len(idx) == 0:
@@ -263,4 +309,6 @@ def fill_interior(
     near = owner[near_voxel]
     jitter = torch.rand(len(idx), 3, generator=gen, dtype=torch.float64) - 0.5
     pts = grid.centres(idx) + jitter * dv
+    if stats is not None:
+        stats["added"] = len(idx)
     return _concat(gs, _interior_set(src, pts, near, dv))

@@ -1,4 +1,4 @@
-"""`fracture-gs` command line: render-sim, bench, figures, info, validate.
+"""`fracture-gs` command line: render-sim, init, bench, figures, info, validate.
 
 Every user error (bad config, bad PLY, missing file, bad flag) ends as one line
 `fracture-gs: error: <sentence>` on stderr and exit code 2, never a traceback (set
@@ -16,7 +16,7 @@ from typing import Optional, Sequence
 from .devices import _prepare_warp, resolve_device
 from .parser import PROG, CliError, build_parser
 from .report import cmd_info, cmd_validate
-from .run import cmd_bench, cmd_figures, cmd_render_sim
+from .run import cmd_bench, cmd_figures, cmd_init, cmd_render_sim
 
 __all__ = ["CliError", "build_parser", "main", "resolve_device"]
 
@@ -27,6 +27,7 @@ _COMMANDS = {
     "figures": cmd_figures,
     "info": cmd_info,
     "validate": cmd_validate,
+    "init": cmd_init,
 }
 
 

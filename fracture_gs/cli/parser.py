@@ -25,12 +25,14 @@ examples:
   fracture-gs info                                  versions, GPU, renderer backend
   fracture-gs validate bread                        check a built-in or your own config
   fracture-gs render-sim bread                      simulate + render the default variants
+  fracture-gs render-sim my_capture.ply             your own 3DGS scene, every setting automatic
+  fracture-gs init my_capture.ply --out mine.toml   the same settings as a commented TOML to edit
   fracture-gs render-sim configs/recontact.toml --variants local_multifield,full
   fracture-gs render-sim my_scene.toml --preset paper --device cuda:0 --out runs/mine
   fracture-gs bench --device cuda:0                 transfer timings (paper Table 2)
   fracture-gs figures --out figures/out             every table and figure of the paper
 
-A CONFIG is a path to a TOML file or a built-in name ({names}).
+A CONFIG is a path to a TOML file, a built-in name ({names}), or a 3DGS .ply (a captured scene).
 """
 
 _RENDER_EPILOG = """\
@@ -39,6 +41,13 @@ examples:
   fracture-gs render-sim bread --variants baseline,full --frames 20 --resolution 320x240
   fracture-gs render-sim configs/exp_table3_bread.toml --preset paper --device cuda:0
   fracture-gs render-sim my_scene.toml --out runs/my_scene
+  fracture-gs render-sim point_cloud.ply                       a trainer's PLY, automatic settings
+  fracture-gs render-sim point_cloud.ply --load drop --export-ply 5
+
+A .ply argument is a captured scene (any 3DGS trainer's output): floaters and outliers are removed,
+the object is fitted into the grid (up axis from the trainer's cameras.json, else -y), its inside
+is filled, a load breaks it (--load pull|drop|impact) and a camera frames it; what was chosen is
+printed and config.toml in --out holds it (`fracture-gs init` writes it with comments).
 
 Writes one folder per variant (frames, metrics.jsonl, topology) and a side-by-side comparison
 video under --out (default runs/<config name>). Ctrl-C keeps what was written so far.
@@ -70,6 +79,17 @@ Reruns every experiment config (exp_table*.toml) under the paper's protocol and 
 (Markdown, CSV, LaTeX), the figures, summary.json and a README with the command that made each.
 Protocols: quick (CPU sized, the default on the CPU) and paper (Δx = 1/128, the paper's particle
 counts, the default on CUDA). Groups for --only: ficus, bread, interaction, bench.
+"""
+
+_INIT_EPILOG = """\
+examples:
+  fracture-gs init output/garden/point_cloud/iteration_30000/point_cloud.ply --out garden.toml
+  fracture-gs init scan.ply --load drop --out scan.toml && fracture-gs render-sim scan.toml
+
+Reads the PLY, removes floaters and outliers, finds the up axis (the trainer's cameras.json beside
+it, else -y), picks the region of interest, fits it into the grid, fills its inside, places the
+load and the camera, and writes all of it as plain values with a comment on every key. Edit the
+file and run it with `fracture-gs render-sim FILE`.
 """
 
 _INFO_EPILOG = """\
@@ -137,6 +157,17 @@ def build_parser() -> argparse.ArgumentParser:
         help="built-in scenes only: override the preset's particle count (quick looks)",
     )
     p.add_argument("--resolution", metavar="WxH", help="image size, e.g. 640x480 (default: the config's)")
+    p.add_argument(
+        "--load",
+        choices=("pull", "drop", "impact", "none"),
+        help="captured (.ply) scenes: what breaks the object (default: the config's capture.load, pull)",
+    )
+    p.add_argument(
+        "--export-ply",
+        metavar="N",
+        type=_positive_int,
+        help="also write every N-th frame of every variant as a 3DGS PLY (ply/<variant>/, the scene's own frame)",
+    )
     p.add_argument(
         "--profile",
         action="store_true",
@@ -212,6 +243,18 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("config", metavar="CONFIG", help="TOML path or built-in name")
     p.add_argument("--dump", action="store_true", help="also print the fully resolved config as TOML")
+
+    p = sub.add_parser(
+        "init",
+        help="write a commented starter config for your own 3DGS scene (.ply)",
+        formatter_class=fmt,
+        description="Resolve every automatic choice for a captured scene and write them as a commented TOML.",
+        epilog=_INIT_EPILOG,
+    )
+    p.add_argument("scene", metavar="SCENE_PLY", help="a 3DGS PLY written by any trainer")
+    p.add_argument("--out", metavar="FILE", help="where to write the TOML (default: <scene name>.toml here)")
+    p.add_argument("--load", choices=("pull", "drop", "impact", "none"), help="what breaks the object (default pull)")
+    p.add_argument("--force", action="store_true", help="overwrite FILE if it exists")
     return parser
 
 

@@ -44,11 +44,14 @@ def cmd_render_sim(args: argparse.Namespace) -> int:
     args.partial_out = out_dir
     if getattr(args, "particles", None):
         cfg.particles = args.particles
+    if getattr(args, "load", None):
+        cfg.capture.load = args.load
     print(
         f"render-sim: {cfg.name} ({cfg.scene}, preset {cfg.preset}), {cfg.frames} frames, "
         f"variants {', '.join(cfg.variants)}, device {device} -> {out_dir}"
     )
-    summary = run(cfg, list(cfg.variants), device, out_dir, profile=args.profile) or {}
+    extra = {"export_ply": args.export_ply} if getattr(args, "export_ply", None) else {}
+    summary = run(cfg, list(cfg.variants), device, out_dir, profile=args.profile, **extra) or {}
     table = out_dir / "summary.md"
     print(table.read_text() if table.exists() else json.dumps(summary, indent=2, default=str))
     print(
@@ -131,4 +134,27 @@ def cmd_figures(args: argparse.Namespace) -> int:
             render_backend=args.backend,
         )
     )
+    return 0
+
+
+def cmd_init(args: argparse.Namespace) -> int:
+    """init: resolve a captured scene's automatic choices and write them as a commented TOML."""
+    from ..capture.scene import resolve
+    from ..capture.starter import starter_toml
+    from ..io.config import load_config
+
+    ply = Path(args.scene)
+    if ply.suffix.lower() != ".ply":
+        raise CliError(f"{ply}: init takes a 3DGS .ply file; for a TOML config use `fracture-gs validate {ply}`.")
+    cfg = load_config(ply)
+    if args.load:
+        cfg.capture.load = args.load
+    out = Path(args.out) if args.out else Path(f"{cfg.name}.toml")
+    if out.exists() and not args.force:
+        raise CliError(f"{out} exists; pass --force to overwrite it or choose another --out.")
+    capture = resolve(cfg)
+    out.write_text(starter_toml(capture, str(ply)))
+    for note in capture.notes:
+        print(f"  {note}")
+    print(f"wrote {out}: edit it, then run  fracture-gs render-sim {out}")
     return 0

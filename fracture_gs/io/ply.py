@@ -194,7 +194,40 @@ def _extra_tensor(path, data, name: str, device) -> torch.Tensor | None:
     return torch.from_numpy(np.ascontiguousarray(col)).to(device)
 
 
-def load_ply(path, device="cpu") -> GaussianSet:
+def _usable_rows(data, names: list) -> np.ndarray:  # [N] bool
+    """Vertices whose numeric properties are finite, log-scales give finite positive σ, quaternion ≠ 0."""
+    ok = np.ones(len(data), dtype=bool)
+    for name in names:
+        col = np.asarray(data[name])
+        if col.dtype != object and col.dtype.kind == "f":
+            ok &= np.isfinite(col)
+    with np.errstate(over="ignore"):
+        for i in range(3):
+            s = np.exp(np.asarray(data[f"scale_{i}"], dtype=np.float64))
+            ok &= np.isfinite(s) & (s > 0)
+    rot = np.stack([np.asarray(data[f"rot_{i}"], dtype=np.float64) for i in range(4)], 1)
+    return ok & (np.nan_to_num(np.linalg.norm(rot, axis=1)) > 0)
+
+
+def load_ply_lenient(path, device="cpu") -> tuple[GaussianSet, int]:
+    """`load_ply` that drops the Gaussians with NaN/inf values, degenerate scales or zero quaternions
+    (a trainer's stray output) instead of refusing the file: (Gaussians, how many were dropped).
+    Raises PlyError when the file is malformed or nothing usable is left."""
+    path = os.fspath(path)
+    data, names = _read_vertex(path)
+    _require(path, names, _REQUIRED)
+    ok = _usable_rows(data, names)
+    if not ok.any():
+        raise _fail(path, f"none of its {len(data)} Gaussians has finite values, scales and rotations; export it again")
+    return load_ply(path, device, _rows=np.flatnonzero(ok) if not ok.all() else None), int((~ok).sum())
+
+
+_REQUIRED = ["x", "y", "z", "f_dc_0", "f_dc_1", "f_dc_2", "opacity", "scale_0", "scale_1", "scale_2"] + [
+    f"rot_{i}" for i in range(4)
+]
+
+
+def load_ply(path, device="cpu", _rows=None) -> GaussianSet:
     """Read a 3DGS PLY into a `GaussianSet` with activated values (exp scales, sigmoid opacities,
     normalized wxyz quaternions, SH [N, K, 3] DC first); raises `PlyError` on malformed input."""
     path = os.fspath(path)
@@ -202,7 +235,9 @@ def load_ply(path, device="cpu") -> GaussianSet:
     scale_n = [f"scale_{i}" for i in range(3)]
     rot_n = [f"rot_{i}" for i in range(4)]
     dc_n = [f"f_dc_{i}" for i in range(3)]
-    _require(path, names, ["x", "y", "z", *dc_n, "opacity", *scale_n, *rot_n])
+    _require(path, names, _REQUIRED)
+    if _rows is not None:
+        data = data[_rows]
     rest_n = _rest_names(path, names)
 
     cols = lambda ns: np.stack([_column(path, data, n) for n in ns], axis=1)  # noqa: E731

@@ -33,8 +33,12 @@ def to_dict(obj: Any) -> dict:
 
 
 def config_to_dict(cfg: SceneConfig) -> dict:
-    """SceneConfig → plain dict shaped like the TOML (inverse of `config_from_dict`)."""
-    return to_dict(cfg)
+    """SceneConfig → plain dict shaped like the TOML (inverse of `config_from_dict`). The [capture]
+    table is left out while it holds only defaults and the scene is not a PLY (it would say nothing)."""
+    out = to_dict(cfg)
+    if not cfg.scene.lower().endswith(".ply") and cfg.capture == type(cfg.capture)():
+        out.pop("capture", None)
+    return out
 
 
 def toml_value(value: Any) -> str:

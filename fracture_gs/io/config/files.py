@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import re
 from pathlib import Path
 from typing import Any, Optional, Union
 
@@ -45,12 +46,7 @@ def find_config(name_or_path: Union[str, os.PathLike]) -> Path:
         if candidate.is_file():
             return candidate
     if path.suffix.lower() == ".ply":
-        raise ConfigError(
-            text,
-            None,
-            f'this is a 3DGS scene, not a config; write a TOML config with scene = "{text}" '
-            '(for instance extends = "bread" plus that line) and pass the TOML instead.',
-        )
+        raise ConfigError(text, None, "no such PLY file; check the path (a .ply argument is a captured 3DGS scene).")
     names = ", ".join(builtin_configs()) or "none installed"
     raise ConfigError(text, None, f"no such config file; pass a path to a TOML file or a built-in name ({names}).")
 
@@ -125,13 +121,24 @@ def _resolve_chain(raw: dict, src: str, base_dir: Optional[Path], seen: tuple[Pa
 
 
 def load_config(path_or_name: Union[str, os.PathLike]) -> SceneConfig:
-    """Load, resolve `extends`, type-check, normalize and validate a TOML config."""
+    """Load, resolve `extends`, type-check, normalize and validate a TOML config. A `.ply` path is a
+    captured scene with automatic settings: the built-in `capture` config with `scene` = that file."""
     path = find_config(path_or_name)
+    if path.suffix.lower() == ".ply":
+        return ply_config(path)
     src = _display(path)
     merged = _resolve_chain(_read_toml(path), src, path.parent, (path.resolve(),))
     cfg = build_scene(merged, src)
     validate(cfg, src)
     return cfg
+
+
+def ply_config(path: Path) -> SceneConfig:
+    """The config of a bare PLY argument: `extends = "capture"`, the scene, a name from the file."""
+    name = re.sub(r"[^A-Za-z0-9_.-]+", "_", path.stem).strip("._") or "scene"
+    if name == "point_cloud" and path.parent.name.startswith("iteration_"):  # the reference trainer's layout
+        name = re.sub(r"[^A-Za-z0-9_.-]+", "_", path.parent.parent.parent.name) or name
+    return config_from_dict({"extends": "capture", "scene": str(path.resolve()), "name": name}, _display(path))
 
 
 def config_from_dict(d: dict, source: str = "<dict>") -> SceneConfig:

@@ -1,0 +1,175 @@
+"""Where the object is and which way is up: the trainer's cameras, the region of interest, and the
+similarity transform that puts the object into the simulation domain.
+
+The fit: rotate the scene's up axis onto +z, then turn about z so the object's longest horizontal
+principal axis lies along x (a pull load grips its two ends), scale so its longest side is
+`capture.size` metres, and centre it at (0.5, 0.5, 0.5). The result is stored as (scale, rotation,
+offset) in the config, so a run can be repeated and outputs taken back to the scene's own frame.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Optional
+
+import torch
+
+from ..config import CaptureConfig
+from ..errors import SceneError
+from .transform import SceneTransform
+
+AXES = {
+    "+x": (1.0, 0.0, 0.0),
+    "-x": (-1.0, 0.0, 0.0),
+    "+y": (0.0, 1.0, 0.0),
+    "-y": (0.0, -1.0, 0.0),
+    "+z": (0.0, 0.0, 1.0),
+    "-z": (0.0, 0.0, -1.0),
+}
+CENTRE = (0.5, 0.5, 0.5)
+"""Where the fitted object's bounding-box centre goes [m]."""
+
+
+@dataclass
+class TrainerCamera:
+    """One view of the reference trainer's cameras.json: centre and camera-to-world rotation (OpenCV
+    axes: x right, y down, z forward), focal lengths and image size."""
+
+    position: torch.Tensor  # [3] float64
+    rotation: torch.Tensor  # [3, 3] float64, columns = camera axes in the world
+    fx: float
+    fy: float
+    width: int
+    height: int
+    name: str = ""
+
+
+def find_cameras_json(ply: Path, explicit: Optional[str]) -> Optional[Path]:
+    """The trainer's cameras.json: the configured path, else beside the PLY or up to three folders up
+    (the reference trainer writes model/cameras.json and model/point_cloud/iteration_N/point_cloud.ply)."""
+    if explicit:
+        p = Path(explicit).expanduser()
+        if not p.is_file():
+            raise SceneError(f"{p}: capture.cameras_json does not exist; fix the path or remove the key.")
+        return p
+    folder = ply.resolve().parent
+    for _ in range(4):
+        if (folder / "cameras.json").is_file():
+            return folder / "cameras.json"
+        folder = folder.parent
+    return None
+
+
+def read_cameras(path: Path) -> list[TrainerCamera]:
+    """The views of a cameras.json written by the reference 3DGS trainer."""
+    try:
+        data = json.loads(Path(path).read_text())
+        cams = [
+            TrainerCamera(
+                position=torch.tensor(c["position"], dtype=torch.float64),
+                rotation=torch.tensor(c["rotation"], dtype=torch.float64),
+                fx=float(c["fx"]),
+                fy=float(c["fy"]),
+                width=int(c["width"]),
+                height=int(c["height"]),
+                name=str(c.get("img_name", "")),
+            )
+            for c in data
+        ]
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise SceneError(
+            f"{path}: not a trainer cameras.json ({exc}); point capture.cameras_json at the trainer's file or "
+            f'set capture.up and capture.camera = "auto".'
+        ) from None
+    if not cams or any(c.rotation.shape != (3, 3) or c.position.shape != (3,) for c in cams):
+        raise SceneError(f'{path}: cameras.json holds no usable view; set capture.up and capture.camera = "auto".')
+    return cams
+
+
+def detect_up(cap: CaptureConfig, cameras: list[TrainerCamera]) -> tuple[torch.Tensor, str]:
+    """(unit up vector in scene coordinates, how it was chosen)."""
+    if cap.up != "auto":
+        return torch.tensor(AXES[cap.up], dtype=torch.float64), f"up axis {cap.up} (capture.up)"
+    if cameras:
+        down = torch.stack([c.rotation[:, 1] for c in cameras]).mean(0)  # cameras' y axes point down
+        if float(down.norm()) > 1e-6:
+            up = -down / down.norm()
+            near = max(AXES, key=lambda k: float(up @ torch.tensor(AXES[k], dtype=torch.float64)))
+            return up, f"up axis from the {len(cameras)} trainer cameras (closest to {near})"
+    return torch.tensor(AXES["-y"], dtype=torch.float64), "up axis -y assumed (COLMAP's convention; set capture.up)"
+
+
+def rotation_onto_z(u: torch.Tensor) -> torch.Tensor:
+    """The smallest rotation taking unit vector u to +z (Rodrigues), [3, 3] float64."""
+    z = torch.tensor([0.0, 0.0, 1.0], dtype=torch.float64)
+    u = u / u.norm()
+    axis = torch.linalg.cross(u, z)
+    s, c = float(axis.norm()), float(u @ z)
+    if s < 1e-12:
+        return torch.eye(3, dtype=torch.float64) if c > 0 else torch.diag(torch.tensor([1.0, -1.0, -1.0]).double())
+    k = axis / s
+    K = torch.tensor([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]], dtype=torch.float64)
+    return torch.eye(3, dtype=torch.float64) + s * K + (1 - c) * (K @ K)
+
+
+def roi_mask(points: torch.Tensor, cap: CaptureConfig, source: str) -> tuple[torch.Tensor, str]:
+    """(inside [N] bool, description) of the region of interest, in scene coordinates."""
+    x = points.to(torch.float64)
+    if cap.roi == "all":
+        return torch.ones(len(x), dtype=torch.bool), "region of interest: everything"
+    if cap.roi == "sphere":
+        if cap.roi_center is None or cap.roi_radius is None:
+            raise SceneError(f'{source}: capture.roi = "sphere" needs capture.roi_center and capture.roi_radius.')
+        c = torch.tensor(cap.roi_center, dtype=torch.float64)
+        return (x - c).norm(
+            dim=1
+        ) <= cap.roi_radius, f"region of interest: sphere r = {cap.roi_radius:g} at {cap.roi_center}"
+    if cap.roi == "box":
+        if cap.roi_lower is None or cap.roi_upper is None:
+            raise SceneError(f'{source}: capture.roi = "box" needs capture.roi_lower and capture.roi_upper.')
+        lo, hi = torch.tensor(cap.roi_lower, dtype=torch.float64), torch.tensor(cap.roi_upper, dtype=torch.float64)
+        return ((x >= lo) & (x <= hi)).all(1), "region of interest: box (capture.roi_lower/upper)"
+    lo, hi = auto_roi(x, cap.percentile)
+    return ((x >= lo) & (x <= hi)).all(1), "region of interest: automatic (robust bounds)"
+
+
+def auto_roi(x: torch.Tensor, percentile: float) -> tuple[torch.Tensor, torch.Tensor]:
+    """Per-axis bounds at `percentile` % and its complement, widened by 5 % of the extent each side."""
+    q = torch.tensor([percentile / 100.0, 1.0 - percentile / 100.0], dtype=torch.float64)
+    b = torch.quantile(x[torch.randperm(len(x))[:200_000]] if len(x) > 200_000 else x, q, dim=0)
+    pad = 0.05 * (b[1] - b[0])
+    return b[0] - pad, b[1] + pad
+
+
+def fit_transform(points: torch.Tensor, up: torch.Tensor, size: float) -> SceneTransform:
+    """Up onto +z, the longest horizontal principal axis onto x, longest side = size [m], bounding-box
+    centre at CENTRE. points: the object's Gaussian means in scene coordinates [N, 3]."""
+    x = points.to(torch.float64)
+    Q = rotation_onto_z(up)
+    y = x @ Q.T
+    h = y[:, :2] - y[:, :2].mean(0)
+    if len(h) >= 3:
+        evals, evecs = torch.linalg.eigh(h.T @ h)
+        a = evecs[:, 1]  # major horizontal axis
+        theta = -math.atan2(float(a[1]), float(a[0]))
+        c, s = math.cos(theta), math.sin(theta)
+        Q = torch.tensor([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]], dtype=torch.float64) @ Q
+    y = x @ Q.T
+    lo, hi = y.min(0).values, y.max(0).values
+    longest = float((hi - lo).max())
+    if not math.isfinite(longest) or longest <= 0:
+        raise SceneError("the object has no extent after clean-up (every Gaussian at one point)")
+    scale = size / longest
+    offset = torch.tensor(CENTRE, dtype=torch.float64) - scale * 0.5 * (lo + hi)
+    return SceneTransform(scale, Q, offset)
+
+
+def transform_from_config(cap: CaptureConfig) -> Optional[SceneTransform]:
+    """The stored fit, when the config holds one (scale, rotation and offset all set)."""
+    if cap.scale is None or cap.rotation is None or cap.offset is None:
+        return None
+    Q = torch.tensor(cap.rotation, dtype=torch.float64)
+    return SceneTransform(float(cap.scale), Q, torch.tensor(cap.offset, dtype=torch.float64))

@@ -1,0 +1,232 @@
+"""A captured PLY → a simulated object, a static background and a config with every choice explicit.
+
+`resolve(cfg)` reads the PLY, removes broken Gaussians, floaters and outliers, splits the region of
+interest from the background, fits the object into the simulation domain (up axis, scale, centre),
+fills its interior, places the load and the grid around it and points the camera at it. The
+returned config holds the results as plain values (fit, ROI box, grid, boundaries, camera), so the
+same run can be repeated from it, edited (`fracture-gs init` writes it with comments) and taken
+back to the scene's frame (`SceneTransform.inverse`).
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Optional
+
+import torch
+
+from .. import assets
+from ..config import SceneConfig
+from ..errors import SceneError
+from ..io.gaussian_set import GaussianSet
+from .camera import frame_box, trainer_view
+from .clean import clean
+from .fit import auto_roi, detect_up, find_cameras_json, fit_transform, read_cameras, roi_mask, transform_from_config
+from .loads import apply_load, plan_load
+from .transform import SceneTransform
+
+FILL_WARNING = 0.1
+"""Below this fraction of the solid volume enclosed by the shell, the surface is probably open."""
+
+
+@dataclass
+class Capture:
+    """A resolved captured scene."""
+
+    cfg: SceneConfig
+    gaussians: GaussianSet  # [N] the object in the simulation frame, interior fill included
+    background: Optional[GaussianSet]  # static Gaussians outside the ROI (simulation frame), or None
+    transform: Optional[SceneTransform]  # scene → simulation (None: the PLY was used as written)
+    notes: list = field(default_factory=list)  # one line per automatic choice
+
+
+def is_capture(cfg: SceneConfig) -> bool:
+    """A PLY scene (not a built-in asset name)."""
+    return cfg.scene not in assets.names() and cfg.scene.lower().endswith(".ply")
+
+
+def resolve(cfg: SceneConfig) -> Capture:
+    """See the module doc. Raises SceneError (one sentence naming the file and the fix) for scenes
+    that leave nothing to simulate."""
+    from ..io.ply import load_ply, load_ply_lenient
+
+    cfg = copy.deepcopy(cfg)
+    path = Path(cfg.scene)
+    if not path.is_file():
+        raise SceneError(
+            f"{path}: no such PLY file; check the path (or use a built-in scene: {', '.join(assets.names())})."
+        )
+    cap = cfg.capture
+    if not cap.fit:
+        return _as_written(cfg, load_ply(path))
+    gs, unreadable = load_ply_lenient(path)
+    notes = []
+    keep, report = clean(gs, cap.min_opacity, cap.outlier_neighbours, cap.outlier_std)
+    report.total += unreadable
+    report.broken += unreadable
+    notes.append(report.line())
+    if report.kept < 10:
+        raise SceneError(
+            f"{path}: only {report.kept} of {report.total} Gaussians are left after removing broken ones, faint "
+            f"floaters (opacity < capture.min_opacity = {cap.min_opacity:g}) and outliers; lower capture.min_opacity "
+            f"or raise capture.outlier_std."
+        )
+    kept = gs.subset(keep)
+    cams_path = find_cameras_json(path, cap.cameras_json)
+    cameras = read_cameras(cams_path) if cams_path else []
+    inside, roi_note = roi_mask(kept.means, cap, str(path))
+    if cap.roi == "auto":
+        lo, hi = auto_roi(kept.means.to(torch.float64), cap.percentile)
+        cap.roi, cap.roi_lower, cap.roi_upper = "box", _vec(lo), _vec(hi)
+    n_obj = int(inside.sum())
+    if n_obj < 10:
+        raise SceneError(
+            f"{path}: the region of interest holds {n_obj} of {report.kept} Gaussians; move or widen capture.roi_* "
+            f'(or set capture.roi = "auto").'
+        )
+    notes.append(f"{roi_note}: {n_obj} Gaussians simulated, {report.kept - n_obj} kept as a static background")
+    obj, bg = kept.subset(inside), kept.subset(~inside)
+    fit = transform_from_config(cap)
+    if fit is None:
+        up, up_note = detect_up(cap, cameras)
+        fit = fit_transform(obj.means, up, cap.size)
+        notes.append(f"{up_note}; scale {fit.scale:.4g} m per scene unit, longest side {cap.size:g} m")
+    else:
+        notes.append(f"fit from the config: scale {fit.scale:.4g} m per scene unit")
+    cap.scale, cap.rotation, cap.offset = fit.scale, fit.to_config()["rotation"], fit.to_config()["offset"]
+    obj = fit.gaussians(obj)
+    bg = fit.gaussians(bg) if len(bg) else None
+    lo, hi = obj.means.min(0).values.double(), obj.means.max(0).values.double()
+    dx = cap.size / cap.cells_across
+    if cfg.fill_interior:
+        obj = _fill(obj, cap, dx, notes)
+    duration = cfg.frames * cfg.frame_dt
+    if cfg.sim.boundaries and cap.load != "none":  # e.g. extends = "bread": its grips are the load
+        plan = plan_load("none", lo, hi, dx, cap.size, 0.0, duration)
+        plan.note = (
+            f"load: the config's own {len(cfg.sim.boundaries)} boundaries (capture.load = {cap.load!r} not added)"
+        )
+    else:
+        plan = plan_load(cap.load, lo, hi, dx, cap.size, cap.load_speed, duration)
+        apply_load(cfg, plan)
+    notes.append(plan.note)
+    cap.load = "none"  # written out as boundaries: a rerun of this config must not add them again
+    room_lo, room_hi = _room(cap.size, lo, hi, plan, duration)
+    if cfg.sim.grid == "auto":
+        _grid(cfg, room_lo, room_hi, dx)
+        notes.append(
+            f"grid {'×'.join(map(str, cfg.sim.grid_shape))} at Δx = {dx:.4g} m ({cap.cells_across} cells across)"
+        )
+    _camera(cfg, cameras, fit, lo, hi, room_lo, room_hi, notes)
+    cfg.sim.max_fragments = max(cfg.sim.max_fragments, 2 * cfg.topology.max_events + 2)
+    from ..io.config import validate
+
+    return Capture(validate(cfg, f"{path} (captured scene)"), obj, bg, fit, notes)
+
+
+def _vec(t: torch.Tensor) -> tuple:
+    return tuple(float(v) for v in t)
+
+
+def _as_written(cfg: SceneConfig, gs: GaussianSet) -> Capture:
+    """capture.fit = false: the PLY's coordinates are metres in the simulation frame (e.g. a PLY this
+    package exported); only the interior fill applies."""
+    notes = ["capture.fit = false: coordinates used as written"]
+    if cfg.fill_interior and not bool(gs.interior.any()):
+        stats = {}
+        gs = assets.fill_interior(gs, stats=stats)
+        notes.append(f"filled {stats['added']} interior particles")
+    return Capture(cfg, gs, None, None, notes)
+
+
+def _fill(obj: GaussianSet, cap, dx: float, notes: list) -> GaussianSet:
+    """Fill at spacing Δx/2 (8 particles a cell); where the shell leaks at that resolution (a sparse
+    capture), again at Δx and 2Δx, where its Gaussians close up: the first whose shell encloses empty
+    space (at least a quarter of the solid volume), else the one that enclosed most."""
+    best = None
+    for spacing in (dx / 2, dx, 2 * dx):
+        stats = {}
+        filled = assets.fill_interior(
+            obj,
+            spacing=spacing,
+            max_particles=cap.max_particles,
+            threshold=cap.fill_threshold,
+            min_opacity=cap.min_opacity,
+            closing=cap.fill_closing,
+            stats=stats,
+        )
+        if best is None or stats["enclosed_fraction"] > best[1]["enclosed_fraction"]:
+            best = (filled, stats)
+        if stats["enclosed_fraction"] >= 0.25:
+            break
+    filled, stats = best
+    frac, enclosed = stats["fill_fraction"], stats["enclosed_fraction"]
+    notes.append(
+        f"filled {stats['added']} interior particles ({100 * frac:.0f} % of the object's volume, spacing "
+        f"{(stats['spacing'] or 0):.3g} m)"
+    )
+    if enclosed < FILL_WARNING:
+        notes.append(
+            f"warning: the surface encloses almost nothing ({100 * enclosed:.0f} % of its volume): it looks open, "
+            "so the "
+            "object is simulated as a shell; raise capture.fill_closing or lower capture.fill_threshold"
+        )
+    return filled
+
+
+def _room(size: float, lo, hi, plan, duration: float):
+    """The box the run needs (simulation frame): the object, where the load moves it, and a margin."""
+    pad = 0.1 * size
+    room_lo, room_hi = lo - pad, hi + pad
+    travel = (
+        min(0.5 * size, max(abs(v) for b in plan.boundaries for v in _speeds(b)) * duration) if plan.boundaries else 0
+    )
+    room_lo[0], room_hi[0] = room_lo[0] - travel, room_hi[0] + travel
+    if plan.floor is not None:
+        room_lo[2] = min(float(room_lo[2]), plan.floor - 0.05 * size)
+        room_lo[:2] -= 0.2 * size  # pieces spread on the floor
+        room_hi[:2] += 0.2 * size
+    return room_lo, room_hi
+
+
+def _speeds(b) -> tuple:
+    return tuple(getattr(b, "velocity", (0.0,))) + tuple(getattr(b, "delta_v", (0.0,)))
+
+
+def _grid(cfg: SceneConfig, lo, hi, dx: float) -> None:
+    w = cfg.sim.wall_cells
+    origin = [math.floor(float(v) / dx) * dx - w * dx for v in lo]
+    shape = [int(math.ceil((float(h) - o) / dx)) + w + 1 for o, h in zip(origin, hi)]
+    cfg.sim.grid, cfg.sim.dx, cfg.sim.grid_origin, cfg.sim.grid_shape = "explicit", dx, tuple(origin), tuple(shape)
+
+
+def _camera(cfg, cameras, fit, lo, hi, room_lo, room_hi, notes) -> None:
+    cap, r = cfg.capture, cfg.render
+    if cap.camera == "trainer":
+        if not cameras:
+            raise SceneError(
+                f'{cfg.scene}: capture.camera = "trainer" but no cameras.json was found beside the PLY; set '
+                f'capture.cameras_json or use capture.camera = "auto".'
+            )
+        if not 0 <= cap.view < len(cameras):
+            raise SceneError(
+                f"{cfg.scene}: capture.view = {cap.view} but cameras.json has views 0..{len(cameras) - 1}."
+            )
+        cam = cameras[cap.view]
+        r.height = max(16, int(round(r.width * cam.height / cam.width / 2)) * 2)
+        r.camera = trainer_view(cam, fit, 0.5 * (lo + hi))
+        notes.append(f"camera: trainer view {cap.view} ({cam.name or 'unnamed'})")
+    elif cap.camera == "auto":
+        frame_lo, frame_hi = lo.clone(), hi.clone()
+        frame_lo[0], frame_hi[0] = 0.5 * (lo[0] + room_lo[0]), 0.5 * (hi[0] + room_hi[0])
+        frame_lo[2] = min(float(lo[2]), float(room_lo[2]) + 0.05 * cap.size)
+        orbit = r.camera.orbit_degrees
+        r.camera = frame_box(frame_lo, frame_hi, r.width, r.height)
+        r.camera.orbit_degrees = orbit
+        notes.append("camera: frames the object from the front, 20° above")
+    else:
+        notes.append("camera: [render.camera] as written")
+    cap.camera = "config"
