@@ -37,17 +37,26 @@ def _initialised() -> bool:
     return context.runtime is not None
 
 
-def torch_stream(device: str):
-    """Context in which Warp launches go to torch's current stream on `device` (no-op on the CPU)."""
+def warp_stream(device: str):
+    """The Warp stream wrapping torch's current stream on `device` (None on the CPU), for `wp.launch(stream=)`:
+    safe from any thread (a `wp.ScopedStream` restores a per-thread stream that a worker thread lacks)."""
     if not str(device).startswith("cuda"):
-        return contextlib.nullcontext()
+        return None
     import torch
 
     ts = torch.cuda.current_stream(device)
     key = ts.cuda_stream
     if key not in _streams:
         _streams[key] = wp.stream_from_torch(ts)
-    return wp.ScopedStream(_streams[key], sync_enter=False)
+    return _streams[key]
+
+
+def torch_stream(device: str):
+    """Context in which Warp launches go to torch's current stream on `device` (no-op on the CPU)."""
+    stream = warp_stream(device)
+    if stream is None:
+        return contextlib.nullcontext()
+    return wp.ScopedStream(stream, sync_enter=False)
 
 
 _pool = None

@@ -198,6 +198,7 @@ def build_parser() -> argparse.ArgumentParser:
         type=_positive_int,
         help="fresh-memory builds per branch (default: 5 on CUDA, 1 on the CPU)",
     )
+    p.add_argument("--grid", metavar="N", type=_positive_int, default=128, help="N³ grid, Δx = 1/N (default 128)")
     p.add_argument("--no-graph", action="store_true", help="time plain launches, no CUDA graph")
     p.add_argument(
         "--sort", choices=("interleaved", "cell"), default="interleaved", help="particle order (default interleaved)"

@@ -102,6 +102,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
             graph=not args.no_graph,
             sort=args.sort,
             placements=args.placements,
+            grid=args.grid,
         )
     )
     return 0

@@ -44,9 +44,9 @@ def bench_state(particles: int | None, device: str, n: int = 128, shuffle: bool 
     """The ficus at `particles` (default: the paper's 171,553) with a latched plane through the trunk."""
     gs = assets.build("ficus", size="paper", n=particles)
     cfg = SceneConfig(scene="ficus")
-    # Δt = 2e-5 s: under the CFL bound 0.4·Δx/c ≈ 2.7e-5 s for E = 2e6, ρ = 200 at Δx = 1/128
+    # Δt = 2e-5 s at Δx = 1/128: under the CFL bound 0.4·Δx/c ≈ 2.7e-5 s for E = 2e6, ρ = 200 (∝ Δx)
     cfg.sim = SimConfig(
-        dx=1.0 / n, grid_shape=(n, n, n), grid_origin=(0.0, 0.0, 0.0), dt=2e-5, gravity=(0.0, 0.0, -9.8)
+        dx=1.0 / n, grid_shape=(n, n, n), grid_origin=(0.0, 0.0, 0.0), dt=2e-5 * 128 / n, gravity=(0.0, 0.0, -9.8)
     )
     cfg.material.E, cfg.material.density = 2e6, 200.0
     P = Particles.from_gaussians(gs, cfg)
@@ -376,8 +376,6 @@ def markdown(result: dict) -> str:
 
 
 def run_bench(
-    cfg=None,
-    variants=None,
     device="cuda:0",
     out_dir="runs/bench",
     particles=None,
@@ -387,12 +385,13 @@ def run_bench(
     graph=True,
     sort="interleaved",
     placements=None,
+    grid: int = 128,
 ) -> dict:
     """Entry point of `fracture-gs bench`: writes bench.json and bench.md into out_dir."""
     ensure_warp()
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    scfg, P, topo = bench_state(particles, device)
+    scfg, P, topo = bench_state(particles, device, n=grid)
     dev_name = (
         torch.cuda.get_device_name(torch.device(device))
         if device.startswith("cuda")

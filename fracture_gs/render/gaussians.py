@@ -16,6 +16,8 @@ from __future__ import annotations
 import torch
 from torch import Tensor
 
+from ..linalg import polar_rotation  # noqa: F401  (re-exported: R(F) for the SH rotation)
+
 # Real SH constants of the reference 3DGS implementation (Kerbl et al. 2023, `sh_utils.py`).
 SH_C0 = 0.28209479177387814
 SH_C1 = 0.4886025119029199
@@ -29,23 +31,6 @@ SH_C3 = (
     1.445305721320277,
     -0.5900435899266435,
 )
-
-
-def polar_rotation(F: Tensor) -> Tensor:  # [N,3,3] -> [N,3,3]
-    """Rotation R of the polar decomposition F = R U (U symmetric positive semi-definite).
-
-    From the SVD F = W Σ Vᵀ: R = W D Vᵀ with D = diag(1, 1, det(W Vᵀ)). D flips the axis of the
-    smallest singular value when det F < 0, so R is always a proper rotation (det R = +1), the
-    closest one to F in the Frobenius norm — the same convention as the fixed-corotated model.
-    Computed in float64 so near-singular F (tiny σ₃) still gives an orthonormal R.
-    """
-    dtype = F.dtype
-    Fd = F.to(torch.float64)
-    W, _, Vh = torch.linalg.svd(Fd)
-    d = torch.linalg.det(W @ Vh)  # [N], ±1
-    D = torch.ones(F.shape[:-2] + (3,), dtype=torch.float64, device=F.device)
-    D[..., 2] = torch.where(d < 0, -1.0, 1.0)
-    return ((W * D[..., None, :]) @ Vh).to(dtype)
 
 
 def deform_covariances(F: Tensor, cov0: Tensor) -> Tensor:  # [N,3,3], [N,3,3] -> [N,3,3]

@@ -43,7 +43,7 @@ from .layout import (
     STAT_UN_AFTER,
 )
 from .metrics import SEPARATION, reapproach_ratio  # noqa: F401 (re-exported: the tracker's thresholds)
-from .penetration import collider_crossing, fragment_overlap
+from .penetration import collider_packed, overlap_packed, unpack_overlap
 
 VOXEL = 0.6  # Δx: voxel edge of the fragment-aware occupied volume (`penetration.py`)
 COLLIDER_TOLERANCE = 0.5  # Δx: a node-based plane collider holds particles to within half a cell of the plane
@@ -244,18 +244,20 @@ class Diagnostics:
         dev.add("penetration", M.penetration(P.x, self.members, self.n, 2.0 * dx))
         dev.add("identity_crossing", M.identity_crossing(P.x, P.fragment, self.members, self.n))
         dev.add("stringing", M.stringing(P.F, self.band_index))
+        dev.add("overlap", overlap_packed(P.x, P.fragment, VOXEL * dx, max(2, sim.n_fragments)))
+        dev.add("collider", collider_packed(P.x, self.planes, COLLIDER_TOLERANCE * dx))
 
     def _interface_row(self, h: dict) -> dict:
         sim = self.sim
-        P, dx = sim.particles, sim.grid.dx
+        dx = sim.grid.dx
         opening = (h["opening"][0] - self.opening0) / dx
         self.open_max = max(self.open_max, opening)
         self.reapproach = max(self.reapproach, reapproach_ratio(self.open_max, opening))
-        overlap = fragment_overlap(P.x, P.fragment, VOXEL * dx)
+        overlap = unpack_overlap(list(h["overlap"]), max(2, sim.n_fragments))
         self.fragment_penetration = max(self.fragment_penetration, overlap["depth"] / dx)
         for pair, depth in overlap["pairs"].items():
             self.pair_penetration[pair] = max(self.pair_penetration.get(pair, 0.0), depth / dx)
-        below, depth = collider_crossing(P.x, self.planes, COLLIDER_TOLERANCE * dx)
+        below, depth = int(h["collider"][0]), float(h["collider"][1])
         return {
             "opening": opening,
             "reapproach": self.reapproach,

@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import torch
 
+from ..linalg import singular_values
+
 EPS = 1e-30
 SEPARATION = 0.1  # Δx: an interface whose opening exceeds this has separated (docs/DESIGN.md)
 
@@ -88,7 +90,7 @@ def stringing(F, band_index) -> torch.Tensor:  # -> []
     """Mean over band particles of ln(s_max / s_min) of F's singular values."""
     if band_index.numel() == 0:
         return torch.zeros((), dtype=torch.float64, device=F.device)
-    s = torch.linalg.svdvals(F[band_index].double())
+    s = singular_values(F[band_index].double())  # Warp kernel, float64
     return torch.log(s[:, 0] / s[:, 2].clamp_min(1e-12)).mean()
 
 

@@ -26,69 +26,88 @@ def _member(sorted_keys: torch.Tensor, query: torch.Tensor) -> torch.Tensor:
     return sorted_keys[i] == query
 
 
+def overlap_packed(x: torch.Tensor, fragment: torch.Tensor, h: float, K: int, max_depth: int = 8) -> torch.Tensor:
+    """`fragment_overlap` as one device tensor [2 + K·K] float64 — (crossing count, max depth [m],
+    depth [m] of fragment a inside b at a·K + b) — with no host read but the two `unique` sizes, so a
+    per-frame tracker packs it with its other numbers and reads them once. K: number of fragment ids."""
+    out = torch.zeros(2 + K * K, dtype=torch.float64, device=x.device)
+    if K < 2 or x.numel() == 0:
+        return out
+    ok = fragment >= 0
+    frag = torch.where(ok, fragment.long(), torch.zeros_like(fragment, dtype=torch.long)).clamp_max(K - 1)
+    xd = x.double()
+    lo = torch.where(ok[:, None], xd, torch.full_like(xd, float("inf"))).min(0).values
+    lo = torch.where(torch.isfinite(lo), lo, torch.zeros_like(lo))
+    cell = (torch.floor((xd - lo) / h).long() + 1).clamp(0, 1 << 20)  # a free layer of voxels around
+    dims = cell.max(0).values + 2
+    stride = torch.stack([dims[1] * dims[2], dims[2], torch.ones_like(dims[2])])
+    vox = torch.where(ok, (cell * stride).sum(1), torch.full_like(frag, -1))  # [N], −1 for unlabelled
+    pairs, counts = torch.unique(vox * K + frag, return_counts=True)  # sorted (voxel, fragment) keys
+    counts = torch.where(pairs >= 0, counts, torch.zeros_like(counts))
+    vox_of = torch.div(pairs, K, rounding_mode="floor")
+    voxels, inverse = torch.unique_consecutive(vox_of, return_inverse=True)
+    best = torch.zeros(voxels.numel(), dtype=counts.dtype, device=x.device).scatter_reduce(0, inverse, counts, "amax")
+    top = (counts == best[inverse]) & (counts > 0)
+    idx = torch.arange(pairs.numel(), device=x.device)
+    winner = torch.full((voxels.numel(),), pairs.numel(), dtype=torch.long, device=x.device)
+    winner = winner.scatter_reduce(0, inverse, torch.where(top, idx, torch.full_like(idx, pairs.numel())), "amin")
+    valid = winner < pairs.numel()
+    occ = torch.where(valid, pairs[winner.clamp_max(pairs.numel() - 1)], torch.full_like(voxels, -1))  # (voxel, owner)
+    # erosion by levels without compaction: a voxel survives a step when its six neighbours have the
+    # same owner and survived the previous step
+    alive = valid & (voxels >= 0)
+    level = torch.zeros(occ.numel(), dtype=torch.long, device=x.device)
+    last = occ.numel() - 1
+    steps = [(torch.tensor(d, device=x.device) * stride).sum() * K for d in _NEIGHBOURS]
+    for _ in range(max_depth):
+        keep = alive.clone()
+        for step in steps:
+            j = torch.searchsorted(occ, occ + step).clamp_max(last)
+            keep &= (occ[j] == occ + step) & alive[j]
+        alive = keep
+        level += alive.long()
+    # each particle against its voxel's owner and level
+    v = torch.searchsorted(voxels, vox).clamp_max(voxels.numel() - 1)
+    owner = torch.remainder(occ[v], K)
+    depth = level[v].double() * h
+    foreign = ok & (voxels[v] == vox) & (level[v] > 0) & (owner != frag)
+    depth = torch.where(foreign, depth, torch.zeros_like(depth))
+    out[0] = foreign.sum()
+    out[1] = depth.max()
+    out[2:] = torch.zeros(K * K, dtype=torch.float64, device=x.device).scatter_reduce(
+        0, frag * K + owner, depth, "amax"
+    )
+    return out
+
+
+def unpack_overlap(values: list, K: int) -> dict:
+    """The dict of `fragment_overlap` from the host copy of an `overlap_packed` tensor."""
+    pairs = {(k // K, k % K): v for k, v in enumerate(values[2 : 2 + K * K]) if v > 0}
+    return {"crossing": int(values[0]), "depth": float(values[1]), "pairs": pairs}
+
+
 def fragment_overlap(x: torch.Tensor, fragment: torch.Tensor, h: float, max_depth: int = 8) -> dict:
     """Particles of one fragment inside another's occupied volume.
 
     x [N,3], fragment [N] (ids ≥ 0). Returns {"crossing": count, "depth": max depth [m] (0 if none),
     "pairs": {(a, b): max depth [m]} for fragment a inside b}."""
-    ok = fragment >= 0
-    if int(ok.sum()) == 0 or int(fragment.max()) < 1:
+    K = int(fragment.max()) + 1 if fragment.numel() else 0
+    if K < 2:
         return {"crossing": 0, "depth": 0.0, "pairs": {}}
-    x, frag = x[ok].double(), fragment[ok].long()
-    K = int(frag.max()) + 1
-    cell = torch.floor((x - x.min(0).values) / h).long() + 1  # a free layer of voxels around
-    dims = cell.max(0).values + 2
-    stride = torch.stack([dims[1] * dims[2], dims[2], torch.ones_like(dims[2])])
-    vox = (cell * stride).sum(1)  # [N]
-    pairs, counts = torch.unique(vox * K + frag, return_counts=True)  # sorted (voxel, fragment) keys
-    vox_of = pairs // K
-    voxels, inverse = torch.unique_consecutive(vox_of, return_inverse=True)
-    best = torch.zeros(voxels.numel(), dtype=counts.dtype, device=x.device).scatter_reduce(0, inverse, counts, "amax")
-    top = counts == best[inverse]
-    # the owner of each voxel: its most numerous fragment (ties: the lowest id, the first key of the run)
-    winner = torch.zeros(voxels.numel(), dtype=torch.long, device=x.device).scatter_reduce(
-        0, inverse[top], torch.arange(pairs.numel(), device=x.device)[top], "amin", include_self=False
-    )
-    occ = pairs[winner]  # one (voxel, owner) key per voxel, sorted
-    level = torch.zeros(occ.numel(), dtype=torch.long, device=x.device)
-    alive = torch.arange(occ.numel(), device=x.device)
-    current = occ
-    steps = [int((torch.tensor(d, device=x.device) * stride).sum()) * K for d in _NEIGHBOURS]
-    for _ in range(max_depth):
-        keep = torch.ones(current.numel(), dtype=torch.bool, device=x.device)
-        for s in steps:
-            keep &= _member(current, current + s)
-        alive, current = alive[keep], current[keep]
-        if current.numel() == 0:
-            break
-        level[alive] += 1
-    inner = level > 0
-    ikey, ilevel = occ[inner], level[inner]
-    if ikey.numel() == 0:
-        return {"crossing": 0, "depth": 0.0, "pairs": {}}
-    ivox, ifrag = ikey // K, ikey % K
-    order = torch.argsort(vox)
-    svox = vox[order]
-    start = torch.searchsorted(svox, ivox)
-    count = torch.searchsorted(svox, ivox, right=True) - start
-    rep = torch.repeat_interleave(torch.arange(ikey.numel(), device=x.device), count)
-    if rep.numel() == 0:
-        return {"crossing": 0, "depth": 0.0, "pairs": {}}
-    offset = torch.arange(rep.numel(), device=x.device) - torch.repeat_interleave(torch.cumsum(count, 0) - count, count)
-    p = order[start[rep] + offset]  # particles sitting in an inner voxel of fragment ifrag[rep]
-    foreign = frag[p] != ifrag[rep]
-    p, host, depth = p[foreign], ifrag[rep][foreign], ilevel[rep][foreign].double() * h
-    if p.numel() == 0:
-        return {"crossing": 0, "depth": 0.0, "pairs": {}}
-    pair = frag[p] * K + host
-    worst = torch.zeros(K * K, dtype=torch.float64, device=x.device).scatter_reduce(0, pair, depth, "amax")
-    hits = torch.nonzero(worst > 0).flatten().tolist()
-    values = worst[hits].tolist()
-    return {
-        "crossing": int(torch.unique(p).numel()),
-        "depth": float(depth.max()),
-        "pairs": {(k // K, k % K): v for k, v in zip(hits, values)},
-    }
+    return unpack_overlap(overlap_packed(x, fragment, h, K, max_depth).tolist(), K)
+
+
+def collider_packed(x: torch.Tensor, planes, tolerance: float) -> torch.Tensor:
+    """`collider_crossing` as a device tensor [2] float64 (count, deepest distance [m]), no host read."""
+    out = torch.zeros(2, dtype=torch.float64, device=x.device)
+    xd = x.double()
+    for b in planes:
+        n = torch.tensor(b.normal, dtype=torch.float64, device=x.device)
+        d = (xd - torch.tensor(b.point, dtype=torch.float64, device=x.device)) @ (n / n.norm())
+        below = d < -tolerance
+        out[0] += below.sum()
+        out[1] = torch.maximum(out[1], torch.where(below, -d, torch.zeros_like(d)).max())
+    return out
 
 
 def collider_crossing(x: torch.Tensor, planes, tolerance: float) -> tuple[int, float]:
