@@ -103,6 +103,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
             sort=args.sort,
             placements=args.placements,
             grid=args.grid,
+            command="fracture-gs " + " ".join(args.argv),
         )
     )
     return 0

@@ -386,6 +386,7 @@ def run_bench(
     sort="interleaved",
     placements=None,
     grid: int = 128,
+    command: str | None = None,
 ) -> dict:
     """Entry point of `fracture-gs bench`: writes bench.json and bench.md into out_dir."""
     ensure_warp()
@@ -413,7 +414,7 @@ def run_bench(
             "date": datetime.date.today().isoformat(),
             "torch": torch.__version__,
             "warp": wp.config.version,
-            "command": " ".join(sys.argv),
+            "command": command or " ".join(sys.argv),
         },
     }
     # a non-default stream: CUDA graph capture cannot record the legacy default stream
