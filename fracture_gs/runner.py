@@ -245,6 +245,7 @@ def run_variant(
     rows, status, t0 = [], "ok", time.perf_counter()
     bar = progress_bar(cfg.frames, f"{variant:>20s}")
     sink = FrameSink(painter, out_dir / f"{variant}.mp4", cfg.render.fps, frames_store)
+    interrupted = False
     try:
         for out in simulate(sim, painter.cov0, cfg.frames, cfg.frame_dt):
             with phases.section("io"):
@@ -265,15 +266,20 @@ def run_variant(
                 )
                 bar.update(1)
     except SimulationDiverged as err:
-        status = f"diverged at frame {err.frame}"
+        status = f"diverged at frame {err.frame}: {err.cause}"
         tqdm.write(f"{variant}: {err}")
         metrics_file.write(json.dumps({"variant": variant, "frame": err.frame, "diverged": str(err)}) + "\n")
+    except KeyboardInterrupt:
+        interrupted = True
+        status = f"interrupted at frame {rows[-1]['frame'] if rows else 0}"
     finally:
         bar.close()
         sink.close()
     if sim.topologies and topology is None:
         topology = list(sim.topologies)
-    return summarize(variant, rows, status, time.perf_counter() - t0), topology
+    summary = summarize(variant, rows, status, time.perf_counter() - t0)
+    summary["interrupted"] = interrupted
+    return summary, topology
 
 
 def _export(out: FrameOutput, painter: Painter, cap, path: Path) -> None:
@@ -307,10 +313,14 @@ def _json_default(o):
     raise TypeError(type(o))
 
 
-def compose_comparison(cfg, variants, frame_lists, topology: Optional[Topology], painter: Painter, out_dir: Path):
+def compose_comparison(
+    cfg, variants, frame_lists, topology: Optional[Topology], painter: Painter, out_dir: Path, statuses=None
+):
     """Side-by-side video at matched frames with captions and, after the latch, circular insets
-    around the latched interface projected into each panel."""
-    n = min(len(f) for f in frame_lists)
+    around the latched interface projected into each panel. A variant that stopped early (diverged,
+    interrupted) holds its last frame, captioned with why."""
+    statuses = statuses or ["ok"] * len(variants)
+    n = max(len(f) for f in frame_lists)
     if isinstance(topology, list):  # a history: the inset follows the first event's interface
         topology = topology[0]
     latch_frame = topology.latch_frame if topology is not None else None
@@ -319,14 +329,19 @@ def compose_comparison(cfg, variants, frame_lists, topology: Optional[Topology],
             with phases.section("compose"):
                 panels = []
                 for frames in frame_lists:
-                    img = frames[i]
-                    if latch_frame is not None and i >= latch_frame:
+                    img = frames[min(i, len(frames) - 1)]
+                    if latch_frame is not None and i >= latch_frame and i < len(frames):
                         cx, cy, r = compose.interface_region(topology.point, topology.normal, 0.04, painter.camera(i))
                         if 0 <= cx < img.shape[1] and 0 <= cy < img.shape[0]:
                             r = float(np.clip(r, 8, cfg.render.inset_radius))
                             img = compose.add_inset(img, (cx, cy), r, cfg.render.inset_zoom)
                     panels.append(img)
-                caps = [compose.caption_text(v, i * cfg.frame_dt, i) for v in variants]
+                caps = [
+                    compose.caption_text(v, i * cfg.frame_dt, i)
+                    if i < len(f)
+                    else f"{compose.caption_text(v, (len(f) - 1) * cfg.frame_dt, len(f) - 1)}  {st.split(':')[0]}"
+                    for v, f, st in zip(variants, frame_lists, statuses)
+                ]
                 frame = compose.side_by_side(panels, caps)
             with phases.section("encode"):
                 video.write(frame)
@@ -374,11 +389,15 @@ def run_render_sim(
                 )
                 if topology is not None and not (out_dir / "topology.npz").exists():
                     save_history(out_dir / "topology.npz", topology)
-        except KeyboardInterrupt:
+                if summaries[variant]["interrupted"]:
+                    interrupted = True
+                    break
+        except KeyboardInterrupt:  # between variants
             interrupted = True
-    done = [v for v in variants if v in summaries]
-    if done and all(frames[v] for v in done):
-        compose_comparison(cfg, done, [frames[v] for v in done], topology, painter, out_dir)
+    done = [v for v in variants if v in summaries and frames[v]]
+    if done:
+        statuses = [summaries[v]["status"] for v in done]
+        compose_comparison(cfg, done, [frames[v] for v in done], topology, painter, out_dir, statuses)
     summary = {
         "name": cfg.name,
         "scene": cfg.scene,
@@ -388,7 +407,10 @@ def run_render_sim(
         "capture": scene.notes,
         "frames": cfg.frames,
         "frame_dt": cfg.frame_dt,
-        "variants": [summaries[v] for v in done],
+        "variants": [
+            summaries.get(v) or {"variant": v, "status": "not run (interrupted before it)", "interrupted": True}
+            for v in variants
+        ],
         "interrupted": interrupted,
         "out_dir": str(out_dir),
     }
