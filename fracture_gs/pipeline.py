@@ -103,19 +103,23 @@ def check_inside_grid(sim: Simulator, source: str) -> None:
 
 
 def make_simulator(
-    cfg: SceneConfig, gs: GaussianSet, variant: str, device: str, topology: Union[Topology, list, None] = None
+    cfg: SceneConfig,
+    gs: GaussianSet,
+    variant: str,
+    device: str,
+    topology: Union[Topology, list, None] = None,
+    provider=None,
 ) -> Simulator:
     """A simulator for one variant. `topology` (a saved one, or a run's history of them) is replayed at its
     latch frame instead of running the event provider, so every variant uses the same topology; `baseline` runs no
-    provider but still receives the saved labels for its diagnostics (its transfer ignores them)."""
+    provider but still receives the saved labels for its diagnostics (its transfer ignores them). `provider`, if
+    given, replaces both (variants running side by side on several devices share one live topology)."""
     sim_cfg = copy.deepcopy(cfg.sim)
     sim_cfg.variant = variant
     particles = Particles.from_gaussians(gs, cfg, dx=sim_cfg.dx)
-    if topology is not None:
+    if provider is None and topology is not None:
         provider = ReplayProvider(topology)
-    elif variant == "baseline":
-        provider = None
-    else:
+    elif provider is None and variant != "baseline":
         provider = make_provider(cfg.topology)
     sim = Simulator(sim_cfg, particles, device=device, provider=provider)
     check_inside_grid(sim, cfg.name)

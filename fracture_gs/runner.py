@@ -237,13 +237,27 @@ class FrameSink:
 
 
 def run_variant(
-    cfg, gs, variant, device, out_dir: Path, painter: Painter, topology, metrics_file, frames_store: list, export=None
+    cfg,
+    gs,
+    variant,
+    device,
+    out_dir: Path,
+    painter: Painter,
+    topology,
+    metrics_file,
+    frames_store: list,
+    export=None,
+    provider=None,
+    stop=None,
+    position: int = 0,
 ):
     """Simulate + render one variant; appends frames to `frames_store`; returns (summary, topology).
-    `export`: (every N frames, Capture) to write the frames as 3DGS PLYs in the scene's frame."""
-    sim = make_simulator(cfg, gs, variant, device, topology=topology)
+    `export`: (every N frames, Capture) to write the frames as 3DGS PLYs in the scene's frame. `provider`:
+    the event provider to use instead of the config's or the replayed topology's; `stop`: a
+    threading.Event that interrupts the variant at its next frame (as Ctrl-C does)."""
+    sim = make_simulator(cfg, gs, variant, device, topology=topology, provider=provider)
     rows, status, t0 = [], "ok", time.perf_counter()
-    bar = progress_bar(cfg.frames, f"{variant:>20s}")
+    bar = progress_bar(cfg.frames, f"{variant:>20s}", position)
     sink = FrameSink(painter, out_dir / f"{variant}.mp4", cfg.render.fps, frames_store)
     interrupted = False
     try:
@@ -252,6 +266,8 @@ def run_variant(
                 metrics_file.write(json.dumps({"variant": variant, **out.metrics}, default=_json_default) + "\n")
                 metrics_file.flush()
             rows.append(out.metrics)
+            if stop is not None and stop.is_set():
+                raise KeyboardInterrupt
             if export is not None and out.frame % export[0] == 0:
                 with phases.section("io"):
                     _export(out, painter, export[1], out_dir / "ply" / variant / f"frame_{out.frame:04d}.ply")
@@ -290,13 +306,14 @@ def _export(out: FrameOutput, painter: Painter, cap, path: Path) -> None:
     export_ply(path, gs, cap.background, cap.transform.inverse() if cap.transform is not None else None)
 
 
-def progress_bar(total: int, desc: str) -> tqdm:
+def progress_bar(total: int, desc: str, position: int = 0) -> tqdm:
     """A tqdm bar; in a non-interactive log (stderr not a terminal) it prints a line every few
     seconds instead of every update."""
     interactive = sys.stderr.isatty()
     return tqdm(
         total=total,
         desc=desc,
+        position=position,
         unit="frame",
         leave=True,
         dynamic_ncols=True,
@@ -349,6 +366,25 @@ def compose_comparison(
                 save_png(out_dir / "frames" / f"compare_{i:04d}.png", frame)
 
 
+def _run_in_turn(cfg, gs, order, device, out_dir, painter, metrics_file, export):
+    """The variants one after the other on one device; the first's topology is replayed by the rest."""
+    frames, summaries, topology, interrupted = {}, {}, None, False
+    try:
+        for variant in order:
+            frames[variant] = []
+            summaries[variant], topology = run_variant(
+                cfg, gs, variant, device, out_dir, painter, topology, metrics_file, frames[variant], export
+            )
+            if topology is not None and not (out_dir / "topology.npz").exists():
+                save_history(out_dir / "topology.npz", topology)
+            if summaries[variant]["interrupted"]:
+                interrupted = True
+                break
+    except KeyboardInterrupt:  # between variants
+        interrupted = True
+    return frames, summaries, topology, interrupted
+
+
 def run_render_sim(
     cfg: SceneConfig,
     variants,
@@ -357,11 +393,13 @@ def run_render_sim(
     progress: bool = True,
     profile: bool = False,
     export_ply: Optional[int] = None,
+    devices: Optional[list] = None,
 ) -> dict:
     """The main job. Returns the summary dict (also written to summary.json / summary.md); with
     `profile`, the time per phase is in summary["profile"] and profile.md; with `export_ply` = N, every
     N-th frame of every variant also goes to ply/<variant>/frame_NNNN.ply (3DGS, the scene's frame).
-    A captured PLY scene is resolved first (capture.resolve): config.toml is the resolved config."""
+    A captured PLY scene is resolved first (capture.resolve): config.toml is the resolved config. With
+    `devices` (several), the variants run side by side, one per device (`fracture_gs.parallel`)."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     if profile:
@@ -378,22 +416,21 @@ def run_render_sim(
     export = (int(export_ply), scene) if export_ply else None
     # a variant with a provider runs first; its latched topology is replayed by all the others
     order = sorted(variants, key=lambda v: v == "baseline")
-    frames, summaries, topology = {}, {}, None
-    interrupted = False
     with open(out_dir / "metrics.jsonl", "w") as metrics_file:
-        try:
-            for variant in order:
-                frames[variant] = []
-                summaries[variant], topology = run_variant(
-                    cfg, gs, variant, device, out_dir, painter, topology, metrics_file, frames[variant], export
-                )
-                if topology is not None and not (out_dir / "topology.npz").exists():
-                    save_history(out_dir / "topology.npz", topology)
-                if summaries[variant]["interrupted"]:
-                    interrupted = True
-                    break
-        except KeyboardInterrupt:  # between variants
-            interrupted = True
+        if devices and len(devices) > 1:
+            from .parallel import run_on_devices
+
+            gs_on = {d: gs.to(d) for d in devices}
+            painters = [Painter(gs_on[d], cfg, d, background=scene.background) for d in devices]
+            frames, summaries, topology, interrupted = run_on_devices(
+                run_variant, cfg, gs_on, painters, order, list(devices), out_dir, metrics_file, export
+            )
+            if topology is not None:
+                save_history(out_dir / "topology.npz", topology)
+        else:
+            frames, summaries, topology, interrupted = _run_in_turn(
+                cfg, gs, order, device, out_dir, painter, metrics_file, export
+            )
     done = [v for v in variants if v in summaries and frames[v]]
     if done:
         statuses = [summaries[v]["status"] for v in done]

@@ -163,6 +163,11 @@ def build_parser() -> argparse.ArgumentParser:
         help="captured (.ply) scenes: what breaks the object (default: the config's capture.load, pull)",
     )
     p.add_argument(
+        "--devices",
+        metavar="D1,D2",
+        help="run the variants side by side, one per device (e.g. cuda:0,cuda:1); the first device leads",
+    )
+    p.add_argument(
         "--export-ply",
         metavar="N",
         type=_positive_int,

@@ -30,6 +30,12 @@ def cmd_render_sim(args: argparse.Namespace) -> int:
     path = find_config(args.config)
     cfg = load_config(path)
     device = resolve_device(args.device)
+    devices = None
+    if getattr(args, "devices", None):
+        devices = [resolve_device(d) for d in args.devices.split(",") if d.strip()]
+        if not devices:
+            raise CliError(f"--devices {args.devices!r} names no device; write it like --devices cuda:0,cuda:1.")
+        device = devices[0]
     cfg = apply_overrides(
         cfg,
         preset=args.preset,
@@ -51,6 +57,8 @@ def cmd_render_sim(args: argparse.Namespace) -> int:
         f"variants {', '.join(cfg.variants)}, device {device} -> {out_dir}"
     )
     extra = {"export_ply": args.export_ply} if getattr(args, "export_ply", None) else {}
+    if devices and len(devices) > 1:
+        extra["devices"] = devices
     summary = run(cfg, list(cfg.variants), device, out_dir, profile=args.profile, **extra) or {}
     table = out_dir / "summary.md"
     print(table.read_text() if table.exists() else json.dumps(summary, indent=2, default=str))
