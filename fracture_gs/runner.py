@@ -21,6 +21,7 @@ from tqdm import tqdm
 
 from .config import SceneConfig
 from .io.config import dump_config
+from .io.outputs import output_dir
 from .io.video import VideoWriter, save_png
 from .pipeline import FrameOutput, make_simulator, prepare_scene, simulate
 from .profiling import phases
@@ -400,8 +401,7 @@ def run_render_sim(
     N-th frame of every variant also goes to ply/<variant>/frame_NNNN.ply (3DGS, the scene's frame).
     A captured PLY scene is resolved first (capture.resolve): config.toml is the resolved config. With
     `devices` (several), the variants run side by side, one per device (`fracture_gs.parallel`)."""
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
+    out_dir = output_dir(out_dir)
     if profile:
         phases.enable(sync_device=device if device.startswith("cuda") else None)
     if device.startswith("cuda") and cfg.render.backend != "torch" and gsplat_needs_compile():

@@ -25,7 +25,7 @@ def _cuda_devices() -> tuple[bool, int, str]:
 
 def resolve_device(spec: str) -> str:
     """Check `auto|cpu|cuda[:N]` and resolve `auto`; a CUDA device must exist."""
-    spec = (spec or "auto").strip().lower()
+    spec = "auto" if spec is None else str(spec).strip().lower()
     if not DEVICE_RE.match(spec):
         raise CliError(f"--device {spec!r} is not a device; use auto, cpu, cuda or cuda:N (e.g. cuda:0).")
     if spec == "cpu":

@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from ..io.outputs import output_dir, output_file
 from .devices import resolve_device
 from .parser import CliError
 
@@ -44,7 +45,7 @@ def cmd_render_sim(args: argparse.Namespace) -> int:
         variants=args.variants,
         source=f"{path} with command-line overrides",
     )
-    out_dir = Path(args.out) if args.out else Path("runs") / cfg.name
+    out_dir = output_dir(args.out if args.out is not None else Path("runs") / cfg.name)
     from ..runner import run_render_sim as run
 
     args.partial_out = out_dir
@@ -83,7 +84,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
     if args.accuracy:
         from ..paper import accuracy
 
-        out_dir = Path(args.out) if args.out else Path("runs") / "accuracy"
+        out_dir = output_dir(args.out if args.out is not None else Path("runs") / "accuracy")
         args.partial_out = out_dir
         if args.from_json:
             accuracy.write_outputs(json.loads(Path(args.from_json).read_text()), out_dir)
@@ -97,7 +98,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
         return 0
     from ..paper.bench import run_bench
 
-    out_dir = Path(args.out) if args.out else Path("runs") / "bench"
+    out_dir = output_dir(args.out if args.out is not None else Path("runs") / "bench")
     args.partial_out = out_dir
     _print_summary(
         run_bench(
@@ -122,7 +123,7 @@ def cmd_figures(args: argparse.Namespace) -> int:
     from ..paper.figures import GROUPS, run_figures
     from ..paper.readme import refresh_readme
 
-    out_dir = Path(args.out) if args.out else Path("figures") / "out"
+    out_dir = output_dir(args.out if args.out is not None else Path("figures") / "out")
     if args.readme_only:
         print(refresh_readme(out_dir))
         return 0
@@ -159,7 +160,7 @@ def cmd_init(args: argparse.Namespace) -> int:
     cfg = load_config(ply)
     if args.load:
         cfg.capture.load = args.load
-    out = Path(args.out) if args.out else Path(f"{cfg.name}.toml")
+    out = output_file(args.out if args.out is not None else Path(f"{cfg.name}.toml"))
     if out.exists() and not args.force:
         raise CliError(f"{out} exists; pass --force to overwrite it or choose another --out.")
     capture = resolve(cfg)

@@ -164,13 +164,13 @@ def _rest_names(path, names: list) -> list:
 
 
 def _check_scales(path, raw: np.ndarray, act: np.ndarray) -> None:  # [N, 3] each
-    bad = ~(np.isfinite(act) & (act > 0))
+    bad = ~_sigma_ok(act)
     if bad.any():
         v, k = (int(i) for i in np.argwhere(bad)[0])
         raise _fail(
             path,
-            f"property 'scale_{k}' gives {int(bad.sum())} zero or infinite standard "
-            f"deviations after exp (first at vertex {v}, log-scale {raw[v, k]}); clamp "
+            f"property 'scale_{k}' gives {int(bad.sum())} standard deviations outside [1e-18, 1e18] after exp, "
+            f"whose covariance would be singular or infinite (first at vertex {v}, log-scale {raw[v, k]}); clamp "
             "log-scales to a finite range such as [-30, 10] before saving",
         )
 
@@ -187,26 +187,77 @@ def _check_rots(path, raw: np.ndarray) -> None:  # [N, 4]
         )
 
 
+def _native(col: np.ndarray) -> np.ndarray:
+    """An aligned, contiguous copy in the machine's byte order (big-endian files, packed records)."""
+    dtype = col.dtype.newbyteorder("=")
+    if dtype.kind == "u" and dtype.itemsize > 1:  # torch has no arithmetic on uint16/32/64
+        dtype = np.dtype(np.int64)
+    return np.array(col, dtype=dtype, order="C", copy=True)
+
+
 def _extra_tensor(path, data, name: str, device) -> torch.Tensor | None:
     col = np.asarray(data[name])
     if col.dtype == object:  # list property: not representable as an [N] tensor
         return None
-    return torch.from_numpy(np.ascontiguousarray(col)).to(device)
+    return torch.from_numpy(_native(col)).to(device)
+
+
+SIGMA_RANGE = (1e-18, 1e18)  # σ whose σ² is a normal, finite float32 (the covariance stays invertible)
+
+
+def _sigma_ok(act: np.ndarray) -> np.ndarray:  # [N, 3] -> [N, 3] bool
+    a = act.astype(np.float64)
+    return np.isfinite(a) & (a >= SIGMA_RANGE[0]) & (a <= SIGMA_RANGE[1])
+
+
+def _labels(path, data) -> np.ndarray:  # [N] int32
+    """`fgs_label` as int32: finite integers in [0, 2^31 − 1], else one sentence."""
+    raw = np.asarray(data[LABEL_PROP]).astype(np.float64)
+    bad = ~(np.isfinite(raw) & (raw == np.round(raw)) & (raw >= 0) & (raw <= 2**31 - 1))
+    if bad.any():
+        first = int(np.flatnonzero(bad)[0])
+        raise _fail(
+            path,
+            f"property '{LABEL_PROP}' has {int(bad.sum())} values that are not material labels (first at vertex "
+            f"{first}, value {raw[first]}); write non-negative integers below 2^31 (int32)",
+        )
+    return raw.astype(np.int32)
+
+
+def _interior(path, data) -> np.ndarray:  # [N] bool
+    """`fgs_interior` as bool: every value must be 0 or 1."""
+    raw = np.asarray(data[INTERIOR_PROP]).astype(np.float64)
+    bad = ~((raw == 0) | (raw == 1))
+    if bad.any():
+        first = int(np.flatnonzero(bad)[0])
+        raise _fail(
+            path,
+            f"property '{INTERIOR_PROP}' has {int(bad.sum())} values other than 0 and 1 (first at vertex {first}, "
+            f"value {raw[first]}); write 1 for interior fill particles and 0 for surface Gaussians (uint8)",
+        )
+    return raw != 0
 
 
 def _usable_rows(data, names: list) -> np.ndarray:  # [N] bool
-    """Vertices whose numeric properties are finite, log-scales give finite positive σ, quaternion ≠ 0."""
+    """Vertices that `load_ply` would accept on their own: float properties finite as float32, σ = exp(log-scale)
+    within SIGMA_RANGE, quaternion ≠ 0, fgs_label a non-negative int32 integer, fgs_interior 0 or 1."""
     ok = np.ones(len(data), dtype=bool)
-    for name in names:
-        col = np.asarray(data[name])
-        if col.dtype != object and col.dtype.kind == "f":
-            ok &= np.isfinite(col)
-    with np.errstate(over="ignore"):
+    with np.errstate(over="ignore", invalid="ignore"):
+        for name in names:
+            col = np.asarray(data[name])
+            if col.dtype != object and col.dtype.kind == "f":
+                ok &= np.isfinite(col.astype(np.float32))
         for i in range(3):
-            s = np.exp(np.asarray(data[f"scale_{i}"], dtype=np.float64))
-            ok &= np.isfinite(s) & (s > 0)
-    rot = np.stack([np.asarray(data[f"rot_{i}"], dtype=np.float64) for i in range(4)], 1)
-    return ok & (np.nan_to_num(np.linalg.norm(rot, axis=1)) > 0)
+            ok &= _sigma_ok(_activate_scale(np.asarray(data[f"scale_{i}"]).astype(np.float32)))
+        rot = np.stack([np.asarray(data[f"rot_{i}"]).astype(np.float32).astype(np.float64) for i in range(4)], 1)
+        ok &= np.nan_to_num(np.linalg.norm(rot, axis=1)) > 0
+        if LABEL_PROP in names:
+            lab = np.asarray(data[LABEL_PROP]).astype(np.float64)
+            ok &= np.isfinite(lab) & (lab == np.round(lab)) & (lab >= 0) & (lab <= 2**31 - 1)
+        if INTERIOR_PROP in names:
+            inside = np.asarray(data[INTERIOR_PROP]).astype(np.float64)
+            ok &= (inside == 0) | (inside == 1)
+    return ok
 
 
 def load_ply_lenient(path, device="cpu") -> tuple[GaussianSet, int]:
@@ -266,8 +317,8 @@ def load_ply(path, device="cpu", _rows=None) -> GaussianSet:
         scales=t(scales),
         opacities=t(_activate_opacity(raw_opacity)),
         sh=t(sh),
-        interior=t(np.asarray(data[INTERIOR_PROP]) != 0) if INTERIOR_PROP in names else None,
-        labels=t(np.asarray(data[LABEL_PROP]).astype(np.int32)) if LABEL_PROP in names else None,
+        interior=t(_interior(path, data)) if INTERIOR_PROP in names else None,
+        labels=t(_labels(path, data)) if LABEL_PROP in names else None,
         extra=extra,
     )
     gs.__dict__["_ply_raw"] = _RawCache(

@@ -61,6 +61,22 @@ def fit_grid(cfg: SimConfig, x: torch.Tensor) -> tuple[tuple, float, tuple]:
     return origin, dx, shape
 
 
+def check_inside(x: torch.Tensor, origin, dx: float, shape) -> None:  # x [N, 3]
+    """One sentence when particles start outside the grid's nodes (an explicit grid that misses them)."""
+    lo = torch.tensor(origin, dtype=torch.float64, device=x.device)
+    hi = lo + (torch.tensor(shape, dtype=torch.float64, device=x.device) - 1) * dx
+    xd = x.detach().double()
+    outside = ((xd < lo) | (xd > hi)).any(dim=1)
+    n_out = int(outside.sum())
+    if n_out:
+        first = xd[outside][0].tolist()
+        raise SimulationError(
+            f"{n_out} of {len(x)} particles start outside the grid [{', '.join(f'{v:g}' for v in lo.tolist())}] to "
+            f"[{', '.join(f'{v:g}' for v in hi.tolist())}] m (first at {[round(v, 4) for v in first]}); move the "
+            'grid (sim.grid_origin, sim.grid_shape) over them or use sim.grid = "auto"'
+        )
+
+
 BYTES_PER_NODE = 32  # dense slot 0: (p, m) 16 B + velocity 12 B + owner word 4 B
 
 
@@ -76,6 +92,18 @@ def check_grid_size(shape, dx: float, cap: int, what: str) -> None:
             f"{what} would be {dims} = {count} nodes (≈ {nodes * BYTES_PER_NODE / 2**30:.3g} GiB at Δx = {dx:g} m), "
             f"over sim.max_grid_cells = {cap:,}; remove far-away particles (floaters), lower sim.grid_margin, "
             f"raise sim.dx, or raise sim.max_grid_cells if the memory is there"
+        )
+
+
+def check_device_memory(need: int, device: str, shape) -> None:
+    """One sentence before allocating when a CUDA device lacks the free memory for the grid buffers."""
+    if not str(device).startswith("cuda"):
+        return
+    free, _ = torch.cuda.mem_get_info(torch.device(device))
+    if need > 0.9 * free:
+        raise SimulationError(
+            f"a {'×'.join(map(str, shape))} grid needs ≈ {need / 2**30:.2f} GiB but {device} has "
+            f"{free / 2**30:.2f} GiB free; use a coarser grid (raise sim.dx) or free the GPU"
         )
 
 
@@ -96,6 +124,7 @@ class Grid:
         self.slots = int(slots)
         self.multi = self.slots > 1
         self.n_nodes = self.shape[0] * self.shape[1] * self.shape[2]
+        check_device_memory(self.n_nodes * BYTES_PER_NODE * (2 if self.slots > 1 else 1), device, self.shape)
         self.n_fields = 1
         self.max_fragments = int(max_fragments)
         self.contact_stats = torch.zeros(N_STATS, dtype=torch.float32, device=device)

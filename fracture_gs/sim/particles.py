@@ -20,6 +20,11 @@ def _per_particle(value, n: int, name: str, device) -> torch.Tensor:
     return t.contiguous()
 
 
+def _positive(t: torch.Tensor, zero: bool = False) -> torch.Tensor:
+    """Every entry finite and > 0 (or >= 0 with `zero`)."""
+    return (torch.isfinite(t) & ((t >= 0) if zero else (t > 0))).all()
+
+
 class Particles:
     """Particle state shared zero-copy with the Warp kernels.
 
@@ -104,10 +109,19 @@ class Particles:
         checks = [
             (torch.isfinite(self.x).all(), "x contains NaN or inf; fix the input positions"),
             (torch.isfinite(self.v).all(), "v contains NaN or inf; fix the initial velocities"),
-            ((self.E > 0).all(), "E must be > 0 for every particle"),
+            (torch.isfinite(self.C).all(), "C contains NaN or inf; fix the initial affine velocities"),
+            (torch.isfinite(self.F).all(), "F contains NaN or inf; fix the initial deformation gradients"),
+            (_positive(self.E), "E must be a finite number > 0 for every particle (Young's modulus in Pa)"),
             (((self.nu >= 0) & (self.nu < 0.5)).all(), "nu must lie in [0, 0.5) for every particle"),
-            ((self.mass > 0).all(), "mass must be > 0 for every particle"),
-            ((self.volume > 0).all(), "volume must be > 0 for every particle"),
+            (_positive(self.mass), "mass must be a finite number > 0 for every particle (kg)"),
+            (_positive(self.volume), "volume must be a finite number > 0 for every particle (m³)"),
+            (_positive(self.alpha, zero=True), "friction_angle must lie in [0, 90) degrees for every particle"),
+            (_positive(self.hardening, zero=True), "hardening must be a finite number >= 0 for every particle"),
+            ((~torch.isnan(self.sigma_R)).all() & (self.sigma_R > 0).all(), "sigma_R must be > 0 (inf: never breaks)"),
+            (
+                (~torch.isnan(self.yield_stress)).all() & (self.yield_stress > 0).all(),
+                "yield_stress must be > 0 (inf: never yields)",
+            ),
         ]
         for ok, msg in checks:
             if not bool(ok):

@@ -23,7 +23,7 @@ from .clock import FrameClock
 from .constitutive import compute_stress, lame
 from .contact import NORMAL_LATCHED, NORMAL_MASS_GRADIENT
 from .frame_loop import FrameLoop
-from .grid import Grid, fit_grid
+from .grid import Grid, check_inside, fit_grid
 from .layout import COUNT_CLAMPED, MAX_SLOTS, N_COUNTS
 from .neighbourhood import cell_order, fragment_centroids, solo_mask
 from .particles import Particles, SimulationError
@@ -81,6 +81,7 @@ class Simulator(FrameLoop):
         self.device = normalize_device(device)
         self.particles = particles.to(self.device)
         origin, dx, shape = fit_grid(cfg, self.particles.x)
+        check_inside(self.particles.x, origin, dx, shape)
         slots = cfg.field_slots if self.spec.multifield else 1
         self.grid = Grid(origin, dx, shape, self.device, slots, cfg.max_fragments)
         self.boundaries = Boundaries(cfg.boundaries, self.device, shape, cfg.wall_cells)

@@ -35,10 +35,16 @@ def builtin_configs() -> list[str]:
 def find_config(name_or_path: Union[str, os.PathLike]) -> Path:
     """Resolve a config path, a path without `.toml`, or a bare built-in name like `bread`."""
     text = os.fspath(name_or_path)
+    if not text.strip():
+        raise ConfigError("", None, "the config name is empty; pass a TOML path, a .ply or a built-in name like bread.")
     path = Path(text).expanduser()
     if path.is_file():
         return path
-    if path.suffix != ".toml" and path.with_name(path.name + ".toml").is_file():
+    if path.is_dir():
+        raise ConfigError(
+            text, None, "is a folder, not a config; pass a TOML file in it or a built-in name like bread."
+        )
+    if path.suffix != ".toml" and path.name and path.with_name(path.name + ".toml").is_file():
         return path.with_name(path.name + ".toml")
     if len(path.parts) == 1:
         stem = path.stem if path.suffix == ".toml" else path.name
@@ -63,13 +69,24 @@ def _read_toml(path: Path) -> dict:
     """Parse one TOML file, turning syntax errors into ConfigError."""
     src = _display(path)
     try:
-        with open(path, "rb") as fh:
-            return tomllib.load(fh)
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(src, None, f"invalid TOML ({exc}); fix the syntax there.") from None
+        raw = path.read_bytes()
     except OSError as exc:
         raise ConfigError(
             src, None, f"cannot read the file ({exc.strerror}); check the path and permissions."
+        ) from None
+    try:
+        text = raw.decode("utf-8-sig")  # a byte-order mark (Windows editors) is not part of the TOML
+    except UnicodeDecodeError as exc:
+        raise ConfigError(
+            src, None, f"is not UTF-8 text (byte {raw[exc.start]:#04x} at offset {exc.start}); save it as UTF-8."
+        ) from None
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(src, None, f"invalid TOML ({exc}); fix the syntax there.") from None
+    except RecursionError:
+        raise ConfigError(
+            src, None, "nests arrays or tables too deeply for a config; a config needs at most a few levels."
         ) from None
 
 
@@ -84,7 +101,10 @@ def _resolve_extends(value: Any, base_dir: Optional[Path], src: str) -> Path:
             if candidate.is_file():
                 return candidate
     try:
-        return find_config(value)
+        found = find_config(value)
+        if found.suffix.lower() == ".ply":
+            raise ConfigError(src, "extends", "a .ply is a scene, not a config")
+        return found
     except ConfigError:
         names = ", ".join(builtin_configs())
         raise ConfigError(

@@ -10,18 +10,19 @@ from __future__ import annotations
 
 import copy
 import difflib
+import re
 from typing import Optional, Sequence, Union
 
 from ...config import PRESETS, VARIANTS, SceneConfig
 from ...errors import ConfigError
-from .validate import validate
+from .validate import MAX_IMAGE_SIDE, validate
 
 
 def parse_resolution(text: Union[str, Sequence[int]], source: str = "") -> tuple[int, int]:
     """`"640x480"` (or a (w, h) pair) → (640, 480); both at least 2 pixels."""
     if isinstance(text, str):
         parts = text.lower().replace("×", "x").split("x")
-        if len(parts) != 2 or not all(p.strip().isdigit() for p in parts):
+        if len(parts) != 2 or not all(re.fullmatch(r"[0-9]{1,6}", p.strip()) for p in parts):
             raise ConfigError(
                 source,
                 "--resolution",
@@ -32,6 +33,12 @@ def parse_resolution(text: Union[str, Sequence[int]], source: str = "") -> tuple
         w, h = (int(v) for v in text)
     if w < 2 or h < 2:
         raise ConfigError(source, "--resolution", f"--resolution {w}x{h} is too small; use at least 2x2 pixels.")
+    if w > MAX_IMAGE_SIDE or h > MAX_IMAGE_SIDE:
+        raise ConfigError(
+            source,
+            "--resolution",
+            f"--resolution {w}x{h} is over {MAX_IMAGE_SIDE} pixels on a side; use a smaller image, e.g. 1920x1080.",
+        )
     return w, h
 
 

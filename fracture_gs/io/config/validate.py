@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import dataclasses
 import difflib
 import math
+import re
 from typing import Any, Sequence
 
 from ...config import (
@@ -30,6 +32,10 @@ from ...errors import ConfigError
 from ...variants import variant_spec
 
 MAX_FIELD_SLOTS = 8  # sim.layout.MAX_SLOTS (io does not import sim)
+MAX_IMAGE_SIDE = 8192  # pixels; larger frames exceed H.264 levels and the rasterizers' tile budgets
+MAX_PARTICLES = 100_000_000  # a built-in asset's particle count (≈ 20 GB of state on the GPU)
+MAX_FRAMES = 1_000_000
+_SAFE_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.+ -]{0,127}")
 
 
 class _Checker:
@@ -86,6 +92,7 @@ class _Checker:
 def validate(cfg: SceneConfig, source: str = "<config>") -> SceneConfig:
     """Check every value of a SceneConfig; raise ConfigError (one sentence) on the first problem."""
     c = _Checker(source)
+    _check_finite(c, cfg, "")
     _check_scene(c, cfg)
     _check_material(c, "material", cfg.material)
     _check_sim(c, cfg.sim, cfg.frame_dt)
@@ -96,9 +103,32 @@ def validate(cfg: SceneConfig, source: str = "<config>") -> SceneConfig:
     return cfg
 
 
+def _check_finite(c: _Checker, value: Any, field: str) -> None:
+    """Every float of the config tree (scalars and vector components) is finite: NaN or inf never
+    reaches the solver, whatever the field."""
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        for f in dataclasses.fields(value):
+            _check_finite(c, getattr(value, f.name), f"{field}.{f.name}" if field else f.name)
+    elif isinstance(value, (list, tuple)):
+        if value and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
+            if not all(math.isfinite(v) for v in value):
+                c.fail(field, f"{field} = {list(value)} is not finite", "give finite numbers (no nan or inf)")
+        else:
+            for i, v in enumerate(value):
+                _check_finite(c, v, f"{field}[{i}]")
+    elif isinstance(value, float) and not math.isfinite(value):
+        c.fail(
+            field, f"{field} = {value!r} is not a finite number", "give a finite value (nan and inf are not allowed)"
+        )
+
+
 def _check_scene(c: _Checker, cfg: SceneConfig) -> None:
-    if not cfg.name or any(ch in cfg.name for ch in "/\\:") or cfg.name.strip() != cfg.name:
-        c.fail("name", f"name = {cfg.name!r} cannot be used as a folder name", "use letters, digits, '_', '-' or '.'")
+    if not isinstance(cfg.name, str) or not _SAFE_NAME.fullmatch(cfg.name) or cfg.name.strip() != cfg.name:
+        c.fail(
+            "name",
+            f"name = {cfg.name!r} cannot be used as a folder name under runs/",
+            "start with a letter, digit or '_' and use letters, digits, '_', '-', '+', '.' or spaces (≤ 128)",
+        )
     if cfg.scene not in BUILTIN_SCENES and not cfg.scene.lower().endswith(".ply"):
         c.fail(
             "scene",
@@ -106,7 +136,9 @@ def _check_scene(c: _Checker, cfg: SceneConfig) -> None:
             f"use one of {', '.join(BUILTIN_SCENES)} or a path ending in .ply",
         )
     c.choice("preset", cfg.preset, list(PRESETS))
-    c.at_least("frames", cfg.frames, 1, "simulate at least one frame")
+    c.within("frames", cfg.frames, 1, MAX_FRAMES, f"simulate 1 to {MAX_FRAMES:,} frames")
+    if cfg.particles is not None:
+        c.within("particles", cfg.particles, 1, MAX_PARTICLES, f"use 1 to {MAX_PARTICLES:,} particles")
     c.positive("frame_dt", cfg.frame_dt, "give the time between frames in seconds, e.g. frame_dt = 0.01")
     if cfg.material_property is not None and not cfg.material_property:
         c.fail(
@@ -284,8 +316,8 @@ def _check_topology(c: _Checker, t: TopologyConfig, frames: int) -> None:
 
 
 def _check_render(c: _Checker, r: RenderConfig) -> None:
-    c.at_least("render.width", r.width, 2, "use an image width of at least 2 pixels")
-    c.at_least("render.height", r.height, 2, "use an image height of at least 2 pixels")
+    c.within("render.width", r.width, 2, MAX_IMAGE_SIDE, f"use an image width of 2 to {MAX_IMAGE_SIDE} pixels")
+    c.within("render.height", r.height, 2, MAX_IMAGE_SIDE, f"use an image height of 2 to {MAX_IMAGE_SIDE} pixels")
     c.at_least("render.fps", r.fps, 1, "use a positive frame rate")
     c.choice("render.mode", r.mode, RENDER_MODES)
     c.choice("render.backend", r.backend, RENDER_BACKENDS)
