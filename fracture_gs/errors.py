@@ -45,3 +45,7 @@ class SimulationDiverged(FractureGSError, RuntimeError):
 
 class OutputError(FractureGSError, OSError):
     """An output folder or file that cannot be written (a file in the way, no permission)."""
+
+
+class RenderError(FractureGSError, ValueError):
+    """A render setting that cannot be honoured (unknown mode or backend, a camera that sees nothing)."""

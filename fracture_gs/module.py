@@ -17,6 +17,7 @@ from typing import Iterator, Optional, Union
 import torch
 
 from .config import SceneConfig
+from .errors import SimulationError
 from .io import GaussianSet
 from .pipeline import FrameOutput, make_simulator, simulate
 
@@ -65,7 +66,7 @@ def gaussians_from_tensors(
         quats = _quats_from_rotations(evecs).to(means.dtype)
         scales = evals.clamp_min(1e-20).sqrt().to(means.dtype)
     if quats is None or scales is None:
-        raise ValueError("FractureSim needs either quats and scales, or covars, for every Gaussian")
+        raise SimulationError("FractureSim needs either quats and scales, or covars, for every Gaussian")
     if sh.ndim == 2:
         sh = sh[:, None, :]
     return GaussianSet(
@@ -144,7 +145,7 @@ class FractureSim(torch.nn.Module):
 
             return differentiable_forward(self, gs, E, nu, density, velocity)
         if any(t is not None for t in (E, nu, density, velocity)):
-            raise ValueError(
+            raise SimulationError(
                 "E, nu, density and velocity are inputs of the differentiable mode; "
                 "create FractureSim(..., differentiable=True) or set them in the config"
             )

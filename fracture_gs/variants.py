@@ -10,6 +10,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal, get_args
 
+from .errors import SimulationError
+
 VariantName = Literal["baseline", "probe_latch", "stress_zero", "global_fragment_pass", "local_multifield", "full"]
 
 
@@ -130,4 +132,4 @@ def variant_spec(name: str) -> VariantSpec:
     try:
         return VARIANTS[name]
     except KeyError:
-        raise ValueError(f"variant '{name}' is unknown; use one of {', '.join(VARIANTS)}") from None
+        raise SimulationError(f"variant '{name}' is unknown; use one of {', '.join(VARIANTS)}") from None

@@ -276,3 +276,26 @@ def test_finite_checks_cover_every_float_field():
         node[keys[-1]] = [NAN, *old[1:]] if isinstance(old, list) else NAN
         with pytest.raises(ConfigError, match="finite|outside|must be"):
             validate(config_from_dict(d, "nan.toml"), "nan.toml")
+
+
+def test_api_errors_share_one_base_class():
+    """Typed errors from every layer of the Python API: an unknown built-in scene (SceneError), variant
+    (SimulationError), render backend (RenderError) and provider (SimulationError) are all FractureGSError
+    (and still ValueError for older callers), each with a sentence naming the value."""
+    from fracture_gs import assets
+    from fracture_gs.config import TopologyConfig
+    from fracture_gs.errors import RenderError, SceneError
+    from fracture_gs.render.splat import render
+    from fracture_gs.sim.providers import make_provider
+    from fracture_gs.variants import variant_spec
+
+    cases = [
+        (lambda: assets.build("teapot"), SceneError, "teapot"),
+        (lambda: variant_spec("fastest"), SimulationError, "fastest"),
+        (lambda: render(*([None] * 5), backend="opengl"), RenderError, "opengl"),
+        (lambda: make_provider(TopologyConfig(provider="magic")), SimulationError, "magic"),
+    ]
+    for call, cls, needle in cases:
+        with pytest.raises(cls, match=needle) as err:
+            call()
+        assert isinstance(err.value, FractureGSError) and isinstance(err.value, ValueError)

@@ -8,6 +8,7 @@ surface-only reconstruction.
 
 from __future__ import annotations
 
+from ..errors import SceneError
 from ..io.gaussian_set import GaussianSet
 from .builder import SceneSpec, build_scene
 from .fill import fill_interior
@@ -27,14 +28,14 @@ def build(
     """Build scene `name` with `size` (`small` ≈ 20k, `paper` = the paper's count) or exactly `n`
     particles; deterministic for a given seed."""
     if name not in SCENES:
-        raise ValueError(f"unknown built-in scene '{name}'; valid names are: {', '.join(SCENES)}")
+        raise SceneError(f"unknown built-in scene '{name}'; valid names are: {', '.join(SCENES)}")
     spec = SCENES[name]
     if n is None:
         if size not in ("small", "paper"):
-            raise ValueError(f"unknown size '{size}' for scene '{name}'; use 'small' or 'paper'")
+            raise SceneError(f"unknown size '{size}' for scene '{name}'; use 'small' or 'paper'")
         n = spec.paper_n if size == "paper" else SIZES[size]
     if int(n) < 1 or not 0 <= int(sh_degree) <= 3:
-        raise ValueError(f"scene '{name}': n must be ≥ 1 and sh_degree in 0..3 (got n={n}, sh_degree={sh_degree})")
+        raise SceneError(f"scene '{name}': n must be ≥ 1 and sh_degree in 0..3 (got n={n}, sh_degree={sh_degree})")
     return build_scene(spec, int(n), seed=seed, sh_degree=int(sh_degree), device=device)
 
 

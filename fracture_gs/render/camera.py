@@ -14,6 +14,7 @@ import torch
 from torch import Tensor
 
 from ..config import CameraConfig
+from ..errors import RenderError
 
 
 @dataclass
@@ -66,7 +67,7 @@ def look_at(eye, target, up=(0.0, 0.0, 1.0), fov_deg: float = 40.0, width: int =
     eye, target, up = _vec(eye), _vec(target), _vec(up)
     z = target - eye
     if z.norm() < 1e-12:
-        raise ValueError("look_at: eye and target coincide")
+        raise RenderError("look_at: eye and target coincide")
     z = z / z.norm()
     x = torch.linalg.cross(z, up)
     if x.norm() < 1e-9 * max(up.norm().item(), 1e-30):  # up ∥ view direction: pick another up

@@ -32,6 +32,7 @@ from typing import Optional
 import torch
 from torch import Tensor
 
+from ..errors import RenderError
 from .camera import Camera
 
 ALPHA_THRESHOLD = 1.0 / 255.0
@@ -67,7 +68,7 @@ class Projection:
 
 def _check_mode(mode: str):
     if mode not in MODES:
-        raise ValueError(f"render: mode must be one of {MODES}, got {mode!r}")
+        raise RenderError(f"render: mode must be one of {MODES}, got {mode!r}")
 
 
 def project_gaussians(
@@ -329,12 +330,12 @@ def render(
     (which runs on any device and dtype)."""
     _check_mode(mode)
     if backend not in BACKENDS:
-        raise ValueError(f"render: backend must be one of {BACKENDS}, got {backend!r}")
+        raise RenderError(f"render: backend must be one of {BACKENDS}, got {backend!r}")
     on_cuda = means.is_cuda and torch.cuda.is_available()
     if backend == "auto":
         backend = "gsplat" if on_cuda else "torch"
     if backend == "gsplat" and not on_cuda:
-        raise ValueError(
+        raise RenderError(
             "render: backend='gsplat' needs CUDA tensors on a machine with a GPU; "
             "use backend='torch' (or 'auto') for CPU tensors"
         )

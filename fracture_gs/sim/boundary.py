@@ -11,6 +11,7 @@ import torch
 import warp as wp
 
 from ..config import CuboidBoundary, ParticleRegion, PlaneBoundary
+from ..errors import SimulationError
 from ..runtime import ensure_warp
 from .clock import Clock
 
@@ -137,12 +138,12 @@ class Boundaries:
         self.regions = [b for b in items if isinstance(b, ParticleRegion)]
         unknown = [b for b in items if not isinstance(b, (PlaneBoundary, CuboidBoundary, ParticleRegion))]
         if unknown:
-            raise ValueError(
+            raise SimulationError(
                 f"sim.boundaries: unsupported entry {unknown[0]!r}; use PlaneBoundary, CuboidBoundary or ParticleRegion"
             )
         for b in planes:
             if b.mode not in PLANE_MODE_IDS:
-                raise ValueError(f"sim.boundaries: plane mode '{b.mode}' is not one of {sorted(PLANE_MODE_IDS)}")
+                raise SimulationError(f"sim.boundaries: plane mode '{b.mode}' is not one of {sorted(PLANE_MODE_IDS)}")
         normals = _vec3([b.normal for b in planes], device)
         normals = normals / normals.norm(dim=1, keepdim=True).clamp_min(1e-12)
         self.t = dict(
@@ -184,7 +185,7 @@ class Boundaries:
                     on.append(int(r.start <= t <= r.end + 0.5 * dt))
                     value.append([float(c) for c in r.velocity])
                 else:
-                    raise ValueError(f"sim.boundaries: region kind '{r.kind}' is not 'impulse' or 'velocity'")
+                    raise SimulationError(f"sim.boundaries: region kind '{r.kind}' is not 'impulse' or 'velocity'")
         return on, value
 
     def apply_regions(self, x_wp, v_wp, n: int, clock, device: str, active=None):

@@ -45,7 +45,7 @@ def fit_grid(cfg: SimConfig, x: torch.Tensor) -> tuple[tuple, float, tuple]:
         check_grid_size(shape, dx, cfg.max_grid_cells, "sim.grid_shape")
         return origin, dx, shape
     if cfg.grid != "auto":
-        raise ValueError(f"sim.grid must be 'explicit' or 'auto', not '{cfg.grid}'")
+        raise SimulationError(f"sim.grid must be 'explicit' or 'auto', not '{cfg.grid}'")
     lo = x.min(dim=0).values.double().cpu()
     hi = x.max(dim=0).values.double().cpu()
     pad = (hi - lo) * cfg.grid_margin + (cfg.wall_cells + 2) * dx
@@ -119,7 +119,7 @@ class Grid:
         self.dx = float(dx)
         self.shape = tuple(int(s) for s in shape)
         if min(self.shape) < 5:
-            raise ValueError(f"sim.grid_shape {self.shape} is too small; every axis needs at least 5 nodes")
+            raise SimulationError(f"sim.grid_shape {self.shape} is too small; every axis needs at least 5 nodes")
         self.device = device
         self.slots = int(slots)
         self.multi = self.slots > 1

@@ -8,6 +8,8 @@ import math
 
 import torch
 
+from ..errors import SimulationError
+
 
 def cell_order(x: torch.Tensor, origin, dx: float, shape, mode: str = "interleaved") -> torch.Tensor:
     """Permutation of particles (new i = old order[i]) for P2G's atomics.
@@ -17,7 +19,7 @@ def cell_order(x: torch.Tensor, origin, dx: float, shape, mode: str = "interleav
     (k+1)-th, ... — neighbours in memory are neighbouring cells, so a warp keeps locality while few
     of its lanes add to the same node."""
     if mode not in ("cell", "interleaved"):
-        raise ValueError(f"sort mode '{mode}' is not 'cell' or 'interleaved'")
+        raise SimulationError(f"sort mode '{mode}' is not 'cell' or 'interleaved'")
     cell = torch.floor((x - torch.tensor(origin, device=x.device)) / dx).long()  # [N, 3]
     key = (cell[:, 0] * shape[1] + cell[:, 1]) * shape[2] + cell[:, 2]  # [N]
     order = torch.argsort(key, stable=True)

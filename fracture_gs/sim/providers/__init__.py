@@ -12,6 +12,7 @@ from __future__ import annotations
 from typing import Optional, Protocol
 
 from ...config import TopologyConfig
+from ...errors import SimulationError
 from ..topology import Topology
 from .oracle import OracleProvider
 from .replay import ReplayProvider
@@ -35,7 +36,7 @@ def make_provider(cfg: TopologyConfig) -> Optional[Provider]:
         return StressProvider(cfg)
     if cfg.provider == "voronoi":
         return VoronoiProvider(cfg)
-    raise ValueError(f"topology.provider '{cfg.provider}' is unknown; use none, oracle, stress or voronoi")
+    raise SimulationError(f"topology.provider '{cfg.provider}' is unknown; use none, oracle, stress or voronoi")
 
 
 __all__ = ["OracleProvider", "Provider", "ReplayProvider", "StressProvider", "VoronoiProvider", "make_provider"]

@@ -19,6 +19,7 @@ from typing import Optional
 import torch
 
 from ...config import TopologyConfig
+from ...errors import SimulationError
 from ..topology import FractureEvent, Topology
 from .cuts import RELEASE_EVENTS, finish_event, plane_cut, split_components
 
@@ -95,7 +96,7 @@ class StressProvider:
 
     def __init__(self, cfg: TopologyConfig):
         if cfg.min_particles < 1 or cfg.persist_frames < 1:
-            raise ValueError("topology.min_particles and topology.persist_frames must be >= 1")
+            raise SimulationError("topology.min_particles and topology.persist_frames must be >= 1")
         self.cfg = cfg
         self.tau: Optional[torch.Tensor] = None  # [N,3,3] Kirchhoff buffer, allocated on first call
         self.first_exceed_frame: Optional[int] = None
@@ -117,7 +118,7 @@ class StressProvider:
         if self.tau is None:
             self.tau = torch.zeros(len(P), 3, 3, dtype=torch.float32, device=P.x.device)
         elif self.tau.shape[0] != len(P) or self.tau.device != P.x.device:
-            raise ValueError(
+            raise SimulationError(
                 f"StressProvider was built for {self.tau.shape[0]} particles on {self.tau.device}; "
                 f"use one provider per simulation"
             )
