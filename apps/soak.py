@@ -37,6 +37,19 @@ def _close(a, b, rtol=1e-4, atol=1e-6) -> bool:
     return a == b
 
 
+def _first_difference(a, b, path="") -> str:
+    """Where two metric trees first differ beyond `_close` (for the log of a run that differs)."""
+    if isinstance(a, dict) and isinstance(b, dict):
+        for k in a:
+            if k not in b or not _close(a[k], b[k]):
+                return _first_difference(a[k], b.get(k), f"{path}.{k}")
+    if isinstance(a, list) and isinstance(b, list) and len(a) == len(b):
+        for i, (x, y) in enumerate(zip(a, b)):
+            if not _close(x, y):
+                return _first_difference(x, y, f"{path}[{i}]")
+    return f"{path}: {a!r} vs {b!r}"
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--device", default="cuda:0")
@@ -74,6 +87,8 @@ def main() -> None:
         first = first if first is not None else metrics
         same = _close(metrics, first)
         rows.append({"run": i, "seconds": round(time.time() - t0, 1), "held_bytes": int(held), "same_metrics": same})
+        if not same:
+            rows[-1]["difference"] = _first_difference(first, metrics)[:300]
         print(json.dumps(rows[-1]), flush=True)
         i += 1
     summary = {

@@ -14,6 +14,7 @@ contact per fragment, penetration into the plane, speeds near it, gravity-compen
 from __future__ import annotations
 
 import math
+import weakref
 
 import torch
 import warp as wp
@@ -74,7 +75,7 @@ class Diagnostics:
     """Tracks a simulator's metrics frame by frame (`history`) and on demand (`snapshot`)."""
 
     def __init__(self, sim):
-        self.sim = sim
+        self.sim = weakref.proxy(sim)  # the simulator owns its diagnostics: no reference cycle
         self.history: list[dict] = []
         self.latch_info: dict | None = None
         self.pairs = None
