@@ -1,6 +1,7 @@
 """GPU soak (issue 18): render-sim and the Table 2 bench in a loop for a while on one GPU; after every
-run the GPU memory held by torch must return to where it started (no leak) and the run's metrics
-must equal the first run's (same device, same inputs).
+run the GPU memory held by torch must return to where it stood after the first run (no leak: the
+first run may keep process-wide caches such as the shared stream's cuBLAS workspace, reported) and the
+run's metrics must equal the first run's up to float32 atomic-order noise (same device, same inputs).
 
     python apps/soak.py --device cuda:0 --minutes 10 --out runs/soak
 """
@@ -26,8 +27,9 @@ def _metrics(out: Path) -> list:
     return rows
 
 
-def _close(a, b, rtol=1e-4, atol=1e-6) -> bool:
-    """Equal up to float32 atomics (GPU sums run in varying order)."""
+def _close(a, b, rtol=1e-3, atol=1e-6) -> bool:
+    """Equal up to the order of float32 atomic sums on the GPU: P2G adds in a varying order, so a node's
+    mass can differ in its last bits and a thresholded count (e.g. shared_support_pct) by a node."""
     if isinstance(a, dict) and isinstance(b, dict):
         return a.keys() == b.keys() and all(_close(a[k], b[k], rtol, atol) for k in a)
     if isinstance(a, list) and isinstance(b, list):
@@ -67,8 +69,7 @@ def main() -> None:
     sync = torch.cuda.synchronize if cuda else (lambda: None)
     held_now = (lambda: torch.cuda.memory_allocated(args.device)) if cuda else (lambda: 0)
     sync()
-    base = held_now()
-    first, rows, t_end, i = None, [], time.time() + 60 * args.minutes, 0
+    first, rows, t_end, i, base, warm = None, [], time.time() + 60 * args.minutes, 0, held_now(), 0
     while time.time() < t_end and not (args.iterations and i >= args.iterations):
         t0 = time.time()
         run_render_sim(cfg, ["baseline", "full"], args.device, out / "run", progress=False)
@@ -83,6 +84,8 @@ def main() -> None:
             placements=1,
         )
         sync()
+        if i == 0:  # what the first run keeps for the process (cuBLAS workspace of the shared stream, ...)
+            warm, base = held_now() - base, held_now()
         held = held_now() - base
         first = first if first is not None else metrics
         same = _close(metrics, first)
@@ -94,6 +97,7 @@ def main() -> None:
     summary = {
         "device": torch.cuda.get_device_name(args.device) if cuda else "cpu",
         "runs": len(rows),
+        "kept_by_first_run_bytes": int(warm),
         "max_held_bytes": max(r["held_bytes"] for r in rows),
         "all_same_metrics": all(r["same_metrics"] for r in rows),
         "peak_bytes": torch.cuda.max_memory_allocated(args.device) if cuda else None,

@@ -59,6 +59,22 @@ def torch_stream(device: str):
     return wp.ScopedStream(stream, sync_enter=False)
 
 
+_side_streams: dict = {}
+
+
+def side_stream(device: str):
+    """One non-default torch stream per CUDA device, shared by every simulator and benchmark of the
+    process (CUDA graphs cannot record the legacy default stream). Reusing it matters: torch caches a
+    cuBLAS workspace per stream (32 MiB on Hopper), so a fresh pool stream per run held memory that
+    only came back after torch had cycled through its 32 pooled streams (found by apps/soak.py)."""
+    import torch
+
+    key = str(torch.device(device))
+    if key not in _side_streams:
+        _side_streams[key] = torch.cuda.Stream(torch.device(device))
+    return _side_streams[key]
+
+
 _pool = None
 
 

@@ -29,7 +29,7 @@ import warp as wp
 
 from .. import assets
 from ..config import SceneConfig, SimConfig
-from ..runtime import ensure_warp
+from ..runtime import ensure_warp, side_stream
 from ..sim import Particles, Simulator, Topology
 
 BRANCHES = [  # (label, variant, passes P2G/G2P/frag)
@@ -418,7 +418,7 @@ def run_bench(
         },
     }
     # a non-default stream: CUDA graph capture cannot record the legacy default stream
-    stream = torch.cuda.Stream(torch.device(device)) if device.startswith("cuda") else None
+    stream = side_stream(device) if device.startswith("cuda") else None
     with torch.cuda.stream(stream) if stream is not None else _nullcontext():
         result["baseline"] = baseline_rows(scfg, P, topo, device, steps, warmup, trials, graph)
         result["table2"] = time_branches(

@@ -9,6 +9,7 @@ from typing import Optional, Sequence
 
 import torch
 
+from ..runtime import side_stream
 from .experiments import ExperimentRun, ablation_stats, transfer_stats
 from .protocol import QUICK, SCENE_NAMES, TRANSFER_NAMES, VARIANT_NAMES
 from .tables import Column, Panel, Table
@@ -133,7 +134,7 @@ def _table2_rows(particles, device: str, steps: int, warmup: int, trials: int, p
     from . import bench
 
     cfg, P, topo = bench.bench_state(particles, device)
-    stream = torch.cuda.Stream(torch.device(device)) if device.startswith("cuda") else None
+    stream = side_stream(device) if device.startswith("cuda") else None
     with torch.cuda.stream(stream) if stream is not None else contextlib.nullcontext():
         rows = bench.time_branches(
             cfg,

@@ -15,6 +15,7 @@ import torch
 import warp as wp
 
 from ..errors import SimulationDiverged
+from ..runtime import side_stream
 from .clock import tick
 from .layout import COUNT_ESCAPED, COUNT_POOL_OVERFLOW, COUNT_SLOT_OVERFLOW
 from .particles import SimulationError
@@ -117,7 +118,7 @@ class FrameLoop:
         if not self.device.startswith("cuda"):
             return self._advance(frame_dt)
         if self._cuda_stream is None:
-            self._cuda_stream = torch.cuda.Stream(self.device)
+            self._cuda_stream = side_stream(self.device)
         caller = torch.cuda.current_stream(self.device)
         self._cuda_stream.wait_stream(caller)
         with torch.cuda.stream(self._cuda_stream):
