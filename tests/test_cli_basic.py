@@ -12,7 +12,7 @@ import pytest
 from fracture_gs import cli, runner
 
 REPO = Path(__file__).resolve().parent.parent
-COMMANDS = ["render-sim", "bench", "figures", "info", "validate"]
+COMMANDS = ["render-sim", "bench", "figures", "sweep", "info", "validate"]
 
 
 def start(*args: str) -> subprocess.Popen:

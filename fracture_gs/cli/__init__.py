@@ -1,4 +1,4 @@
-"""`fracture-gs` command line: render-sim, init, bench, figures, info, validate.
+"""`fracture-gs` command line: render-sim, init, bench, figures, sweep, info, validate.
 
 Every user error (bad config, bad PLY, missing file, bad flag) ends as one line
 `fracture-gs: error: <sentence>` on stderr and exit code 2, never a traceback (set
@@ -17,10 +17,11 @@ from .devices import _prepare_warp, resolve_device
 from .parser import PROG, CliError, build_parser
 from .report import cmd_info, cmd_validate
 from .run import cmd_bench, cmd_figures, cmd_init, cmd_render_sim
+from .sweep import cmd_sweep
 
 __all__ = ["CliError", "build_parser", "main", "resolve_device"]
 
-_WARP_COMMANDS = ("render-sim", "bench", "figures")
+_WARP_COMMANDS = ("render-sim", "bench", "figures", "sweep")
 _COMMANDS = {
     "render-sim": cmd_render_sim,
     "bench": cmd_bench,
@@ -28,6 +29,7 @@ _COMMANDS = {
     "info": cmd_info,
     "validate": cmd_validate,
     "init": cmd_init,
+    "sweep": cmd_sweep,
 }
 
 

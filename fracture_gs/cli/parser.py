@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 import re
 
+from .sweep import add_sweep_parser
+
 PROG = "fracture-gs"
 DEVICE_RE = re.compile(r"^(auto|cpu|cuda(:\d+)?)$")
 
@@ -261,6 +263,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", metavar="FILE", help="where to write the TOML (default: <scene name>.toml here)")
     p.add_argument("--load", choices=("pull", "drop", "impact", "none"), help="what breaks the object (default pull)")
     p.add_argument("--force", action="store_true", help="overwrite FILE if it exists")
+    add_sweep_parser(sub)
     return parser
 
 

@@ -1,0 +1,209 @@
+"""`fracture-gs sweep SPEC`: a grid of independent runs (fracture_gs.sweep), one rank or many.
+
+Wired into the main parser by `add_sweep_parser(subparsers)` and `_COMMANDS["sweep"] = cmd_sweep`;
+also runnable on its own as `python -m fracture_gs.cli.sweep SPEC ...` (same flags), which is what
+torchrun can launch before the subcommand is wired.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from pathlib import Path
+from typing import Optional, Sequence
+
+PROG = "fracture-gs"
+
+SWEEP_EPILOG = """\
+examples:
+  fracture-gs sweep accuracy --list                      the cells, their cache status and ranks
+  fracture-gs sweep configs/sweeps/accuracy.toml         = bench --accuracy --quick, resumable
+  fracture-gs sweep configs/sweeps/scenes.toml --device cpu --out runs/scenes
+  torchrun --nproc-per-node 2 -m fracture_gs.cli sweep configs/sweeps/accuracy.toml --device cuda
+                                                         one GPU per rank (cuda:LOCAL_RANK), NCCL
+  torchrun --nproc-per-node 2 -m fracture_gs.cli sweep configs/sweeps/accuracy.toml --device cpu
+                                                         two CPU processes, gloo
+  torchrun --nnodes 2 --node-rank 0 --master-addr HOST0 --master-port 29500 --nproc-per-node 8 \\
+      -m fracture_gs.cli sweep my_sweep.toml --device cuda --out /shared/runs/my_sweep   (and node-rank 1)
+
+A SPEC is a TOML file or a built-in name ({names}). Tables, each a cross product:
+  [[accuracy]] case = ["bar", "spin", "recontact"], cells = [16, 32] (Δx = 1/cells), cfl = [0.4]
+  [[scene]]    config = ["recontact"], variant = [...], cells = [32, 64], dt = [...] or cfl = [...],
+               seed = [0, 1], frames = 10, particles = 2000, [scene.material] E = [...], nu = [...],
+               [scene.set] "any.config.key" = [...], render = false (true: render-sim's videos too)
+(the format: fracture_gs/sweep/spec.py; the built-in specs are commented examples).
+
+Cell i goes to rank i mod WORLD_SIZE; each finished cell is cached in OUT/cells/<id>.json (id = a hash of
+its parameters and resolved config), so rerunning the same command, with any number of ranks, runs only
+what is missing. Rank 0 writes OUT/sweep.md, sweep.tex, sweep.csv, sweep.json and sweep_pareto.png
+(accuracy cells, matplotlib). docs/scaling.md: 1 GPU, N GPUs, M machines, failures.
+
+exit codes: 0 every cell ok; 1 some cells failed (each is a row with its error; the tables are written;
+--rerun-failed retries them); 2 a bad spec, flag, device or launch (one sentence); 3 a rank died or stopped
+answering (rank 0 still writes the tables, its unfinished cells marked missing; rerun to resume);
+130 interrupted (finished cells stay cached).
+"""
+
+
+def _positive_seconds(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds; write it like 300") from None
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"{value:g} must be a positive number of seconds")
+    return value
+
+
+def add_sweep_parser(subparsers, parser_class: Optional[type] = None) -> argparse.ArgumentParser:
+    """Add the `sweep` subcommand to an argparse subparsers object (`parser_class`: the class its
+    parser should be, e.g. the CLI's one-line-error parser; default: the subparsers' own)."""
+    from ..sweep import builtin_specs
+
+    saved = getattr(subparsers, "_parser_class", None)
+    if parser_class is not None:
+        subparsers._parser_class = parser_class
+    try:
+        p = subparsers.add_parser(
+            "sweep",
+            help="run a grid of independent simulations (one process or a torchrun launch), cached and tabled",
+            formatter_class=argparse.RawDescriptionHelpFormatter,
+            description="Run every cell of a sweep spec (accuracy cases × Δx × CFL, scene configs × variants × "
+            "settings × seeds), spread over the ranks of a torchrun launch, and write one table of their metrics.",
+            epilog=SWEEP_EPILOG.format(names=", ".join(builtin_specs()) or "none installed"),
+        )
+    finally:
+        if parser_class is not None:
+            subparsers._parser_class = saved
+    p.add_argument("spec", metavar="SPEC", help="sweep spec: a TOML path or a built-in name (e.g. accuracy)")
+    p.add_argument("--out", metavar="DIR", help="output folder (default: runs/<spec file stem>)")
+    p.add_argument(
+        "--device",
+        default="auto",
+        metavar="DEVICE",
+        help="auto (default: cuda if there is a GPU, else cpu), cpu, cuda (rank r: cuda:LOCAL_RANK) or cuda:N "
+        "(one process only)",
+    )
+    p.add_argument("--list", action="store_true", help="print the cells, their cache status and rank, and exit")
+    p.add_argument("--rerun-failed", action="store_true", help="run cells whose cached result is a failure again")
+    p.add_argument("--fresh", action="store_true", help="ignore the cache and run every cell again")
+    p.add_argument(
+        "--rank-timeout",
+        metavar="S",
+        type=_positive_seconds,
+        default=300.0,
+        help="seconds without a heartbeat after which a rank counts as dead (default 300)",
+    )
+    return p
+
+
+def _print_list(spec_path, opts) -> None:
+    from ..sweep.distributed import launch_from_env
+    from ..sweep.driver import list_cells
+
+    launch = launch_from_env()
+    listing = list_cells(spec_path, opts)
+    if launch.rank != 0:
+        return
+    counts = {s: sum(1 for _, st, _ in listing if st == s) for s in ("ok", "failed", "pending")}
+    print(
+        f"{len(listing)} cells in {spec_path} (cache {opts.out_dir / 'cells'}): {counts['ok']} ok, "
+        f"{counts['failed']} failed, {counts['pending']} to run on {launch.world_size} rank(s)"
+    )
+    print(f"{'#':>4}  {'id':<12}  {'kind':<8}  {'cache':<7}  {'rank':>4}  cell")
+    for cell, status, rank in listing:
+        where = "-" if rank is None else str(rank)
+        print(f"{cell.index + 1:>4}  {cell.id:<12}  {cell.kind:<8}  {status:<7}  {where:>4}  {cell.describe}")
+
+
+def cmd_sweep(args: argparse.Namespace) -> int:
+    """sweep: run (or --list) a spec's cells on this rank; rank 0 prints the summary and the table."""
+    from ..io.outputs import output_dir
+    from ..sweep import expand, find_spec, load_spec
+    from ..sweep.distributed import RankFailure, launch_from_env, resolve_device
+    from ..sweep.driver import SweepOptions, run_sweep
+
+    path = find_spec(args.spec)
+    expand(load_spec(path))  # a bad spec, launch or device is one sentence before any folder is made
+    resolve_device(args.device, launch_from_env())
+    out = Path(args.out) if args.out is not None else Path("runs") / path.stem
+    if not args.list:  # --list only reads the cache
+        out = output_dir(out)
+        args.partial_out = out
+    argv = getattr(args, "argv", None) or ["sweep", *sys.argv[1:]]
+    opts = SweepOptions(
+        out_dir=out,
+        device=args.device,
+        fresh=args.fresh,
+        rerun_failed=args.rerun_failed,
+        rank_timeout_s=args.rank_timeout,
+        command="fracture-gs " + " ".join(argv),
+    )
+    if args.list:
+        _print_list(path, opts)
+        return 0
+    try:
+        report = run_sweep(path, opts)
+    except RankFailure as exc:
+        print(f"{PROG}: error: {' '.join(str(exc).split())}", file=sys.stderr)
+        return 3
+    if report.rank != 0:
+        return 0
+    failed = report.failed
+    ok = len(report.rows) - len(failed)
+    print(
+        f"sweep: {len(report.rows)} cells, {ok} ok, {len(failed)} not ok ({report.ran} run on rank 0, "
+        f"world size {report.world_size}) -> {out}: {', '.join(report.files)}"
+    )
+    if len(report.rows) <= 40:
+        print((out / "sweep.md").read_text())
+    if report.failure is not None:
+        print(f"{PROG}: error: {' '.join(str(report.failure).split())}", file=sys.stderr)
+        return 3
+    if failed:
+        first = failed[0]
+        print(
+            f"{PROG}: error: {len(failed)} of {len(report.rows)} cells failed (first: {first['id']}, "
+            f"{first.get('message', '')}); the tables in {out} mark them; fix the cause and rerun with --rerun-failed.",
+            file=sys.stderr,
+        )
+        return 1
+    return 0
+
+
+def main(argv: Optional[Sequence[str]] = None) -> int:
+    """`python -m fracture_gs.cli.sweep SPEC ...`: the subcommand on its own, with the CLI's error
+    handling (one line and exit 2 for user errors, 130 on Ctrl-C). It takes what it needs from the
+    `fracture_gs.cli` package only, so that `parser.py` may import this module without a cycle."""
+    from . import CliError, _one_line, _prepare_warp, _user_error_types
+
+    class Parser(argparse.ArgumentParser):
+        def error(self, message: str):  # type: ignore[override]
+            raise CliError(f"{message} (see '{self.prog} --help')")
+
+    parser = Parser(prog=PROG)
+    add_sweep_parser(parser.add_subparsers(dest="command", parser_class=Parser))
+    argv = ["sweep", *(sys.argv[1:] if argv is None else argv)]
+    args = None
+    try:
+        args = parser.parse_args(argv)
+        args.argv = argv
+        _prepare_warp()
+        return cmd_sweep(args)
+    except SystemExit as exc:
+        return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 2)
+    except KeyboardInterrupt:
+        partial = getattr(args, "partial_out", None)
+        where = f"the finished cells are cached in {partial}" if partial else "nothing was written"
+        print(f"\n{PROG}: interrupted; {where}.", file=sys.stderr)
+        return 130
+    except Exception as exc:  # noqa: BLE001 - user errors become one line, bugs keep their traceback
+        if not isinstance(exc, _user_error_types()) or os.environ.get("FRACTURE_GS_DEBUG"):
+            raise
+        print(f"{PROG}: error: {_one_line(exc)}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

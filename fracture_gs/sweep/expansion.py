@@ -1,0 +1,236 @@
+"""A parsed sweep spec → the ordered list of its cells, each with a stable id and, for a scene cell,
+its resolved and validated scene config.
+
+Order: tables in file order, each the cross product of its lists in key order (accuracy: case,
+cells, cfl; scene: config, cells, step, overrides, seed, variant). Cells with the same canonical
+parameters are one cell, listed once (at the first occurrence) under every label that produced it.
+
+Stable ids: a cell's id is the first 12 hex digits of the SHA-256 of its canonical parameters
+(JSON, sorted keys). An accuracy cell's are (case, cells, cfl); a scene cell's are (variant, seed,
+render, and the fully resolved config as TOML), so editing a config, or a config it extends,
+changes the id and the cell reruns, while a table label or the spec's own file name does not.
+
+A scene cell's config: the spec's config (beside the spec first, then a path or a built-in name),
+then preset → particles, frames → cells → step → material/set overrides → seed → variant, then the
+config loader's own checks. A value that makes it invalid (e.g. `material.nu = 0.6`) is a
+`ConfigError` naming the spec file, the table, the value and the fix, before anything runs.
+"""
+
+from __future__ import annotations
+
+import copy
+import hashlib
+import itertools
+import json
+from dataclasses import dataclass, field
+from typing import Any, Optional
+
+from ..errors import ConfigError
+from ..io.config import apply_overrides, config_from_dict, config_to_dict, dump_config, find_config
+from ..io.config import load_config as load_scene_config
+from .spec import SceneBlock, SweepSpec
+
+
+@dataclass
+class Cell:
+    """One independent run of the sweep."""
+
+    index: int
+    """Position in the expanded list (0-based); the order of the tables and of the progress lines."""
+    id: str
+    """12 hex digits of SHA-256 over `params`: the cache file is OUT/cells/<id>.json."""
+    kind: str
+    """`accuracy` or `scene`."""
+    params: dict
+    """Canonical parameters (what the id hashes; JSON values only)."""
+    info: dict
+    """Human-readable parameters for tables: case/cells/cfl, or config/variant/cells/step/set/seed."""
+    labels: tuple[str, ...]
+    """Labels of the spec tables that produced this cell (several when tables overlap)."""
+    config: Optional[dict] = field(default=None, repr=False)
+    """Scene cells: the resolved config as a TOML-shaped dict (`config_from_dict` rebuilds it)."""
+
+    @property
+    def describe(self) -> str:
+        """A short line for progress output and `--list`."""
+        i = self.info
+        if self.kind == "accuracy":
+            return f"{i['case']} Δx=1/{i['cells']} CFL {i['cfl']:g}"
+        parts = [i["config"], i["variant"]]
+        if i.get("cells") is not None:
+            parts.append(f"cells {i['cells']}")
+        if i.get("step"):
+            parts.append(i["step"])
+        if i.get("set"):
+            parts.append(i["set"])
+        parts.append(f"seed {i['seed']}")
+        return " ".join(str(p) for p in parts)
+
+
+def cell_id(params: dict) -> str:
+    """12 hex digits of SHA-256 over the canonical JSON of `params`."""
+    text = json.dumps(params, sort_keys=True, separators=(",", ":"), allow_nan=False)
+    return hashlib.sha256(text.encode()).hexdigest()[:12]
+
+
+def expand(spec: SweepSpec) -> list[Cell]:
+    """Every cell of the spec in order (tables in file order, each a cross product in key order),
+    duplicates merged into the first occurrence."""
+    cells: dict[str, Cell] = {}
+
+    def add(kind: str, params: dict, info: dict, label: str, config: Optional[dict] = None) -> None:
+        cid = cell_id(params)
+        if cid in cells:
+            if label not in cells[cid].labels:
+                cells[cid].labels += (label,)
+            return
+        cells[cid] = Cell(len(cells), cid, kind, params, info, (label,), config)
+
+    for block in spec.accuracy:
+        for case, n, cfl in itertools.product(block.cases, block.cells, block.cfl):
+            params = {"kind": "accuracy", "case": case, "cells": n, "cfl": cfl}
+            add("accuracy", params, {"case": case, "cells": n, "cfl": cfl}, block.label)
+    bases: dict[str, Any] = {}
+    for b, block in enumerate(spec.scenes):
+        prefix = f"scene[{b}]"
+        for name in block.configs:
+            base = _base_config(spec, prefix, name, bases)
+            variants = block.variants or tuple(base.variants)
+            keys = [k for k, _ in block.overrides]
+            combos = itertools.product(block.cells, block.steps, itertools.product(*[v for _, v in block.overrides]))
+            for n, step, values in combos:
+                setting = dict(zip(keys, values))
+                for seed, variant in itertools.product(block.seeds, variants):
+                    cfg = scene_config(spec, prefix, name, base, block, n, step, setting, seed, variant)
+                    params = {
+                        "kind": "scene",
+                        "variant": variant,
+                        "seed": seed,
+                        "render": block.render,
+                        "config": dump_config(cfg),
+                    }
+                    info = {
+                        "config": name,
+                        "scene": cfg.scene,
+                        "variant": variant,
+                        "cells": n,
+                        "dx": cfg.sim.dx,
+                        "step": None if step is None else f"{step[0]}={step[1]:g}",
+                        "set": ", ".join(f"{k}={_short(v)}" for k, v in setting.items()),
+                        "seed": seed,
+                        "frames": cfg.frames,
+                        "render": block.render,
+                    }
+                    add("scene", params, info, block.label, config_to_dict(cfg))
+    return list(cells.values())
+
+
+def _short(v: Any) -> str:
+    return f"{v:g}" if isinstance(v, float) else str(v)
+
+
+def _base_config(spec: SweepSpec, prefix: str, name: str, cache: dict):
+    """A scene config named by the spec: beside the spec first, then find_config (paths, built-ins)."""
+    if name not in cache:
+        local = spec.path.parent / name
+        try:
+            cache[name] = load_scene_config(local if local.is_file() else find_config(name))
+        except ConfigError as exc:
+            raise ConfigError(
+                spec.source,
+                f"{prefix}.config",
+                _sentence(f"{prefix}.config value {name!r} cannot be loaded: {_inner(exc)}"),
+            ) from None
+    return cache[name]
+
+
+def _set_dotted(d: dict, key: str, value: Any) -> None:
+    """d["a"]["b"][0]["c"] = value for key "a.b.0.c" (missing tables are created)."""
+    parts = key.split(".")
+    node: Any = d
+    for i, part in enumerate(parts[:-1]):
+        if isinstance(node, list):
+            if not part.isdigit() or int(part) >= len(node):
+                raise KeyError(".".join(parts[: i + 1]))
+            node = node[int(part)]
+        else:
+            node = node.setdefault(part, {})
+        if not isinstance(node, (dict, list)):
+            raise KeyError(".".join(parts[: i + 1]))
+    last = parts[-1]
+    if isinstance(node, list):
+        if not last.isdigit() or int(last) >= len(node):
+            raise KeyError(key)
+        node[int(last)] = value
+    else:
+        node[last] = value
+
+
+def scene_config(spec, prefix, name, base, block: SceneBlock, cells, step, setting: dict, seed: int, variant: str):
+    """The validated SceneConfig of one scene cell (preset → particles, frames → cells → step →
+    material/set overrides → seed → variant)."""
+    what = f"{prefix} ({name}, {variant}" + "".join(f", {k} = {_short(v)}" for k, v in setting.items()) + ")"
+    try:
+        cfg = base if block.preset is None else apply_overrides(base, preset=block.preset, source=spec.source)
+        d = copy.deepcopy(config_to_dict(cfg))
+        if block.particles is not None:
+            d["particles"] = block.particles
+        if block.frames is not None:
+            d["frames"] = block.frames
+        if cells is not None:
+            _apply_cells(d, cells, prefix, spec.source)
+        if step is not None:
+            d["sim"]["adaptive_dt"] = step[0] == "cfl"
+            d["sim"]["dt" if step[0] == "dt" else "cfl"] = step[1]
+        d.setdefault("topology", {})["seed"] = seed
+        for key, value in setting.items():
+            try:
+                _set_dotted(d, key, value)
+            except KeyError as missing:
+                raise ConfigError(
+                    spec.source,
+                    f"{prefix}.set.{key}",
+                    f"{prefix} override {key!r}: the config has no entry {missing.args[0]!r}; "
+                    "check the dotted path (array entries by index, e.g. material_map.0.E).",
+                ) from None
+        d["variants"] = [variant]
+        return config_from_dict(d, source="")
+    except ConfigError as exc:
+        if exc.source == spec.source:
+            raise
+        raise ConfigError(
+            spec.source, prefix, _sentence(f"{what} gives an invalid scene config: {_inner(exc)}")
+        ) from None
+
+
+def _inner(exc: Exception) -> str:
+    """An embedded error sentence, on one line, without a final full stop (the outer sentence adds one)."""
+    text = " ".join(str(exc).split())
+    return text[:-1] if text.endswith(".") else text
+
+
+def _sentence(text: str) -> str:
+    """`text` ending in exactly one stop."""
+    return text if text.endswith((".", "?", "!")) else text + "."
+
+
+def _apply_cells(d: dict, cells: int, prefix: str, source: str) -> None:
+    """Δx = box side / cells for an explicit grid (shape and a fixed dt follow); a PLY's cells_across."""
+    if str(d.get("scene", "")).lower().endswith(".ply"):
+        d.setdefault("capture", {})["cells_across"] = cells
+        return
+    sim = d["sim"]
+    if sim.get("grid", "explicit") != "explicit":
+        raise ConfigError(
+            source,
+            f"{prefix}.cells",
+            f'{prefix}.cells needs an explicit grid (sim.grid = "explicit") or a .ply scene; '
+            'remove cells or set sim.grid = "explicit" in the config.',
+        )
+    dx = float(sim["dx"])
+    side = max(sim["grid_shape"]) * dx
+    new_dx = side / cells
+    ratio = new_dx / dx
+    sim["grid_shape"] = [max(4, round(n / ratio)) for n in sim["grid_shape"]]
+    sim["dx"] = new_dx
+    sim["dt"] = float(sim["dt"]) * ratio
