@@ -9,6 +9,7 @@ are cached.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import shutil
@@ -173,18 +174,41 @@ def test_cell_ids_are_stable_and_follow_the_resolved_config(tmp_path):
     assert len(set(ids)) == len(ids) == 6
 
 
-def test_plan_deals_pending_cells_round_robin_and_keeps_cached_ones():
-    """A fresh run gives cell i to rank i mod W; cached cells (on any rank) are not dealt again, failed
-    ones only with rerun_failed, and a cached row held only by rank r > 0 is sent to rank 0 by r."""
-    cells = expand(load_spec("accuracy"))
-    fresh = driver.make_plan(cells, [{}, {}, {}], 3, rerun_failed=False)
-    assert fresh["assign"] == [[i for i in range(len(cells)) if i % 3 == r] for r in range(3)]
+def test_plan_deals_cells_so_ranks_finish_together_and_keeps_cached_ones():
+    """Pending cells go longest-estimated first to the least-loaded rank: every cell exactly once, the
+    estimated loads of two ranks within the largest cell of each other (round-robin leaves the full
+    accuracy sweep's ranks 28 % apart on an H200), equal costs round-robin; cached cells (on any rank)
+    are not dealt again, failed ones only with rerun_failed, and a cached row held only by rank r > 0 is
+    sent to rank 0 by r."""
+    cells = expand(load_spec("accuracy_full"))
+    for world in (2, 3):
+        plan = driver.make_plan(cells, [{}] * world, world, rerun_failed=False)
+        assert sorted(i for a in plan["assign"] for i in a) == list(range(len(cells)))
+        loads = [sum(cells[i].cost for i in a) for a in plan["assign"]]
+        assert max(loads) - min(loads) <= max(c.cost for c in cells)
+        assert max(loads) < max(sum(c.cost for c in cells[r::world]) for r in range(world))  # beats round-robin
+    even = [dataclasses.replace(c, cost=1.0) for c in cells]
+    assert driver.deal(even, 3) == [[i for i in range(len(cells)) if i % 3 == r] for r in range(3)]
     ids = [c.id for c in cells]
     statuses = [{ids[0]: "ok", ids[1]: "failed"}, {ids[0]: "ok", ids[2]: "ok"}]
     plan = driver.make_plan(cells, statuses, 2, rerun_failed=False)
-    pending = [i for i in range(len(cells)) if i not in (0, 1, 2)]
-    assert plan["assign"] == [pending[0::2], pending[1::2]] and plan["send"] == [[], [ids[2]]]
-    assert 1 in driver.make_plan(cells, statuses, 2, rerun_failed=True)["assign"][0]
+    dealt = sorted(i for a in plan["assign"] for i in a)
+    assert dealt == [i for i in range(len(cells)) if i not in (0, 1, 2)] and plan["send"] == [[], [ids[2]]]
+    assert 1 in [i for a in driver.make_plan(cells, statuses, 2, rerun_failed=True)["assign"] for i in a]
+
+
+def test_cost_estimates_follow_measured_gpu_times():
+    """The estimate that balances ranks tracks what the full accuracy sweep took per cell on an H200
+    (figures/accuracy_gpu, 2026-11-22): within 40 % for every cell over 0.5 s, and the same order for
+    the three longest."""
+    from fracture_gs.sweep.expansion import accuracy_cost
+
+    measured = {("spin", 48, 0.05): 4.94, ("spin", 48, 0.1): 2.49, ("recontact", 64, 0.05): 1.77}
+    measured |= {("spin", 96, 0.4): 1.27, ("recontact", 64, 0.1): 1.18, ("bar", 64, 0.05): 0.90}
+    for key, seconds in measured.items():
+        assert abs(accuracy_cost(*key) / seconds - 1) < 0.4, (key, accuracy_cost(*key))
+    top = sorted(measured, key=lambda k: -accuracy_cost(*k))[:3]
+    assert top == [("spin", 48, 0.05), ("spin", 48, 0.1), ("recontact", 64, 0.05)]
 
 
 # ---------------------------------------------------------------- running
@@ -214,7 +238,7 @@ def test_one_process_sweep_writes_tables_with_the_bench_numbers(single):
 
 def test_two_gloo_ranks_give_the_rows_of_one_process(single, tmp_path):
     """THE distribution test: `torchrun --nproc-per-node 2` (gloo, CPU) splits the cells between two
-    processes (cell i on rank i mod 2) and rank 0's tables hold exactly the one-process run's metrics,
+    processes (as the plan deals them) and rank 0's tables hold exactly the one-process run's metrics,
     every key but wall times and where each cell ran."""
     spec, out1, _ = single
     out2 = tmp_path / "two"
@@ -225,10 +249,13 @@ def test_two_gloo_ranks_give_the_rows_of_one_process(single, tmp_path):
     )
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     rows1, rows2 = rows_of(out1), rows_of(out2)
-    assert [r["rank"] for r in rows2] == [i % 2 for i in range(6)]
+    plan = driver.make_plan(expand(load_spec(spec)), [{}, {}], 2, rerun_failed=False)
+    assert [r["rank"] for r in rows2] == [0 if i in plan["assign"][0] else 1 for i in range(6)]
     assert {r["world_size"] for r in rows2} == {2}
     assert metrics(rows2) == metrics(rows1)
-    assert "[rank 1/2] 1/3 cell 2/6" in proc.stdout and "[rank 0/2] 3/3 cell 5/6" in proc.stdout
+    for r, mine in enumerate(plan["assign"]):  # one progress line per finished cell, on its own rank
+        for k, i in enumerate(mine):
+            assert f"[rank {r}/2] {k + 1}/{len(mine)} cell {i + 1}/6" in proc.stdout, proc.stdout[-2000:]
 
 
 def test_rerun_skips_cached_cells_and_fresh_runs_them_again(single, tmp_path):
@@ -396,7 +423,9 @@ def test_a_rank_that_dies_is_named_and_the_tables_are_still_written(tmp_path):
     err = [line for line in err0.splitlines() if line.startswith("fracture-gs: error:")]
     assert len(err) == 1 and "rank 1 of 2 sent no heartbeat for 4 s" in err[0] and "rerunning" in err[0], err0
     rows = rows_of(out)
-    assert [r["status"] for r in rows] == ["ok", "ok", "ok", "missing", "ok", "missing"], rows
+    plan = driver.make_plan(expand(load_spec(spec)), [{}, {}], 2, rerun_failed=False)
+    lost = plan["assign"][1][1:]  # rank 1 finished its first cell only
+    assert [r["status"] for r in rows] == ["missing" if i in lost else "ok" for i in range(6)], rows
     assert all("rank 1 stopped" in r["message"] for r in rows if r["status"] == "missing")
     resumed = driver.run_sweep(spec, driver.SweepOptions(out_dir=out, device="cpu", echo=lambda s: None))
     assert resumed.ran == 2 and [r["status"] for r in resumed.rows] == ["ok"] * 6

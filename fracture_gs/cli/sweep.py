@@ -34,7 +34,8 @@ A SPEC is a TOML file or a built-in name ({names}). Tables, each a cross product
                [scene.set] "any.config.key" = [...], render = false (true: render-sim's videos too)
 (the format: fracture_gs/sweep/spec.py; the built-in specs are commented examples).
 
-Cell i goes to rank i mod WORLD_SIZE; each finished cell is cached in OUT/cells/<id>.json (id = a hash of
+Cells are dealt out by estimated cost (longest first to the least-loaded rank, so ranks finish together;
+`--list` shows the plan); each finished cell is cached in OUT/cells/<id>.json (id = a hash of
 its parameters and resolved config), so rerunning the same command, with any number of ranks, runs only
 what is missing. Rank 0 writes OUT/sweep.md, sweep.tex, sweep.csv, sweep.json and sweep_pareto.png
 (accuracy cells, matplotlib). docs/scaling.md: 1 GPU, N GPUs, M machines, failures.

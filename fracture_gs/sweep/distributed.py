@@ -24,7 +24,7 @@ Coordination (`StoreCoordinator`), through the group's TCP store, never through 
 collective, so that a fast rank may wait for a slow one as long as the slow one is alive:
 
 1. every rank publishes the ids of the cells it has cached; rank 0 merges them, deals the
-   remaining cells out (pending cell j → rank j mod W) and publishes the plan;
+   remaining cells out (by estimated cost, `driver.deal`) and publishes the plan;
 2. every rank runs its cells (and writes each to the cache as it finishes);
 3. every rank > 0 publishes its rows and a done mark; rank 0 waits for all of them and writes the
    tables.

@@ -22,6 +22,7 @@ import copy
 import hashlib
 import itertools
 import json
+import math
 from dataclasses import dataclass, field
 from typing import Any, Optional
 
@@ -49,6 +50,9 @@ class Cell:
     """Labels of the spec tables that produced this cell (several when tables overlap)."""
     config: Optional[dict] = field(default=None, repr=False)
     """Scene cells: the resolved config as a TOML-shaped dict (`config_from_dict` rebuilds it)."""
+    cost: float = 1.0
+    """Estimated seconds on a GPU (`accuracy_cost` / `scene_cost`): only its ratios matter, for dealing
+    cells out so that ranks finish together."""
 
     @property
     def describe(self) -> str:
@@ -78,18 +82,25 @@ def expand(spec: SweepSpec) -> list[Cell]:
     duplicates merged into the first occurrence."""
     cells: dict[str, Cell] = {}
 
-    def add(kind: str, params: dict, info: dict, label: str, config: Optional[dict] = None) -> None:
+    def add(kind: str, params: dict, info: dict, label: str, config: Optional[dict] = None, cost: float = 1.0):
         cid = cell_id(params)
         if cid in cells:
             if label not in cells[cid].labels:
                 cells[cid].labels += (label,)
             return
-        cells[cid] = Cell(len(cells), cid, kind, params, info, (label,), config)
+        cells[cid] = Cell(len(cells), cid, kind, params, info, (label,), config, cost)
 
     for block in spec.accuracy:
         for case, n, cfl in itertools.product(block.cases, block.cells, block.cfl):
             params = {"kind": "accuracy", "case": case, "cells": n, "cfl": cfl}
-            add("accuracy", params, {"case": case, "cells": n, "cfl": cfl}, block.label)
+            add(
+                "accuracy",
+                params,
+                {"case": case, "cells": n, "cfl": cfl},
+                block.label,
+                None,
+                accuracy_cost(case, n, cfl),
+            )
     bases: dict[str, Any] = {}
     for b, block in enumerate(spec.scenes):
         prefix = f"scene[{b}]"
@@ -121,8 +132,47 @@ def expand(spec: SweepSpec) -> list[Cell]:
                         "frames": cfg.frames,
                         "render": block.render,
                     }
-                    add("scene", params, info, block.label, config_to_dict(cfg))
+                    add("scene", params, info, block.label, config_to_dict(cfg), scene_cost(cfg))
     return list(cells.values())
+
+
+SECONDS_PER_SUBSTEP = 0.35e-3  # an H200 on a few thousand particles: launch-bound, about flat up to 50k
+SECONDS_PER_FRAME = 0.01  # per-frame checks and diagnostics
+PARTICLES_PER_UNIT_COST = 2e5  # particles at which a substep costs twice the launch-bound time
+
+
+def _cost(substeps: float, particles: float, frames: float) -> float:
+    return SECONDS_PER_SUBSTEP * substeps * (1 + particles / PARTICLES_PER_UNIT_COST) + SECONDS_PER_FRAME * frames
+
+
+def accuracy_cost(case: str, cells: int, cfl: float) -> float:
+    """Estimated seconds of an accuracy cell: substeps = duration · (c + v) / (CFL · Δx) with the case's
+    P-wave speed c, particles = 8 per cell (2 per axis) over the body's volume (paper/accuracy.py)."""
+    from ..paper import accuracy as A
+
+    if case == "bar":
+        c, duration, volume, frames = math.sqrt(A.BAR["E"] / A.BAR["rho"]), A.BAR["periods"] * 0.1, 0.5 * 0.0625**2, 0
+    elif case == "spin":
+        c = A.p_wave(A.SPIN["E"], A.SPIN["nu"], A.SPIN["rho"]) + A.SPIN["omega"] * A.SPIN["a"] / 2
+        duration, volume, frames = A.SPIN["T"], A.SPIN["a"] ** 3, 0  # sampled inside one loop, no frames
+    else:
+        c = A.p_wave(A.RECONTACT["E"], 0.3, A.RECONTACT["rho"]) + A.RECONTACT["speed"]
+        duration, frames = A.RECONTACT["frames"] * A.RECONTACT["frame_dt"], A.RECONTACT["frames"]
+        volume = 7.4e-4
+    return _cost(duration * c * cells / cfl, 8 * volume * cells**3, frames)
+
+
+def scene_cost(cfg) -> float:
+    """Estimated seconds of a scene cell from its config: frames × substeps per frame (the fixed Δt, or the
+    CFL step of the stiffest default material when adaptive) and its particle count."""
+    from ..paper.accuracy import p_wave
+
+    m, s = cfg.material, cfg.sim
+    dt = s.dt
+    if s.adaptive_dt:
+        dt = min(dt, s.cfl * s.dx / max(p_wave(m.E, m.nu, m.density), 1e-9))
+    substeps = cfg.frames * max(1.0, cfg.frame_dt / max(dt, 1e-12))
+    return _cost(substeps, cfg.particles or 20_000, cfg.frames)
 
 
 def _short(v: Any) -> str:
