@@ -1,96 +1,139 @@
 """`render-sim --devices cuda:0,cuda:1,...`: the variants of one comparison side by side on several
-devices of one machine, one thread per device (Warp and torch release the GIL in their kernels).
+devices of one machine, one worker process per device.
 
-The first variant that runs an event provider leads: it runs on the first device, and what it
-latches is handed to the others as it happens (`sim.providers.broadcast`), so every variant still
-uses the one topology the leader found — the same contract as the sequential run, where the others
-replay the leader's saved history. Variants beyond the number of devices queue on them in order.
-Ctrl-C stops every variant at its next frame; an error in one thread stops the others and is
-raised here.
+Processes, not threads: a variant's frame is much Python (diagnostics issue many small torch ops, the
+frame loop, rendering and encoding), so two threads in one interpreter took as long as one on two
+H200s (16.5 s either way for the bread paper preset); each process has its own interpreter.
+
+The first variant that runs an event provider leads, on the first device. What it latches is handed
+to the others as it happens through a folder of per-frame files (`FileChannel`: written atomically,
+polled by the followers), so every variant uses the one topology the leader found — the contract of
+the sequential run, where the others replay the leader's saved history. Variants beyond the number of
+devices queue on them in order. Each worker writes its variant's video and metrics; its frames come
+back to the parent (for comparison.mp4) as one .npy per variant. Ctrl-C or an error in one worker
+stops the others at their next frame; an error is raised here with the worker's traceback.
 """
 
 from __future__ import annotations
 
-import threading
+import queue
+import shutil
+import traceback
+from dataclasses import replace
 from pathlib import Path
 
+import numpy as np
+import torch
+
 from .sim.providers import make_provider
-from .sim.providers.broadcast import BroadcastProvider, LeaderProvider, TopologyChannel
+from .sim.providers.broadcast import BroadcastProvider, FileChannel, LeaderProvider
 
 
-def run_on_devices(run_variant, cfg, gs_on, painters, order: list, devices: list, out_dir: Path, metrics_file, export):
-    """Run `order` (leader first) over `devices` (one worker thread per entry; an entry may repeat).
-    gs_on: device → Gaussians; painters: one Painter per entry of `devices` (a painter keeps per-run
-    state). Returns (frames, summaries, leader history or None, interrupted)."""
-    channel = TopologyChannel()
-    stop = threading.Event()
-    frames = {v: [] for v in order}
-    summaries, errors, topology = {}, [], {"history": None}
-    queues = [[] for _ in devices]
-    for i, v in enumerate(order):
-        queues[i % len(devices)].append(v)
-    leader = order[0]
-    lock = threading.Lock()
-
-    def work(slot: int, variants: list) -> None:
-        device = devices[slot]
+def _worker(slot, device, variants, leader, cfg, gs, background, out_dir, export, channel_dir, stop, results, fns):
+    """One device's variants, in order (runs in a spawned process)."""
+    run_variant, painter_class, threads = fns
+    torch.set_num_threads(threads)  # as the parent: the CPU reductions then sum in the same order
+    try:
+        if device.startswith("cuda"):
+            torch.cuda.set_device(torch.device(device))
+        gs = gs.to(device)
+        painter = painter_class(gs, cfg, device, background=background)
+        channel = FileChannel(channel_dir)
         for variant in variants:
             if stop.is_set():
-                return
-            if variant == leader:
-                provider = LeaderProvider(make_provider(cfg.topology), channel)
-            else:
-                provider = BroadcastProvider(channel)
+                break
+            provider = LeaderProvider(make_provider(cfg.topology), channel) if variant == leader else None
+            provider = provider or BroadcastProvider(channel)
+            frames: list = []
+            metrics = out_dir / f".metrics_{variant}.jsonl"
             try:
-                summary, history = run_variant(
-                    cfg,
-                    gs_on[device],
-                    variant,
-                    device,
-                    out_dir,
-                    painters[slot],
-                    None,
-                    metrics_file,
-                    frames[variant],
-                    export,
-                    provider=provider,
-                    stop=stop,
-                    position=slot,
-                )
-            except BaseException as exc:  # noqa: BLE001 - handed to the caller
-                with lock:
-                    errors.append(exc)
-                stop.set()
-                channel.close()
-                return
+                with open(metrics, "w") as fh:
+                    summary, history = run_variant(
+                        cfg, gs, variant, device, out_dir, painter, None, fh, frames, export,
+                        provider=provider, stop=stop, position=slot,
+                    )  # fmt: skip
             finally:
                 if variant == leader:
                     channel.close()  # followers past the leader's last frame stop waiting
-            with lock:
-                summaries[variant] = summary
-                if variant == leader and history:
-                    topology["history"] = history
+            np.save(
+                out_dir / f".frames_{variant}.npy", np.stack(frames) if frames else np.zeros((0, 1, 1, 3), np.uint8)
+            )
+            history = [replace(t, fragment=t.fragment.cpu(), band=t.band.cpu()) for t in history or []]
+            results.put(("done", variant, summary, history if variant == leader else None))
             if summary.get("interrupted"):
                 stop.set()
+    except KeyboardInterrupt:
+        stop.set()
+    except BaseException as exc:  # noqa: BLE001 - reported to the parent, which raises it
+        stop.set()
+        results.put(("error", device, f"{type(exc).__name__}: {exc}", traceback.format_exc()))
 
-    threads = [
-        threading.Thread(target=work, args=(i, vs), name=f"fgs-{devices[i]}-{i}", daemon=True)
+
+class WorkerFailed(RuntimeError):
+    """A worker process of `render-sim --devices` failed; the message carries its error and traceback."""
+
+
+def run_on_devices(run_variant, painter_class, cfg, gs, background, order, devices, out_dir: Path, metrics, export):
+    """Run `order` (leader first) over `devices` (one worker process per entry; an entry may repeat).
+    Returns (frames, summaries, leader history or None, interrupted); the variants' metrics lines are
+    appended to `metrics` in `order`."""
+    ctx = torch.multiprocessing.get_context("spawn")
+    stop, results = ctx.Event(), ctx.Queue()
+    channel_dir = out_dir / ".topology_channel"
+    shutil.rmtree(channel_dir, ignore_errors=True)
+    queues = [[] for _ in devices]
+    for i, v in enumerate(order):
+        queues[i % len(devices)].append(v)
+    gs_cpu, bg_cpu = gs.to("cpu"), (background.to("cpu") if background is not None else None)
+    procs = [
+        ctx.Process(
+            target=_worker,
+            args=(i, devices[i], vs, order[0], cfg, gs_cpu, bg_cpu, out_dir, export, channel_dir, stop, results)
+            + ((run_variant, painter_class, torch.get_num_threads()),),
+            name=f"fgs-{devices[i]}-{i}",
+            daemon=True,
+        )
         for i, vs in enumerate(queues)
         if vs
     ]
-    for t in threads:
-        t.start()
-    interrupted = False
-    try:
-        for t in threads:
-            while t.is_alive():
-                t.join(timeout=0.2)
-    except KeyboardInterrupt:
-        interrupted = True
-        stop.set()
-        for t in threads:
-            t.join()
+    for p in procs:
+        p.start()
+    summaries, history, errors, interrupted = {}, None, [], False
+    while True:
+        try:
+            alive = any(p.is_alive() for p in procs)
+            try:
+                msg = results.get(timeout=0.2)
+            except queue.Empty:
+                if not alive:
+                    break
+                continue
+            if msg[0] == "done":
+                summaries[msg[1]] = msg[2]
+                history = msg[3] if msg[3] is not None else history
+            else:
+                errors.append(msg)
+        except KeyboardInterrupt:  # the workers got it too: they stop at their next frame and report
+            interrupted = True
+            stop.set()
+    for p in procs:
+        p.join()
+    frames = {}
+    for v in order:
+        path = out_dir / f".frames_{v}.npy"
+        frames[v] = list(np.load(path)) if path.exists() else []
+        path.unlink(missing_ok=True)
+        part = out_dir / f".metrics_{v}.jsonl"
+        if part.exists():
+            metrics.write(part.read_text())
+            part.unlink()
+    metrics.flush()
+    shutil.rmtree(channel_dir, ignore_errors=True)
     if errors:
-        raise errors[0]
+        _, device, message, trace = errors[0]
+        raise WorkerFailed(f"the worker on {device} failed: {message}\n{trace}")
+    crashed = [p for p in procs if p.exitcode not in (0, None)]
+    if crashed and not interrupted:
+        raise WorkerFailed(f"worker process {crashed[0].name} exited with code {crashed[0].exitcode} before reporting")
     interrupted = interrupted or any(s.get("interrupted") for s in summaries.values())
-    return frames, summaries, topology["history"], interrupted
+    return frames, summaries, history, interrupted

@@ -420,10 +420,8 @@ def run_render_sim(
         if devices and len(devices) > 1:
             from .parallel import run_on_devices
 
-            gs_on = {d: gs.to(d) for d in devices}
-            painters = [Painter(gs_on[d], cfg, d, background=scene.background) for d in devices]
             frames, summaries, topology, interrupted = run_on_devices(
-                run_variant, cfg, gs_on, painters, order, list(devices), out_dir, metrics_file, export
+                run_variant, Painter, cfg, gs, scene.background, order, list(devices), out_dir, metrics_file, export
             )
             if topology is not None:
                 save_history(out_dir / "topology.npz", topology)

@@ -1,7 +1,7 @@
 """`render-sim --devices`: variants side by side on several devices, the leader's topology handed to
-the others as it latches. On the CPU two worker threads stand in for two GPUs: every variant's
+the others as it latches. On the CPU two worker processes stand in for two GPUs: every variant's
 per-frame metrics and its latched topology equal those of the sequential run (bitwise, since the
-CPU kernels are deterministic)."""
+CPU kernels are deterministic). The workers are processes, as on GPUs."""
 
 import json
 
@@ -10,8 +10,8 @@ import torch
 
 from fracture_gs import cli, runner
 from fracture_gs.io.config import load_config
-from fracture_gs.sim.providers.broadcast import TopologyChannel
-from fracture_gs.sim.topology import load_history
+from fracture_gs.sim.providers.broadcast import FileChannel
+from fracture_gs.sim.topology import Topology, load_history
 
 pytestmark = pytest.mark.usefixtures("one_thread")
 
@@ -53,14 +53,22 @@ def test_two_workers_match_the_sequential_run(tmp_path):
     assert [v["status"] for v in s["variants"]] == ["ok"] * 3
 
 
-def test_channel_waits_for_the_leader_and_stops_when_it_closes():
-    ch = TopologyChannel(timeout=0.2)
-    ch.publish(0, None)
-    assert ch.up_to(0) == []
+def test_channel_waits_for_the_leader_and_stops_when_it_closes(tmp_path):
+    """A follower waits for the leader's frame f (timing out if it never comes), sees exactly the topologies
+    latched at frames <= f (a later latch stays hidden), and stops waiting once the leader closes."""
+    leader, follower = FileChannel(tmp_path / "ch"), FileChannel(tmp_path / "ch", timeout=0.2)
+    leader.publish(0, None)
+    assert follower.up_to(0) == []
     with pytest.raises(TimeoutError):
-        ch.up_to(3)
-    ch.close()
-    assert ch.up_to(3) == []
+        follower.up_to(3)
+    topo = Topology(torch.tensor([0, 1, 1]), torch.tensor([0, 1, 0]), (1.0, 0.0, 0.0), (0.5, 0.0, 0.0), latch_frame=2)
+    later = Topology(torch.tensor([0, 1, 2]), torch.tensor([0, 1, 2]), (1.0, 0.0, 0.0), (0.5, 0.0, 0.0), latch_frame=4)
+    leader.publish(2, topo)
+    leader.publish(4, later)
+    got = follower.up_to(2)
+    assert len(got) == 1 and got[0].latch_frame == 2 and torch.equal(got[0].fragment, topo.fragment)
+    leader.close()
+    assert [t.latch_frame for t in follower.up_to(9)] == [2, 4]
 
 
 def test_devices_flag_errors_are_one_line(capsys):
@@ -69,3 +77,35 @@ def test_devices_flag_errors_are_one_line(capsys):
     assert err.count("\n") == 1 and "CUDA is not available" in err
     assert cli.main(["render-sim", "bread", "--devices", ","]) == 2
     assert "names no device" in capsys.readouterr().err
+
+
+def explode(cfg, gs, variant, device, *args, **kwargs):
+    """A run_variant stand-in that fails (module level, so a spawned worker can import it)."""
+    raise ValueError(f"boom in {variant}")
+
+
+def test_a_failing_worker_is_reported_with_its_error(tmp_path):
+    """An error inside a worker process reaches the caller as WorkerFailed naming the device, the error and
+    the worker's traceback; the other workers stop and no temporary files are left behind."""
+    import io
+
+    from fracture_gs import assets
+    from fracture_gs.parallel import WorkerFailed, run_on_devices
+
+    cfg = tiny()
+    gs = assets.build("bread", size="small", n=300)
+    with pytest.raises(WorkerFailed, match=r"the worker on cpu failed: ValueError: boom in stress_zero") as err:
+        run_on_devices(
+            explode,
+            runner.Painter,
+            cfg,
+            gs,
+            None,
+            ["stress_zero", "full"],
+            ["cpu", "cpu"],
+            tmp_path,
+            io.StringIO(),
+            None,
+        )
+    assert "Traceback" in str(err.value)
+    assert not list(tmp_path.glob(".*"))

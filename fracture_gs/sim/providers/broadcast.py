@@ -1,56 +1,68 @@
 """Topologies shared between variants that run at the same time on different devices.
 
 The leader variant runs the event provider; after each of its frames it publishes what latched
-(`TopologyChannel.publish`). A follower, at the end of its own frame f, waits until the leader has
-finished frame f and latches whatever the leader latched up to then — the replay of
-`ReplayProvider`, live instead of from a finished run. Before the first latch every variant runs
-the shared field, so leader and followers reach each frame in the same state.
+(`FileChannel.publish`: a file per frame, so followers in other processes see it). A follower, at
+the end of its own frame f, waits until the leader has finished frame f and latches whatever the
+leader latched up to then — the replay of `ReplayProvider`, live instead of from a finished run.
+Before the first latch every variant runs the shared field, so leader and followers reach each frame
+in the same state.
 """
 
 from __future__ import annotations
 
-import threading
+import os
+import time
 from dataclasses import replace
+from pathlib import Path
 from typing import Optional
+
+import torch
 
 from ..topology import Topology
 from .replay import ReplayProvider
 
 
-class TopologyChannel:
-    """The leader's topologies, frame by frame, for followers on other threads."""
+class FileChannel:
+    """The leader's topologies, frame by frame, for followers in other processes: `frame_NNNNNN.pt`
+    (the frame's latched Topology on the CPU, or None) written by tmp + rename, `closed` when the
+    leader stops. Any process (or thread) that sees the folder can follow."""
 
-    def __init__(self, timeout: float = 3600.0):
-        self.cond = threading.Condition()
-        self.history: list[Topology] = []
-        self.frame = -1  # the last frame the leader has finished (and published)
-        self.closed = False  # the leader stopped (finished, diverged or interrupted)
-        self.timeout = timeout
+    def __init__(self, folder: Path, timeout: float = 3600.0, poll: float = 0.002):
+        self.folder, self.timeout, self.poll = Path(folder), timeout, poll
+        self.folder.mkdir(parents=True, exist_ok=True)
+        self.seen: dict[int, Optional[Topology]] = {}
+
+    def _path(self, frame: int) -> Path:
+        return self.folder / f"frame_{frame:06d}.pt"
 
     def publish(self, frame: int, topology: Optional[Topology]) -> None:
-        with self.cond:
-            if topology is not None:
-                self.history.append(replace(topology, fragment=topology.fragment.cpu(), band=topology.band.cpu()))
-            self.frame = max(self.frame, frame)
-            self.cond.notify_all()
+        if topology is not None:
+            topology = replace(topology, fragment=topology.fragment.cpu(), band=topology.band.cpu())
+        tmp = self.folder / f".frame_{frame:06d}.{os.getpid()}.tmp"
+        torch.save(topology, tmp)
+        os.replace(tmp, self._path(frame))
 
     def close(self) -> None:
-        with self.cond:
-            self.closed = True
-            self.cond.notify_all()
+        (self.folder / "closed").touch()
 
     def up_to(self, frame: int) -> list[Topology]:
         """Everything the leader latched at frames ≤ `frame`, once it has finished that frame."""
-        with self.cond:
-            if not self.cond.wait_for(lambda: self.frame >= frame or self.closed, timeout=self.timeout):
+        deadline = time.monotonic() + self.timeout
+        while not self._path(frame).exists() and not (self.folder / "closed").exists():
+            if time.monotonic() > deadline:
                 raise TimeoutError(f"the leading variant did not reach frame {frame} within {self.timeout:.0f} s")
-            return [t for t in self.history if t.latch_frame <= frame]
+            time.sleep(self.poll)
+        for path in sorted(self.folder.glob("frame_*.pt")):
+            f = int(path.stem[6:])
+            if f <= frame and f not in self.seen:
+                self.seen[f] = torch.load(path, weights_only=False)
+        return [t for f, t in sorted(self.seen.items()) if t is not None and f <= frame and t.latch_frame <= frame]
 
 
 class LeaderProvider:
     """Wraps the leader's event provider and publishes every frame's outcome."""
 
-    def __init__(self, provider, channel: TopologyChannel):
+    def __init__(self, provider, channel: FileChannel):
         self.provider, self.channel = provider, channel
 
     def __call__(self, sim) -> Optional[Topology]:
@@ -62,7 +74,7 @@ class LeaderProvider:
 class BroadcastProvider(ReplayProvider):
     """A follower: replays the leader's topologies as the leader latches them."""
 
-    def __init__(self, channel: TopologyChannel):
+    def __init__(self, channel: FileChannel):
         super().__init__([])
         self.channel = channel
 
