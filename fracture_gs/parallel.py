@@ -1,9 +1,12 @@
 """`render-sim --devices cuda:0,cuda:1,...`: the variants of one comparison side by side on several
-devices of one machine, one worker process per device.
+devices of one machine: the first device's in this process, each other device's in a worker process.
 
 Processes, not threads: a variant's frame is much Python (diagnostics issue many small torch ops, the
 frame loop, rendering and encoding), so two threads in one interpreter took as long as one on two
-H200s (16.5 s either way for the bread paper preset); each process has its own interpreter.
+H200s (16.5 s either way for the bread paper preset); each process has its own interpreter. A worker
+process pays its start (torch, Warp, gsplat, the kernels: ≈ 5–8 s on a GPU), so the first device's
+variants run in the caller at once and a second device pays off when a variant simulates for longer
+than that.
 
 The first variant that runs an event provider leads, on the first device. What it latches is handed
 to the others as it happens through a folder of per-frame files (`FileChannel`: written atomically,
@@ -30,7 +33,7 @@ from .sim.providers.broadcast import BroadcastProvider, FileChannel, LeaderProvi
 
 
 def _worker(slot, device, variants, leader, cfg, gs, background, out_dir, export, channel_dir, stop, results, fns):
-    """One device's variants, in order (runs in a spawned process)."""
+    """One device's variants, in order (in a spawned process, or in the caller for the first device)."""
     run_variant, painter_class, threads = fns
     torch.set_num_threads(threads)  # as the parent: the CPU reductions then sum in the same order
     try:
@@ -58,8 +61,10 @@ def _worker(slot, device, variants, leader, cfg, gs, background, out_dir, export
             np.save(
                 out_dir / f".frames_{variant}.npy", np.stack(frames) if frames else np.zeros((0, 1, 1, 3), np.uint8)
             )
-            history = [replace(t, fragment=t.fragment.cpu(), band=t.band.cpu()) for t in history or []]
-            results.put(("done", variant, summary, history if variant == leader else None))
+            if variant == leader:  # through a file: tensors in a queue need their sender alive to be read
+                torch.save([replace(t, fragment=t.fragment.cpu(), band=t.band.cpu()) for t in history or []],
+                           out_dir / ".leader_history.pt")  # fmt: skip
+            results.put(("done", variant, summary))
             if summary.get("interrupted"):
                 stop.set()
     except KeyboardInterrupt:
@@ -85,37 +90,40 @@ def run_on_devices(run_variant, painter_class, cfg, gs, background, order, devic
     for i, v in enumerate(order):
         queues[i % len(devices)].append(v)
     gs_cpu, bg_cpu = gs.to("cpu"), (background.to("cpu") if background is not None else None)
-    procs = [
+    fns = (run_variant, painter_class, torch.get_num_threads())
+    procs = [  # the first device's variants run here, the others' in spawned processes
         ctx.Process(
             target=_worker,
-            args=(i, devices[i], vs, order[0], cfg, gs_cpu, bg_cpu, out_dir, export, channel_dir, stop, results)
-            + ((run_variant, painter_class, torch.get_num_threads()),),
+            args=(i, devices[i], vs, order[0], cfg, gs_cpu, bg_cpu, out_dir, export, channel_dir, stop, results, fns),
             name=f"fgs-{devices[i]}-{i}",
             daemon=True,
         )
         for i, vs in enumerate(queues)
-        if vs
+        if vs and i > 0
     ]
     for p in procs:
         p.start()
-    summaries, history, errors, interrupted = {}, None, [], False
+    local: queue.Queue = queue.Queue()
+    interrupted = False
+    try:
+        _worker(0, devices[0], queues[0], order[0], cfg, gs, background, out_dir, export, channel_dir, stop, local, fns)
+    except KeyboardInterrupt:
+        interrupted = True
+        stop.set()
+    messages = list(local.queue)
     while True:
         try:
             alive = any(p.is_alive() for p in procs)
             try:
-                msg = results.get(timeout=0.2)
+                messages.append(results.get(timeout=0.2))
             except queue.Empty:
                 if not alive:
                     break
-                continue
-            if msg[0] == "done":
-                summaries[msg[1]] = msg[2]
-                history = msg[3] if msg[3] is not None else history
-            else:
-                errors.append(msg)
         except KeyboardInterrupt:  # the workers got it too: they stop at their next frame and report
             interrupted = True
             stop.set()
+    summaries = {m[1]: m[2] for m in messages if m[0] == "done"}
+    errors = [m for m in messages if m[0] == "error"]
     for p in procs:
         p.join()
     frames = {}
@@ -129,6 +137,9 @@ def run_on_devices(run_variant, painter_class, cfg, gs, background, order, devic
             part.unlink()
     metrics.flush()
     shutil.rmtree(channel_dir, ignore_errors=True)
+    saved = out_dir / ".leader_history.pt"
+    history = torch.load(saved, weights_only=False) if saved.exists() else None
+    saved.unlink(missing_ok=True)
     if errors:
         _, device, message, trace = errors[0]
         raise WorkerFailed(f"the worker on {device} failed: {message}\n{trace}")
