@@ -138,7 +138,7 @@ def run_on_devices(run_variant, painter_class, cfg, gs, background, order, devic
     metrics.flush()
     shutil.rmtree(channel_dir, ignore_errors=True)
     saved = out_dir / ".leader_history.pt"
-    history = torch.load(saved, weights_only=False) if saved.exists() else None
+    history = (torch.load(saved, weights_only=False) or None) if saved.exists() else None  # [] = nothing latched
     saved.unlink(missing_ok=True)
     if errors:
         _, device, message, trace = errors[0]

@@ -109,3 +109,13 @@ def test_a_failing_worker_is_reported_with_its_error(tmp_path):
         )
     assert "Traceback" in str(err.value)
     assert not list(tmp_path.glob(".*"))
+
+
+def test_a_run_that_never_latches_on_two_workers(tmp_path):
+    """Too few frames for the stress event to latch: both workers finish, no topology.npz is written (as in
+    the sequential run) and every variant is ok (an empty history once crashed the topology writer)."""
+    cfg = tiny()
+    cfg.frames = 2
+    summary = runner.run_render_sim(cfg, ["full", "baseline"], "cpu", tmp_path / "par", devices=["cpu", "cpu"])
+    assert [v["status"] for v in summary["variants"]] == ["ok", "ok"]
+    assert not (tmp_path / "par" / "topology.npz").exists() and (tmp_path / "par" / "comparison.mp4").exists()
