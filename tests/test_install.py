@@ -97,3 +97,13 @@ def test_installed_figures_writes_a_measured_table2(installed):
     assert "pending" not in table
     assert "FractureFields" in table and "(CPU)" in table
     assert (installed[1] / "figs" / "README.md").exists()
+
+
+def test_installed_sweep_finds_its_builtin_specs(installed):
+    """The sweep specs ship as package data: `fracture-gs sweep accuracy_full --list` from the installed
+    package lists the 30 cells of the full speed-against-error sweep, and `accuracy` its 18."""
+    for name, cells in (("accuracy_full", 30), ("accuracy", 18)):
+        out = run(installed, "sweep", name, "--list", "--device", "cpu", "--out", "sweep_out", timeout=300)
+        assert out.returncode == 0, out.stderr[-2000:]
+        rows = [line for line in out.stdout.splitlines() if "accuracy  pending" in line]
+        assert len(rows) == cells, out.stdout[-2000:]
