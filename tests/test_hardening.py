@@ -323,3 +323,15 @@ def test_a_run_leaves_no_tensors_in_reference_cycles(tmp_path):
         gc.garbage.clear()
         gc.enable()
     assert not held, [type(o).__name__ for o in held[:10]]
+
+
+def test_grid_larger_than_free_gpu_memory_is_refused(monkeypatch):
+    """On CUDA the grid's buffers are checked against the device's free memory before allocation (seen on an
+    H200: a 2048³ grid, 256 GiB, against 139 GiB free); here with the free-memory query stubbed."""
+    from fracture_gs.sim.grid import check_device_memory
+
+    monkeypatch.setattr(torch.cuda, "mem_get_info", lambda device=None: (10 * 2**30, 80 * 2**30))
+    with pytest.raises(SimulationError, match=r"needs ≈ 20.00 GiB but cuda:0 has 10.00 GiB free"):
+        check_device_memory(20 * 2**30, "cuda:0", (1024, 1024, 640))
+    check_device_memory(8 * 2**30, "cuda:0", (512, 512, 1024))  # fits in 90 % of what is free
+    check_device_memory(10**15, "cpu", (10, 10, 10))  # the CPU is bounded by sim.max_grid_cells only
