@@ -59,13 +59,14 @@ def overlap_packed(x: torch.Tensor, fragment: torch.Tensor, h: float, K: int, ma
     level = torch.zeros(occ.numel(), dtype=torch.long, device=x.device)
     last = occ.numel() - 1
     steps = [(torch.tensor(d, device=x.device) * stride).sum() * K for d in _NEIGHBOURS]
+    js = torch.stack([torch.searchsorted(occ, occ + step).clamp_max(last) for step in steps])  # [6, V] neighbours
+    same = torch.stack([occ[j] == occ + step for j, step in zip(js, steps)]).all(0)  # all six there, same owner
+    cpu = x.device.type == "cpu"
     for _ in range(max_depth):
-        keep = alive.clone()
-        for step in steps:
-            j = torch.searchsorted(occ, occ + step).clamp_max(last)
-            keep &= (occ[j] == occ + step) & alive[j]
-        alive = keep
+        alive = alive & same & alive[js].all(0)
         level += alive.long()
+        if cpu and not bool(alive.any()):  # nothing left to erode (a free host read on the CPU only)
+            break
     # each particle against its voxel's owner and level
     v = torch.searchsorted(voxels, vox).clamp_max(voxels.numel() - 1)
     owner = torch.remainder(occ[v], K)
