@@ -119,3 +119,29 @@ def test_a_run_that_never_latches_on_two_workers(tmp_path):
     summary = runner.run_render_sim(cfg, ["full", "baseline"], "cpu", tmp_path / "par", devices=["cpu", "cpu"])
     assert [v["status"] for v in summary["variants"]] == ["ok", "ok"]
     assert not (tmp_path / "par" / "topology.npz").exists() and (tmp_path / "par" / "comparison.mp4").exists()
+
+
+def crash_the_follower(cfg, gs, variant, device, *args, **kwargs):
+    """A run_variant stand-in: the follower's process dies without a word (as on a segfault or the OOM
+    killer); the leader returns at once."""
+    import os
+
+    if variant == "full":
+        os._exit(3)
+    return {"variant": variant, "status": "ok", "interrupted": False}, None
+
+
+def test_a_worker_process_that_dies_is_named(tmp_path):
+    """A worker process that exits without reporting (killed, crashed) is a WorkerFailed naming the process
+    and its exit code, not a hang and not a silently missing variant."""
+    import io
+
+    from fracture_gs import assets
+    from fracture_gs.parallel import WorkerFailed, run_on_devices
+
+    gs = assets.build("bread", size="small", n=300)
+    with pytest.raises(WorkerFailed, match=r"worker process fgs-cpu-1 exited with code 3 before reporting"):
+        run_on_devices(
+            crash_the_follower, runner.Painter, tiny(), gs, None, ["stress_zero", "full"], ["cpu", "cpu"],
+            tmp_path, io.StringIO(), None,
+        )  # fmt: skip
