@@ -255,7 +255,7 @@ def run_variant(
     """Simulate + render one variant; appends frames to `frames_store`; returns (summary, topology).
     `export`: (every N frames, Capture) to write the frames as 3DGS PLYs in the scene's frame. `provider`:
     the event provider to use instead of the config's or the replayed topology's; `stop`: a
-    threading.Event that interrupts the variant at its next frame (as Ctrl-C does)."""
+    threading or multiprocessing Event that interrupts the variant at its next frame (as Ctrl-C does)."""
     sim = make_simulator(cfg, gs, variant, device, topology=topology, provider=provider)
     rows, status, t0 = [], "ok", time.perf_counter()
     bar = progress_bar(cfg.frames, f"{variant:>20s}", position)
