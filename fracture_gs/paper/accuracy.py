@@ -379,6 +379,13 @@ def pareto_figure(results: list[Result], path, title: str = "", dpi: int = 100) 
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib import ticker
+
+    class _PlainLog(ticker.LogFormatter):
+        """Log-axis labels as plain numbers (0.3, 2, 10); which ticks get one is LogFormatter's choice."""
+
+        def _num_to_string(self, x, vmin, vmax):
+            return f"{x:g}"
 
     cases = list(dict.fromkeys(r.case for r in results))
     fig, axes = plt.subplots(1, len(cases), figsize=(4.3 * len(cases), 3.8), dpi=dpi, squeeze=False)
@@ -395,11 +402,15 @@ def pareto_figure(results: list[Result], path, title: str = "", dpi: int = 100) 
                 zorder=3,
             )
             lab = f"1/{round(1 / r.dx)}" if r.sweep == "dx" else f"C{r.cfl:g}"
-            ax.annotate(lab, (t, e), textcoords="offset points", xytext=(4, 3), fontsize=7)
+            # Δx labels above right, Δt labels below right: a setting both sweeps share stays readable
+            ax.annotate(lab, (t, e), textcoords="offset points", xytext=(4, 3 if r.sweep == "dx" else -9), fontsize=7)
         front = pareto_front(pts)
         ax.plot([pts[i][0] for i in front], [pts[i][1] for i in front], "k-", lw=0.8, alpha=0.7, zorder=2)
         ax.set_xscale("log")
         ax.set_yscale("log")
+        # plain numbers on the time axis ("0.3", "2"): the default "2×10⁰" labels collide within a decade
+        ax.xaxis.set_major_formatter(_PlainLog(labelOnlyBase=False))
+        ax.xaxis.set_minor_formatter(_PlainLog(labelOnlyBase=False, minor_thresholds=(0.8, 0.3)))
         ax.set_xlabel("wall time per run [s]")
         ax.set_ylabel(rs[0].unit)
         ax.set_title(case, fontsize=10)
