@@ -39,7 +39,10 @@ ALPHA_THRESHOLD = 1.0 / 255.0
 T_THRESHOLD = 1e-4
 ALPHA_MAX = 0.999
 EXTEND_MAX = 3.33
-TILE = 16
+TILE = 16  # gsplat's tile edge [px]; the torch backend uses it on CUDA
+TILE_CPU = 8  # on the CPU: a Gaussian is evaluated at every pixel of the tiles its footprint touches,
+# so 8-px tiles evaluate ~3x fewer (Gaussian, pixel) pairs (bread, 320x240: 26 vs 79 ms a frame);
+# pixels only differ where a 16-px tile let a Gaussian reach past its footprint (≤ 1/255 there)
 MODES = ("classic", "antialiased")
 BACKENDS = ("auto", "gsplat", "torch")
 
@@ -213,7 +216,7 @@ def rasterize_tiles(
     width: int,
     height: int,
     background: Tensor,  # [3]
-    tile: int = TILE,
+    tile: Optional[int] = None,  # tile edge [px]; default TILE on CUDA, TILE_CPU on the CPU
     chunk: Optional[int] = None,  # Gaussians per tile per step; default 32 on CPU, 128 on CUDA
     max_elems: Optional[int] = None,  # per-call temporaries cap (elements); default 2²³ CPU, 2²⁶ CUDA
 ) -> tuple[Tensor, Tensor]:  # [H, W, 3], [H, W]
@@ -226,6 +229,7 @@ def rasterize_tiles(
     """
     dev, dt = proj.means2d.device, proj.means2d.dtype
     chunk = chunk or (128 if dev.type == "cuda" else 32)
+    tile = tile or (TILE if dev.type == "cuda" else TILE_CPU)
     flat, starts, counts, tw, th = _tile_intersections(proj, width, height, tile)
     n_tiles, P = tw * th, tile * tile
     T = torch.ones(n_tiles, P, dtype=dt, device=dev)
