@@ -210,32 +210,40 @@ def _sigma_ok(act: np.ndarray) -> np.ndarray:  # [N, 3] -> [N, 3] bool
     return np.isfinite(a) & (a >= SIGMA_RANGE[0]) & (a <= SIGMA_RANGE[1])
 
 
-def _labels(path, data) -> np.ndarray:  # [N] int32
-    """`fgs_label` as int32: finite integers in [0, 2^31 − 1], else one sentence."""
+def _label_ok(data) -> np.ndarray:  # [N] bool
+    """`fgs_label` values that are material labels: finite integers in [0, 2^31 − 1] (int32)."""
     raw = np.asarray(data[LABEL_PROP]).astype(np.float64)
-    bad = ~(np.isfinite(raw) & (raw == np.round(raw)) & (raw >= 0) & (raw <= 2**31 - 1))
-    if bad.any():
-        first = int(np.flatnonzero(bad)[0])
+    with np.errstate(invalid="ignore"):
+        return np.isfinite(raw) & (raw == np.round(raw)) & (raw >= 0) & (raw <= 2**31 - 1)
+
+
+def _interior_ok(data) -> np.ndarray:  # [N] bool
+    """`fgs_interior` values that are flags: 0 or 1."""
+    raw = np.asarray(data[INTERIOR_PROP]).astype(np.float64)
+    return (raw == 0) | (raw == 1)
+
+
+def _checked(path, data, name: str, ok: np.ndarray, fix: str) -> np.ndarray:  # [N] float64
+    """The column as float64, or one sentence naming the property, the first bad vertex and the fix."""
+    raw = np.asarray(data[name]).astype(np.float64)
+    if not ok.all():
+        first = int(np.flatnonzero(~ok)[0])
         raise _fail(
             path,
-            f"property '{LABEL_PROP}' has {int(bad.sum())} values that are not material labels (first at vertex "
-            f"{first}, value {raw[first]}); write non-negative integers below 2^31 (int32)",
+            f"property '{name}' has {int((~ok).sum())} {fix[0]} "
+            f"(first at vertex {first}, value {raw[first]}); {fix[1]}",
         )
-    return raw.astype(np.int32)
+    return raw
+
+
+def _labels(path, data) -> np.ndarray:  # [N] int32
+    fix = ("values that are not material labels", "write non-negative integers below 2^31 (int32)")
+    return _checked(path, data, LABEL_PROP, _label_ok(data), fix).astype(np.int32)
 
 
 def _interior(path, data) -> np.ndarray:  # [N] bool
-    """`fgs_interior` as bool: every value must be 0 or 1."""
-    raw = np.asarray(data[INTERIOR_PROP]).astype(np.float64)
-    bad = ~((raw == 0) | (raw == 1))
-    if bad.any():
-        first = int(np.flatnonzero(bad)[0])
-        raise _fail(
-            path,
-            f"property '{INTERIOR_PROP}' has {int(bad.sum())} values other than 0 and 1 (first at vertex {first}, "
-            f"value {raw[first]}); write 1 for interior fill particles and 0 for surface Gaussians (uint8)",
-        )
-    return raw != 0
+    fix = ("values other than 0 and 1", "write 1 for interior fill particles and 0 for surface Gaussians (uint8)")
+    return _checked(path, data, INTERIOR_PROP, _interior_ok(data), fix) != 0
 
 
 def _usable_rows(data, names: list) -> np.ndarray:  # [N] bool
@@ -252,11 +260,9 @@ def _usable_rows(data, names: list) -> np.ndarray:  # [N] bool
         rot = np.stack([np.asarray(data[f"rot_{i}"]).astype(np.float32).astype(np.float64) for i in range(4)], 1)
         ok &= np.nan_to_num(np.linalg.norm(rot, axis=1)) > 0
         if LABEL_PROP in names:
-            lab = np.asarray(data[LABEL_PROP]).astype(np.float64)
-            ok &= np.isfinite(lab) & (lab == np.round(lab)) & (lab >= 0) & (lab <= 2**31 - 1)
+            ok &= _label_ok(data)
         if INTERIOR_PROP in names:
-            inside = np.asarray(data[INTERIOR_PROP]).astype(np.float64)
-            ok &= (inside == 0) | (inside == 1)
+            ok &= _interior_ok(data)
     return ok
 
 
