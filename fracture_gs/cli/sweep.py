@@ -1,14 +1,12 @@
 """`fracture-gs sweep SPEC`: a grid of independent runs (fracture_gs.sweep), one rank or many.
 
 Wired into the main parser by `add_sweep_parser(subparsers)` and `_COMMANDS["sweep"] = cmd_sweep`;
-also runnable on its own as `python -m fracture_gs.cli.sweep SPEC ...` (same flags), which is what
-torchrun can launch before the subcommand is wired.
+`python -m fracture_gs.cli.sweep SPEC ...` is the same command through `fracture_gs.cli.main`.
 """
 
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 from pathlib import Path
 from typing import Optional, Sequence
@@ -174,36 +172,11 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
-    """`python -m fracture_gs.cli.sweep SPEC ...`: the subcommand on its own, with the CLI's error
-    handling (one line and exit 2 for user errors, 130 on Ctrl-C). It takes what it needs from the
-    `fracture_gs.cli` package only, so that `parser.py` may import this module without a cycle."""
-    from . import CliError, _one_line, _prepare_warp, _user_error_types
+    """`python -m fracture_gs.cli.sweep SPEC ...`: the subcommand on its own, through the CLI's entry
+    point (the same parsing, one-line errors, exit codes and Ctrl-C handling as `fracture-gs sweep`)."""
+    from . import main as cli_main
 
-    class Parser(argparse.ArgumentParser):
-        def error(self, message: str):  # type: ignore[override]
-            raise CliError(f"{message} (see '{self.prog} --help')")
-
-    parser = Parser(prog=PROG)
-    add_sweep_parser(parser.add_subparsers(dest="command", parser_class=Parser))
-    argv = ["sweep", *(sys.argv[1:] if argv is None else argv)]
-    args = None
-    try:
-        args = parser.parse_args(argv)
-        args.argv = argv
-        _prepare_warp()
-        return cmd_sweep(args)
-    except SystemExit as exc:
-        return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 2)
-    except KeyboardInterrupt:
-        partial = getattr(args, "partial_out", None)
-        where = f"the finished cells are cached in {partial}" if partial else "nothing was written"
-        print(f"\n{PROG}: interrupted; {where}.", file=sys.stderr)
-        return 130
-    except Exception as exc:  # noqa: BLE001 - user errors become one line, bugs keep their traceback
-        if not isinstance(exc, _user_error_types()) or os.environ.get("FRACTURE_GS_DEBUG"):
-            raise
-        print(f"{PROG}: error: {_one_line(exc)}", file=sys.stderr)
-        return 2
+    return cli_main(["sweep", *(sys.argv[1:] if argv is None else argv)])
 
 
 if __name__ == "__main__":
