@@ -20,15 +20,10 @@ _streams: dict[int, object] = {}
 
 
 def ensure_warp() -> None:
-    """Initialise Warp once, without its start-up banner (the log level is restored afterwards)."""
-    if _initialised():
-        return
-    level = wp.config.log_level
-    try:
-        wp.config.log_level = max(level, wp.LOG_WARNING)
+    """Initialise Warp once. The library leaves `wp.config` to the application (the CLI quiets Warp's
+    start-up and module-load lines for its own process, `cli.devices._prepare_warp`)."""
+    if not _initialised():
         wp.init()
-    finally:
-        wp.config.log_level = level
 
 
 def _initialised() -> bool:
