@@ -26,6 +26,7 @@ from dataclasses import dataclass
 
 import torch
 
+from fracture_gs.io.gaussian_set import quat_to_matrix
 from fracture_gs.render import (
     deform_covariances,
     orbit,
@@ -52,22 +53,7 @@ class Scene:
 
 
 def _rotations(n: int, g: torch.Generator) -> torch.Tensor:  # [n, 3, 3]
-    q = torch.nn.functional.normalize(torch.randn(n, 4, generator=g), dim=-1)
-    w, x, y, z = q.unbind(-1)
-    return torch.stack(
-        [
-            1 - 2 * (y * y + z * z),
-            2 * (x * y - w * z),
-            2 * (x * z + w * y),
-            2 * (x * y + w * z),
-            1 - 2 * (x * x + z * z),
-            2 * (y * z - w * x),
-            2 * (x * z - w * y),
-            2 * (y * z + w * x),
-            1 - 2 * (x * x + y * y),
-        ],
-        -1,
-    ).reshape(n, 3, 3)
+    return quat_to_matrix(torch.randn(n, 4, generator=g))
 
 
 def random_cloud(name: str, n: int, size: tuple[int, int], kind: str, seed: int) -> Scene:

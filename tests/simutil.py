@@ -3,6 +3,7 @@
 import torch
 
 from fracture_gs import sim as S
+from fracture_gs.io.gaussian_set import quat_to_matrix
 
 
 def block(lo, hi, spacing, jitter=0.0, generator=None):
@@ -25,22 +26,7 @@ def config(n=32, **kw):
 
 
 def rand_rotations(n, generator=None):
-    q = torch.nn.functional.normalize(torch.randn(n, 4, generator=generator, dtype=torch.float64), dim=1)
-    w, x, y, z = q.unbind(1)
-    return torch.stack(
-        [
-            1 - 2 * (y * y + z * z),
-            2 * (x * y - w * z),
-            2 * (x * z + w * y),
-            2 * (x * y + w * z),
-            1 - 2 * (x * x + z * z),
-            2 * (y * z - w * x),
-            2 * (x * z - w * y),
-            2 * (y * z + w * x),
-            1 - 2 * (x * x + y * y),
-        ],
-        1,
-    ).reshape(n, 3, 3)
+    return quat_to_matrix(torch.randn(n, 4, generator=generator, dtype=torch.float64))
 
 
 def rel_err(a, b):

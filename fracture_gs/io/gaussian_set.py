@@ -56,21 +56,7 @@ class GaussianSet:
 
     def rotations(self) -> torch.Tensor:  # [N, 3, 3]
         """Rotation matrices of the (normalized) wxyz quaternions."""
-        w, x, y, z = torch.nn.functional.normalize(self.quats, dim=-1).unbind(-1)
-        return torch.stack(
-            [
-                1 - 2 * (y * y + z * z),
-                2 * (x * y - w * z),
-                2 * (x * z + w * y),
-                2 * (x * y + w * z),
-                1 - 2 * (x * x + z * z),
-                2 * (y * z - w * x),
-                2 * (x * z - w * y),
-                2 * (y * z + w * x),
-                1 - 2 * (x * x + y * y),
-            ],
-            dim=-1,
-        ).reshape(-1, 3, 3)
+        return quat_to_matrix(self.quats)
 
     def covariances(self) -> torch.Tensor:  # [N, 3, 3]
         """Rest covariances Σ⁰ = R S Sᵀ Rᵀ."""
@@ -79,3 +65,22 @@ class GaussianSet:
 
     def replace(self, **changes) -> GaussianSet:
         return replace(self, **changes)
+
+
+def quat_to_matrix(q: torch.Tensor) -> torch.Tensor:  # [N, 4] wxyz (any norm) -> [N, 3, 3]
+    """Rotation matrices of wxyz quaternions (normalized first)."""
+    w, x, y, z = torch.nn.functional.normalize(q, dim=-1).unbind(-1)
+    return torch.stack(
+        [
+            1 - 2 * (y * y + z * z),
+            2 * (x * y - w * z),
+            2 * (x * z + w * y),
+            2 * (x * y + w * z),
+            1 - 2 * (x * x + z * z),
+            2 * (y * z - w * x),
+            2 * (x * z - w * y),
+            2 * (y * z + w * x),
+            1 - 2 * (x * x + y * y),
+        ],
+        dim=-1,
+    ).reshape(-1, 3, 3)
