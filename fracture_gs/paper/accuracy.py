@@ -427,18 +427,24 @@ def pareto_figure(results: list[Result], path, title: str = "", dpi: int = 100) 
     plt.close(fig)
 
 
+MEASURE_COLUMNS = [
+    Column("cfl", "CFL", "CFL", "num"),
+    Column("dt", "Δt (s)", r"$\Delta t$ (s)", "sci"),
+    Column("particles", "Particles", "Particles", "int"),
+    Column("substeps", "Substeps", "Substeps", "int"),
+    Column("wall_s", "Wall (s)", "Wall (s)", "num"),
+    Column("error", "Error", "Error", "sci"),
+    Column("unit", "Error measure", "Error measure", "text"),
+]
+"""What one setting measured (the columns `accuracy_table` and the sweep's tables share)."""
+
+
 def accuracy_table(results: list[Result], caption: str, command: str = "") -> Table:
     cols = [
         Column("case", "Case", "Case", "text"),
         Column("sweep", "Sweep", "Sweep", "text"),
         Column("dx", "Δx", r"$\Delta x$", "text"),
-        Column("cfl", "CFL", "CFL", "num"),
-        Column("dt", "Δt (s)", r"$\Delta t$ (s)", "sci"),
-        Column("particles", "Particles", "Particles", "int"),
-        Column("substeps", "Substeps", "Substeps", "int"),
-        Column("wall_s", "Wall (s)", "Wall (s)", "num"),
-        Column("error", "Error", "Error", "sci"),
-        Column("unit", "Error measure", "Error measure", "text"),
+        *MEASURE_COLUMNS,
         Column("detail", "Detail", "Detail", "text"),
         Column("pareto", "Pareto", "Pareto", "bool"),
     ]

@@ -16,6 +16,7 @@ import io
 import json
 from pathlib import Path
 
+from ..paper.accuracy import FLOOR, MEASURE_COLUMNS, Result, pareto_figure, pareto_front
 from ..paper.tables import Column, Panel, Table
 
 _ACCURACY_COLUMNS = [
@@ -23,13 +24,7 @@ _ACCURACY_COLUMNS = [
     Column("case", "Case", "Case", "text"),
     Column("labels", "Sweep", "Sweep", "text"),
     Column("dx_text", "Δx", r"$\Delta x$", "text"),
-    Column("cfl", "CFL", "CFL", "num"),
-    Column("dt", "Δt (s)", r"$\Delta t$ (s)", "sci"),
-    Column("particles", "Particles", "Particles", "int"),
-    Column("substeps", "Substeps", "Substeps", "int"),
-    Column("wall_s", "Wall (s)", "Wall (s)", "num"),
-    Column("error", "Error", "Error", "sci"),
-    Column("unit", "Error measure", "Error measure", "text"),
+    *MEASURE_COLUMNS,
     Column("pareto", "Pareto", "Pareto", "bool"),
     Column("status_text", "Status", "Status", "text"),
 ]
@@ -63,8 +58,6 @@ def _status_text(row: dict) -> str:
 
 def accuracy_results(rows: list[dict]) -> list:
     """The finished accuracy rows as `fracture_gs.paper.accuracy.Result`s, one per label."""
-    from ..paper.accuracy import Result
-
     out = []
     for r in rows:
         if r.get("kind") != "accuracy" or r.get("status") != "ok":
@@ -91,8 +84,6 @@ def accuracy_results(rows: list[dict]) -> list:
 
 def _pareto_flags(rows: list[dict]) -> dict:
     """id → on the (wall time, error) Pareto front of its case (finished accuracy rows only)."""
-    from ..paper.accuracy import FLOOR, pareto_front
-
     flags = {}
     ok = [r for r in rows if r.get("kind") == "accuracy" and r.get("status") == "ok"]
     for case in dict.fromkeys(r["case"] for r in ok):
@@ -185,8 +176,6 @@ def write_outputs(out_dir, spec, rows: list[dict], world_size: int, command: str
             import matplotlib  # noqa: F401
         except ImportError:
             return files
-        from ..paper.accuracy import pareto_figure
-
         pareto_figure(results, out / "sweep_pareto.png", title=f"{spec.title} — {', '.join(devices)}")
         files.append("sweep_pareto.png")
     return files
