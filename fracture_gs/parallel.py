@@ -33,7 +33,9 @@ from .sim.providers.broadcast import BroadcastProvider, FileChannel, LeaderProvi
 
 
 def _worker(slot, device, variants, leader, cfg, gs, background, out_dir, export, channel_dir, stop, results, fns):
-    """One device's variants, in order (in a spawned process, or in the caller for the first device)."""
+    """One device's variants, in order (in a spawned process, or in the caller for the first device: then
+    `results` is a plain queue.Queue and the frames travel in the message instead of a .npy file)."""
+    local = isinstance(results, queue.Queue)
     run_variant, painter_class, threads = fns
     torch.set_num_threads(threads)  # as the parent: the CPU reductions then sum in the same order
     try:
@@ -58,13 +60,13 @@ def _worker(slot, device, variants, leader, cfg, gs, background, out_dir, export
             finally:
                 if variant == leader:
                     channel.close()  # followers past the leader's last frame stop waiting
-            np.save(
-                out_dir / f".frames_{variant}.npy", np.stack(frames) if frames else np.zeros((0, 1, 1, 3), np.uint8)
-            )
+            if not local:
+                stacked = np.stack(frames) if frames else np.zeros((0, 1, 1, 3), np.uint8)
+                np.save(out_dir / f".frames_{variant}.npy", stacked)
             if variant == leader:  # through a file: tensors in a queue need their sender alive to be read
                 torch.save([replace(t, fragment=t.fragment.cpu(), band=t.band.cpu()) for t in history or []],
                            out_dir / ".leader_history.pt")  # fmt: skip
-            results.put(("done", variant, summary))
+            results.put(("done", variant, summary, frames if local else None))
             if summary.get("interrupted"):
                 stop.set()
     except KeyboardInterrupt:
@@ -126,10 +128,11 @@ def run_on_devices(run_variant, painter_class, cfg, gs, background, order, devic
     errors = [m for m in messages if m[0] == "error"]
     for p in procs:
         p.join()
-    frames = {}
+    frames = {m[1]: m[3] for m in messages if m[0] == "done" and m[3] is not None}
     for v in order:
         path = out_dir / f".frames_{v}.npy"
-        frames[v] = list(np.load(path)) if path.exists() else []
+        if v not in frames:
+            frames[v] = list(np.load(path)) if path.exists() else []
         path.unlink(missing_ok=True)
         part = out_dir / f".metrics_{v}.jsonl"
         if part.exists():
