@@ -14,23 +14,10 @@ import math
 
 import torch
 
+from ..io.gaussian_set import quat_mul
+
 C0 = 0.28209479177387814  # real SH Y_0^0
 INTERIOR_OPACITY = 0.95
-
-
-def quat_mul(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:  # [M, 4] × [M, 4] -> [M, 4]
-    """Hamilton product of wxyz quaternions."""
-    aw, ax, ay, az = a.unbind(-1)
-    bw, bx, by, bz = b.unbind(-1)
-    return torch.stack(
-        [
-            aw * bw - ax * bx - ay * by - az * bz,
-            aw * bx + ax * bw + ay * bz - az * by,
-            aw * by - ax * bz + ay * bw + az * bx,
-            aw * bz + ax * by - ay * bx + az * bw,
-        ],
-        dim=-1,
-    )
 
 
 def quat_z_to(n: torch.Tensor) -> torch.Tensor:  # [M, 3] unit -> [M, 4]

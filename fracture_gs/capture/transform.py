@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import torch
 
-from ..io.gaussian_set import GaussianSet
+from ..io.gaussian_set import GaussianSet, quat_mul
 from ..render.gaussians import sh_basis
 
 
@@ -108,7 +108,7 @@ class SceneTransform:
         qR = quat_from_matrix(Q)[None].to(gs.quats.dtype)
         return gs.replace(
             means=self.points(gs.means),
-            quats=quat_multiply(qR.expand_as(gs.quats), gs.quats),
+            quats=quat_mul(qR.expand_as(gs.quats), gs.quats),
             scales=gs.scales * self.scale,
             sh=rotate_sh(gs.sh, Q),
         )
@@ -119,18 +119,3 @@ class SceneTransform:
             "rotation": tuple(tuple(float(v) for v in row) for row in self.rotation.tolist()),
             "offset": tuple(float(v) for v in self.offset.tolist()),
         }
-
-
-def quat_multiply(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:  # [N, 4] wxyz each
-    """Hamilton product a ⊗ b (the rotation b, then a)."""
-    aw, ax, ay, az = a.unbind(-1)
-    bw, bx, by, bz = b.unbind(-1)
-    return torch.stack(
-        [
-            aw * bw - ax * bx - ay * by - az * bz,
-            aw * bx + ax * bw + ay * bz - az * by,
-            aw * by - ax * bz + ay * bw + az * bx,
-            aw * bz + ax * by - ay * bx + az * bw,
-        ],
-        -1,
-    )

@@ -84,3 +84,18 @@ def quat_to_matrix(q: torch.Tensor) -> torch.Tensor:  # [N, 4] wxyz (any norm) -
         ],
         dim=-1,
     ).reshape(-1, 3, 3)
+
+
+def quat_mul(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:  # [M, 4] × [M, 4] -> [M, 4]
+    """Hamilton product of wxyz quaternions."""
+    aw, ax, ay, az = a.unbind(-1)
+    bw, bx, by, bz = b.unbind(-1)
+    return torch.stack(
+        [
+            aw * bw - ax * bx - ay * by - az * bz,
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+        ],
+        dim=-1,
+    )
