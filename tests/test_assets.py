@@ -209,7 +209,10 @@ def test_fill_sphere():
     assert add.interior.all() and len(add) > 0, f"seed={seed}"
     dv = 2 * add.scales[0, 0].item()  # isotropic std = spacing / 2
     d = (add.means - torch.tensor(centre)).norm(dim=1)
-    assert d.max() <= radius + dv, f"seed={seed}: particle outside the sphere"
+    # a fill voxel may touch the exterior at an edge or a corner of the shell's staircase (only voxels
+    # face-adjacent to it are dropped), so its centre can sit about a voxel beyond the surface, plus half a
+    # voxel of jitter; 60 seeds reach at most 1.07 voxels (the earlier bound of 1 failed about 1 run in 7)
+    assert d.max() <= radius + 1.5 * dv, f"seed={seed}: particle outside the sphere"
     assert d.min() < 2 * dv, f"seed={seed}: centre not filled"
     frac = len(add) * dv**3 / (4 / 3 * math.pi * radius**3)
     assert frac > 0.5, f"seed={seed}: filled only {frac:.2f} of the volume"
