@@ -2,10 +2,13 @@
 particles, plus partition of unity. Relative error ≤ 1e-5 (float32 kernels vs float64 truth)."""
 
 import torch
+import warp as wp
 from simutil import config, rand_rotations, rel_err
 
 from fracture_gs import sim as S
+from fracture_gs.runtime import ensure_warp
 from fracture_gs.sim import reference as ref
+from fracture_gs.sim.constitutive import rotation_of
 
 N = 3000
 
@@ -72,3 +75,50 @@ def test_partition_of_unity_mass(device, seed):
     sim.p2g(1e-3)
     total = sim.grid.mass.double().sum()
     assert abs(float(total / sim.particles.mass.double().sum()) - 1) <= 1e-6, f"seed {seed}"
+
+
+@wp.kernel
+def _rotation_of_kernel(F: wp.array(dtype=wp.mat33), R: wp.array(dtype=wp.mat33)):
+    p = wp.tid()
+    R[p] = rotation_of(F[p])
+
+
+def test_fixed_corotated_rotation_is_the_polar_factor(device, seed):
+    """R of fixed-corotated (`constitutive.rotation_of`: scaled Newton where det F > 0, the SVD where F
+    is inverted or nearly flat) is a rotation (RᵀR = I, det R = +1) equal to U Vᵀ of the float64 SVD
+    with rotations U, V to 1e-5, on either side of the Newton/SVD switch, and finite for every F."""
+    g = torch.Generator().manual_seed(seed)
+    n = 4096
+    U, V = rand_rotations(n, g), rand_rotations(n, g)
+    s = torch.exp(torch.empty(n, 3, dtype=torch.float64).uniform_(-2.5, 2.5, generator=g))  # cond up to ~150
+    s = s.sort(dim=1, descending=True).values
+    k = n // 8
+    s[:k, 2] *= -1  # inverted (the smallest singular value carries det F's sign)
+    # det F just above and below the Newton/SVD switch
+    s[k : 2 * k, 2] = s[k : 2 * k, 0] * 1e-4 * torch.rand(k, generator=g, dtype=torch.float64)
+    s[2 * k : 3 * k] *= 1e4  # huge
+    s[3 * k : 4 * k] *= 1e-4  # tiny
+    F = U @ torch.diag_embed(s) @ V.transpose(1, 2)
+    F[4 * k : 4 * k + 8] = 0.0  # degenerate
+    F[4 * k + 8 : 4 * k + 16] = torch.eye(3, dtype=torch.float64)
+    ensure_warp()
+    Fd, Rd = F.float().to(device), torch.zeros(n, 3, 3, device=device)
+    wp.launch(
+        _rotation_of_kernel,
+        dim=n,
+        device=device,
+        inputs=[wp.from_torch(Fd, dtype=wp.mat33), wp.from_torch(Rd, dtype=wp.mat33)],
+    )
+    R = Rd.cpu().double()
+    assert torch.isfinite(R).all()
+    eye = torch.eye(3, dtype=torch.float64).expand(n, 3, 3)
+    assert (R.transpose(1, 2) @ R - eye).abs().max() <= 1e-5
+    assert (torch.linalg.det(R) - 1).abs().max() <= 1e-5
+    # U Vᵀ is well defined where no two singular values nearly cancel (σ_i + σ_j ≫ 0)
+    a = s.abs().sort(dim=1, descending=True).values
+    well = (a[:, 1] - a[:, 2]) / a[:, 0] > 1e-2
+    well[4 * k : 4 * k + 8] = False
+    expected = U @ V.transpose(1, 2)
+    expected[4 * k + 8 : 4 * k + 16] = torch.eye(3, dtype=torch.float64)
+    err = (R - expected).abs().amax(dim=(1, 2))
+    assert err[well].max() <= 1e-5, f"max |R − U Vᵀ| = {err[well].max():.2e} (seed {seed})"

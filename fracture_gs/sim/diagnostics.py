@@ -166,7 +166,8 @@ class Diagnostics:
             self._transfer(dev)
             self._interface(dev)
             dev.add("stats", sim.grid.contact_stats)
-            dev.add("pair_stats", sim.grid.pair_stats)
+            K, Kmax = sim.n_fragments, sim.grid.max_fragments  # only the fragments in use: K² of Kmax² rows
+            dev.add("pair_stats", sim.grid.pair_stats.view(Kmax, Kmax, N_PAIR_STATS)[:K, :K])
         frag = P.fragment if sim.latched else torch.zeros_like(P.fragment)
         planes = [M.plane_state(P.x, P.v, frag, b, sim.grid.dx, max(2, sim.n_fragments)) for b in self.planes[:1]]
         for k, t in planes[0].items() if planes else ():
@@ -206,17 +207,16 @@ class Diagnostics:
             sim.p2g(
                 sim.dt, target=self.shadow, multifield=True, stress=self.shadow_stress_wp, counts=self.shadow_counts_wp
             )
+            # the shadow: its fragment-conditioned P2G claims every slot (the solver's skips the claims at
+            # nodes only one fragment reaches), and deposits exactly what the realized transfer does
+            K = sim.n_fragments
+            cf, shared, grid_mass = self.shadow.field_sums(sim.eps_m, K)
         dev.add("shadow_overflow", self.shadow_counts[COUNT_POOL_OVERFLOW])
-        cf, shared = self.shadow.mixing(sim.eps_m)
         dev.add("mixing_cf", cf)
         dev.add("shared", shared)
-        # the shadow: its fragment-conditioned P2G claims every slot (the solver's skips the claims at
-        # nodes only one fragment reaches), and deposits exactly what the realized transfer does
-        source = self.shadow
-        K = sim.n_fragments
         P = sim.particles
         mp = torch.zeros(K, dtype=torch.float64, device=P.x.device).index_add_(0, P.fragment.long(), P.mass.double())
-        dev.add("mass_residual", (source.fragment_mass(K) - mp).abs() / (mp + 1e-12))
+        dev.add("mass_residual", (grid_mass - mp).abs() / (mp + 1e-12))
 
     def _transfer_again(self, h: dict) -> None:
         """The rare frame whose shadow pool overflowed: grow it and redo the transfer numbers (another read)."""
@@ -292,7 +292,7 @@ class Diagnostics:
     def _pair_row(self, flat: list) -> dict:
         """Per fragment pair "a-b": first contact time, contact-projection momentum residual over the
         run, deepest fragment-aware penetration/Δx (pairs that touched or overlapped only)."""
-        K = self.sim.grid.max_fragments
+        K = self.sim.n_fragments  # the tracker reads the K × K block of the fragments in use
         out = {}
         for k in range(K * K):
             r = flat[k * N_PAIR_STATS : (k + 1) * N_PAIR_STATS]

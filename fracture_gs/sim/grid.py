@@ -4,7 +4,8 @@ A single-field grid (shared variants, or any run before its first latch) is dens
 multi-field grid adds the owner word per node and a pool of rows for nodes that two or more
 fragments reach, sized between frames from the rows the last frame used (`ensure_pool`). The
 logical fields `mass`, `momentum`, `velocity`, `band_mass` ([K, X, Y, Z, …]) are rebuilt from the
-slots for tests and small diagnostics; `fragment_mass` and `mixing` reduce the slots directly. They
+slots for tests and small diagnostics; `fragment_mass` and `mixing` reduce the slots directly (torch
+twins of `field_sums`, the two launches the per-frame diagnostics use). They
 name a node's fragments from its claims, which the solver's "solo" particles skip (`Simulator.solo`):
 read them from a grid filled with claims everywhere (the diagnostics' shadow grid, or solo off).
 """
@@ -19,6 +20,7 @@ import warp as wp
 from ..config import SimConfig
 from ..errors import SimulationError
 from ..runtime import ensure_warp
+from .field_metrics_kernels import OUT_ACTIVE, OUT_MASS, OUT_MIXING, OUT_SHARED, OUT_TOTAL, dense_sums, pool_sums
 from .layout import (
     EMPTY_KEY,
     N_PAIR_STATS,
@@ -275,6 +277,20 @@ class Grid:
         frag = self.pool_owner[: C * s1].view(C, s1).long()
         index = self.n_nodes + torch.arange(C * s1, device=self.device).view(C, s1)
         return frag, index, self.key >= 0
+
+    def field_sums(self, eps_m: float, K: int) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """(E_mix counterfactual, shared-support %, Σ_i m_i^k [K]) as `mixing` and `fragment_mass` give
+        them, float64 on the device (no host read), from two Warp launches on the current Warp stream."""
+        if not self.multi:
+            cf, shared = self.mixing(eps_m)
+            return cf, shared, self.fragment_mass(K)
+        out = torch.zeros(OUT_MASS + K, dtype=torch.float64, device=self.device)
+        o = wp.from_torch(out, dtype=wp.float64)
+        wp.launch(dense_sums, dim=self.shape, device=self.device, inputs=[self.view, float(eps_m), K, o])
+        wp.launch(pool_sums, dim=self.capacity, device=self.device, inputs=[self.view, float(eps_m), K, o])
+        cf = out[OUT_MIXING] / (out[OUT_TOTAL] + EPS)
+        shared = 100.0 * out[OUT_SHARED] / out[OUT_ACTIVE].clamp_min(1.0)
+        return cf, shared, out[OUT_MASS:]
 
     def mixing(self, eps_m: float) -> tuple[torch.Tensor, torch.Tensor]:
         """(E_mix counterfactual, shared-support %) of the stored fields (Eq. mixing), 0-d float64
