@@ -172,6 +172,33 @@ def read_index(g: GridView, n: int, k: int):
     return field_index(n, row, find_pool_slot(g.pool_owner, row, g.slots, k), g.n_nodes, g.slots)
 
 
+@wp.func
+def slot0_owned(g: GridView, base: wp.vec3i, k: int):
+    """Fragment k already holds slot 0 at every node of the stencil (claimed earlier this frame), so
+    P2G's deposits go to the dense slot: 27 independent loads (unrolled), no early exit."""
+    owned = int(1)  # noqa: UP018 (a dynamic Warp variable)
+    for i in range(3):
+        for j in range(3):
+            for l in range(3):  # noqa: E741
+                word = g.owner[flat(wp.vec3i(base[0] + i, base[1] + j, base[2] + l), wp.vec3i(0, 0, 0), g.shape)]
+                if (word & OWNER_MASK) != k + 1:
+                    owned = 0
+    return owned != 0
+
+
+@wp.func
+def slot0_readable(g: GridView, base: wp.vec3i, k: int):
+    """`read_index` gives slot 0 at every node of the stencil (fragment k's, or a node with no row)."""
+    readable = int(1)  # noqa: UP018 (a dynamic Warp variable)
+    for i in range(3):
+        for j in range(3):
+            for l in range(3):  # noqa: E741
+                word = g.owner[flat(wp.vec3i(base[0] + i, base[1] + j, base[2] + l), wp.vec3i(0, 0, 0), g.shape)]
+                if (word & OWNER_MASK) != k + 1 and (word & ROW_FLAG) != 0:
+                    readable = 0
+    return readable != 0
+
+
 @wp.kernel
 def p2g(
     x: wp.array(dtype=wp.vec3),  # [N]
@@ -205,7 +232,10 @@ def p2g(
     Cp = C[p]
     force = -clock_dt(clock) * volume[p] * stress[p]
     in_band = band[p]
-    if multifield == 0 or solo[p] != 0:  # one field at every node reached: unrolled, one reduction per node
+    dense = multifield == 0 or solo[p] != 0
+    if not dense and in_band == 0:
+        dense = slot0_owned(g, base, k)
+    if dense:  # one field at every node reached, in slot 0: unrolled, one reduction per node
         for i in range(3):
             for j in range(3):
                 for l in range(3):  # noqa: E741
@@ -427,7 +457,10 @@ def g2p(
     vp = wp.vec3(0.0)
     B = wp.mat33(0.0)
     gradv = wp.mat33(0.0)
-    if multifield == 0 or solo[p] != 0:  # one field at every node reached: the stencil unrolled
+    dense = multifield == 0 or solo[p] != 0
+    if not dense:
+        dense = slot0_readable(g, base, k)
+    if dense:  # every node's field of the particle in slot 0: the stencil unrolled
         for i in range(3):
             for j in range(3):
                 for l in range(3):  # noqa: E741
