@@ -4,14 +4,17 @@
 
 R is the rotation of the polar decomposition F = R S: the proper rotation closest to F in the
 Frobenius norm (for det F < 0 the axis of the smallest singular value is flipped, the convention of
-the fixed-corotated model). Each thread takes one matrix, converts it to float64, runs Warp's
-Jacobi `svd3` twice (the second pass on the nearly diagonal Uᵀ F V refines to round-off) and writes
-float32 or float64. Batched cuSOLVER spends 63 ms on 183k such matrices; one thread per matrix is
-bandwidth-bound. Used for the per-frame SH rotation R(F) and for the singular values of the
+the fixed-corotated model). Each thread takes one matrix and converts it to float64. Where det F > 0
+and F is not nearly flat, R comes from scaled Newton iterations (`polar_newton`, Higham 1986), about
+five times cheaper than the SVD; elsewhere from Warp's Jacobi `svd3` run twice (the second pass on the
+nearly diagonal Uᵀ F V refines to round-off). Batched cuSOLVER spends 63 ms on 183k such matrices;
+one thread per matrix is bandwidth-bound. Used for the per-frame SH rotation R(F) and for the singular values of the
 diagnostics; `polar_rotation_reference` / `singular_values_reference` are the torch twins.
 """
 
 from __future__ import annotations
+
+from typing import Any
 
 import torch
 import warp as wp
@@ -19,6 +22,40 @@ import warp as wp
 from .runtime import ensure_warp, warp_stream
 
 wp.set_module_options({"enable_backward": False})
+
+POLAR_ITERATIONS = 16  # Newton steps before giving up (converges in ≤ 8 up to a condition number of ~1e3)
+POLAR_MIN_DET = 1e-3  # Newton only where det F > this · (‖F‖²_F / 3)^{3/2}: neither inverted nor nearly flat
+
+
+@wp.func
+def polar_newton(F: Any, tol: Any):
+    """(R, converged) for F = R S by scaled Newton iterations X ← ½(ζ X + X⁻ᵀ/ζ), ζ = det(X)^{−1/3}
+    (Higham 1986), X⁻ᵀ = cof(X)/det(X) from cross products of X's rows, until ‖X_{k+1} − X_k‖²_F < tol
+    (X_{k+1} is then at rounding: the iteration converges quadratically). Generic over float32 and
+    float64 (tol's type). Not converged where det F ≤ 0 or F is nearly flat: the caller takes the SVD."""
+    one = type(tol)(1.0)
+    scale = wp.ddot(F, F) / type(tol)(3.0)
+    X = F
+    converged = int(0)  # noqa: UP018 (a dynamic Warp variable)
+    if wp.determinant(F) > type(tol)(POLAR_MIN_DET) * scale * wp.sqrt(scale):
+        for _ in range(POLAR_ITERATIONS):
+            r0 = wp.vector(X[0, 0], X[0, 1], X[0, 2])
+            r1 = wp.vector(X[1, 0], X[1, 1], X[1, 2])
+            r2 = wp.vector(X[2, 0], X[2, 1], X[2, 2])
+            c0 = wp.cross(r1, r2)
+            c1 = wp.cross(r2, r0)
+            c2 = wp.cross(r0, r1)
+            d = wp.dot(r0, c0)
+            if not (d > type(tol)(0.0)):  # lost positivity (not in exact arithmetic): leave it to the SVD
+                break
+            zeta = wp.pow(d, type(tol)(-1.0 / 3.0))
+            Y = type(tol)(0.5) * (zeta * X + (one / (zeta * d)) * wp.matrix_from_rows(c0, c1, c2))
+            step = Y - X
+            X = Y
+            if wp.ddot(step, step) < tol:
+                converged = 1
+                break
+    return X, converged
 
 
 @wp.func
@@ -30,6 +67,9 @@ def _svd_refined(F: wp.mat33d):
 
 @wp.func
 def _polar(F: wp.mat33d):
+    R, converged = polar_newton(F, wp.float64(1e-24))
+    if converged != 0:
+        return R
     U, s, V = _svd_refined(F)
     R = U * wp.transpose(V)
     if wp.determinant(R) < wp.float64(0.0):

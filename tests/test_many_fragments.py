@@ -497,3 +497,15 @@ def test_overlap_packed_matches_its_plain_twin(seed):
     want = _overlap_reference(x, frag, h, K)
     torch.testing.assert_close(got, want, rtol=0, atol=1e-12)
     assert want[0] > 0  # the pieces do interpenetrate
+
+
+@pytest.mark.parametrize("r", [1, 3, 6])
+def test_solo_mask_cube_max_is_the_3d_max_pool(r):
+    """The solo mask's neighbourhood max runs as three 1-D passes; max is separable, so it equals the
+    (2r + 1)³ max pool exactly, empty (−inf) cells and the borders included."""
+    from fracture_gs.sim.neighbourhood import _cube_max
+
+    g = torch.Generator().manual_seed(r)
+    t = torch.randn(1, 1, 17, 23, 11, generator=g)
+    t[t > 1.0] = float("-inf")
+    assert torch.equal(_cube_max(t, r), torch.nn.functional.max_pool3d(t, 2 * r + 1, stride=1, padding=r))

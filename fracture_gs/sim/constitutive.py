@@ -13,6 +13,8 @@ import math
 import torch
 import warp as wp
 
+from ..linalg import polar_newton
+
 wp.set_module_options({"enable_backward": False})  # forward-only kernels compile in half the time
 
 MATERIAL_IDS = {"fixed_corotated": 0, "neo_hookean": 1, "stvk_hencky_vm": 2, "drucker_prager": 3}
@@ -42,49 +44,15 @@ def svd3_refined(F: wp.mat33):
     return U * U2, s2, V * V2
 
 
-POLAR_ITERATIONS = 16  # scaled Newton steps before falling back to the SVD (converges in ≤ 8 up to cond ~1e3)
-POLAR_TOLERANCE = 1e-12  # stop when ‖X_{k+1} − X_k‖²_F < this (quadratic convergence: X_{k+1} is then at rounding)
-POLAR_MIN_DET = 1e-3  # Newton only where det F > this · (‖F‖²_F / 3)^{3/2}: neither inverted nor nearly flat
-
-
-@wp.func
-def polar_newton(F: wp.mat33):
-    """Rotation R of the polar decomposition F = R S (det F > 0) by scaled Newton iterations (Higham 1986):
-    X ← ½(ζ X + X⁻ᵀ/ζ), ζ = det(X)^{−1/3}, with X⁻ᵀ = cof(X)/det(X) from cross products of X's rows.
-    Returns (R, converged)."""
-    X = F
-    converged = int(0)  # noqa: UP018 (a dynamic Warp variable, assigned in the loop)
-    for _ in range(POLAR_ITERATIONS):
-        r0 = wp.vec3(X[0, 0], X[0, 1], X[0, 2])
-        r1 = wp.vec3(X[1, 0], X[1, 1], X[1, 2])
-        r2 = wp.vec3(X[2, 0], X[2, 1], X[2, 2])
-        c0 = wp.cross(r1, r2)
-        c1 = wp.cross(r2, r0)
-        c2 = wp.cross(r0, r1)
-        d = wp.dot(r0, c0)
-        if not (d > 0.0):  # lost positivity (cannot happen in exact arithmetic): the caller takes the SVD
-            return X, 0
-        zeta = wp.pow(d, -1.0 / 3.0)
-        Y = 0.5 * (zeta * X + (1.0 / (zeta * d)) * wp.matrix_from_rows(c0, c1, c2))
-        step = Y - X
-        X = Y
-        if wp.ddot(step, step) < POLAR_TOLERANCE:
-            converged = 1
-            break
-    return X, converged
-
-
 @wp.func
 def rotation_of(F: wp.mat33):
     """R = U Vᵀ of F = U diag(σ) Vᵀ with U, V rotations (fixed-corotated's R). Where det F > 0 and F is
-    not nearly flat it is the polar factor, found by `polar_newton` (4–5× cheaper than `svd3_refined` on
-    the CPU and ~1e-7 instead of ~1e-6 from a float64 SVD); inverted or nearly flat F take the SVD, whose
-    sign convention (σ₃ < 0 for det F < 0) keeps R a rotation."""
-    scale = wp.ddot(F, F) / 3.0
-    if wp.determinant(F) > POLAR_MIN_DET * scale * wp.sqrt(scale):
-        R, converged = polar_newton(F)
-        if converged != 0:
-            return R
+    not nearly flat it is the polar factor, found by `linalg.polar_newton` (4–5× cheaper than
+    `svd3_refined` on the CPU, and ~1e-7 instead of ~1e-6 from a float64 SVD); inverted or nearly flat F
+    take the SVD, whose sign convention (σ₃ < 0 for det F < 0) keeps R a rotation."""
+    R, converged = polar_newton(F, wp.float32(1e-12))
+    if converged != 0:
+        return R
     U, sigma, V = svd3_refined(F)
     return U * wp.transpose(V)
 

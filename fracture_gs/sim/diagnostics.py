@@ -115,6 +115,7 @@ class Diagnostics:
         self.latch_substeps = sim.substeps  # the realized grid holds the new labels only after a substep
         self.members = M.band_members(P.fragment, P.band)
         self.band_index = torch.nonzero(P.band != 0).flatten()
+        self.particle_mass = M.per_fragment_sum(P.mass.double(), P.fragment.long(), sim.n_fragments)  # [K], fixed
         if self.latch_info is not None:
             return
         self.pairs = M.interface_pairs(P.x, P.fragment, P.band, topo.pair_radius * sim.grid.dx)
@@ -214,8 +215,7 @@ class Diagnostics:
         dev.add("shadow_overflow", self.shadow_counts[COUNT_POOL_OVERFLOW])
         dev.add("mixing_cf", cf)
         dev.add("shared", shared)
-        P = sim.particles
-        mp = torch.zeros(K, dtype=torch.float64, device=P.x.device).index_add_(0, P.fragment.long(), P.mass.double())
+        mp = self.particle_mass
         dev.add("mass_residual", (grid_mass - mp).abs() / (mp + 1e-12))
 
     def _transfer_again(self, h: dict) -> None:

@@ -6,7 +6,9 @@ Over every node i and field k of the slot storage (`layout.py`), in float64:
                                                      (counterfactual mixing numerator, Eq. mixing)
     nodes with ≥ 1 and with ≥ 2 active fields (m > ε_m)   (shared support)
 Only a pool row can hold a second field, so `dense_sums` runs over every node (slot 0) and `pool_sums`
-over the pool's rows. The torch twins, summing the same terms in another order, are `Grid.fragment_mass`
+over the pool's rows. Each thread adds into one of `out`'s rows (thread index mod its row count), which
+the host sums: a hundred thousand float64 atomics on the same few addresses would serialise on a GPU. The
+torch twins, summing the same terms in another order, are `Grid.fragment_mass`
 and `Grid.mixing`; `tests/test_many_fragments.py` compares the two. Replaces ~60 small torch ops a
 frame with two launches.
 """
@@ -27,23 +29,24 @@ vec_sd = wp.types.vector(length=MAX_SLOTS, dtype=wp.float64)
 
 
 @wp.kernel
-def dense_sums(g: GridView, eps_m: wp.float64, K: int, out: wp.array(dtype=wp.float64)):
+def dense_sums(g: GridView, eps_m: wp.float64, K: int, out: wp.array2d(dtype=wp.float64)):
     """Slot 0 of every node: total mass, its fragment's mass, nodes whose slot 0 is active."""
     i, j, l = wp.tid()  # noqa: E741
     n = flat(wp.vec3i(i, j, l), wp.vec3i(0, 0, 0), g.shape)
     m = g.mp[n][3]
     if m == 0.0:
         return
-    wp.atomic_add(out, OUT_TOTAL, wp.float64(m))
+    b = n % out.shape[0]
+    wp.atomic_add(out, b, OUT_TOTAL, wp.float64(m))
     f = (g.owner[n] & OWNER_MASK) - 1
     if f >= 0 and f < K:
-        wp.atomic_add(out, OUT_MASS + f, wp.float64(m))
+        wp.atomic_add(out, b, OUT_MASS + f, wp.float64(m))
     if wp.float64(m) > eps_m:
-        wp.atomic_add(out, OUT_ACTIVE, wp.float64(1.0))
+        wp.atomic_add(out, b, OUT_ACTIVE, wp.float64(1.0))
 
 
 @wp.kernel
-def pool_sums(g: GridView, eps_m: wp.float64, K: int, out: wp.array(dtype=wp.float64)):
+def pool_sums(g: GridView, eps_m: wp.float64, K: int, out: wp.array2d(dtype=wp.float64)):
     """Each used pool row: its slots' mass (total and per fragment), the mixing of all the node's
     fields (slot 0 included), and the node's active-field count (added to `dense_sums`' count)."""
     r = wp.tid()
@@ -51,6 +54,7 @@ def pool_sums(g: GridView, eps_m: wp.float64, K: int, out: wp.array(dtype=wp.flo
     if n == EMPTY_KEY:
         return
     S = g.slots
+    b = r % out.shape[0]
     m = vec_sd()
     q0 = g.mp[n]
     m[0] = wp.float64(q0[3])
@@ -69,14 +73,14 @@ def pool_sums(g: GridView, eps_m: wp.float64, K: int, out: wp.array(dtype=wp.flo
             M = M + m[s]
             pool_mass = pool_mass + m[s]
             if f < K:
-                wp.atomic_add(out, OUT_MASS + f, m[s])
+                wp.atomic_add(out, b, OUT_MASS + f, m[s])
             if m[s] > eps_m:
                 active = active + 1
-    wp.atomic_add(out, OUT_TOTAL, pool_mass)
+    wp.atomic_add(out, b, OUT_TOTAL, pool_mass)
     if active >= 1 and not (m[0] > eps_m):
-        wp.atomic_add(out, OUT_ACTIVE, wp.float64(1.0))  # slot 0 inactive: `dense_sums` did not count it
+        wp.atomic_add(out, b, OUT_ACTIVE, wp.float64(1.0))  # slot 0 inactive: `dense_sums` did not count it
     if active >= 2:
-        wp.atomic_add(out, OUT_SHARED, wp.float64(1.0))
+        wp.atomic_add(out, b, OUT_SHARED, wp.float64(1.0))
     vbar = P / wp.max(M, wp.float64(EPS))
     mixing = wp.float64(0.0)
     for s in range(S):
@@ -86,4 +90,4 @@ def pool_sums(g: GridView, eps_m: wp.float64, K: int, out: wp.array(dtype=wp.flo
                 q = g.mp[g.n_nodes + r * (S - 1) + s - 1]
             v = wp.vec3d(wp.float64(q[0]), wp.float64(q[1]), wp.float64(q[2])) / m[s]
             mixing = mixing + m[s] * wp.length_sq(vbar - v)
-    wp.atomic_add(out, OUT_MIXING, mixing)
+    wp.atomic_add(out, b, OUT_MIXING, mixing)

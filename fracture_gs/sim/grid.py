@@ -34,6 +34,7 @@ from .layout import (
 )
 
 EPS = 1e-30
+SUM_ROWS = 256  # rows of `field_sums`' partial sums on a GPU
 
 
 def fit_grid(cfg: SimConfig, x: torch.Tensor) -> tuple[tuple, float, tuple]:
@@ -284,10 +285,12 @@ class Grid:
         if not self.multi:
             cf, shared = self.mixing(eps_m)
             return cf, shared, self.fragment_mass(K)
-        out = torch.zeros(OUT_MASS + K, dtype=torch.float64, device=self.device)
+        rows = SUM_ROWS if self.device.startswith("cuda") else 1  # spread the atomics (see the kernels)
+        out = torch.zeros((rows, OUT_MASS + K), dtype=torch.float64, device=self.device)
         o = wp.from_torch(out, dtype=wp.float64)
         wp.launch(dense_sums, dim=self.shape, device=self.device, inputs=[self.view, float(eps_m), K, o])
         wp.launch(pool_sums, dim=self.capacity, device=self.device, inputs=[self.view, float(eps_m), K, o])
+        out = out.sum(0)
         cf = out[OUT_MIXING] / (out[OUT_TOTAL] + EPS)
         shared = 100.0 * out[OUT_SHARED] / out[OUT_ACTIVE].clamp_min(1.0)
         return cf, shared, out[OUT_MASS:]

@@ -15,7 +15,8 @@ reaches any field with one index (`field_index`). Claims (owner words, pool rows
 last a frame: every substep clears the accumulators only, so after a frame's first substep a
 particle finds its slots with plain loads instead of compare-and-swap, and a particle whose 27 stencil
 nodes all hold its own fragment in slot 0 skips the slot lookups altogether (the dense, unrolled
-stencil; bitwise the same deposits); between frames the claims are reset (`Grid.reset_claims`). A slot whose fragment moved away holds zero mass, which the grid
+stencil; bitwise the same deposits); between frames the claims are reset (`Grid.reset_claims`). A slot whose
+fragment moved away holds zero mass, which the grid
 update treats as an inactive field. A fragment that finds no free slot at a node
 deposits into slot 0 and reads it back there (mass and momentum conserved, that node's fields
 merged): a *slot overflow*, counted every substep and reported, never silent. A pool that is
