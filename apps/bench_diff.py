@@ -36,7 +36,7 @@ def main(argv=None) -> int:
     p.add_argument("--device", default="cuda:0" if torch.cuda.is_available() else "cpu")
     p.add_argument("--particles", type=int, default=None, help="default: the paper's 171,553")
     p.add_argument("--substeps", type=int, default=10, help="substeps per timed frame")
-    p.add_argument("--repeats", type=int, default=3)
+    p.add_argument("--repeats", type=int, default=7)
     a = p.parse_args(argv)
     dev = a.device
     gs = assets.build("ficus", size="paper", n=a.particles)
@@ -89,6 +89,9 @@ def main(argv=None) -> int:
         "substeps_per_frame": a.substeps,
         **med,
         "backward_over_forward": med["backward_ms_per_substep"] / med["forward_ms_per_substep"],
+        "backward_over_forward_per_repeat": [
+            round(r["backward_ms_per_substep"] / r["forward_ms_per_substep"], 3) for r in rows
+        ],
         "warp_peak_MiB": warp_peak,
         "backward_peak_bytes_per_particle": None
         if warp_peak is None

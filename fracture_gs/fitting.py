@@ -25,6 +25,8 @@ from .render.camera import from_config
 from .render.gaussians import sh_colors
 from .render.splat import render
 
+NOISE = 1e-5  # relative loss change below which two evaluations count as equal (float32 atomics' order)
+
 
 @dataclass
 class FitResult:
@@ -96,7 +98,7 @@ def fit_youngs_modulus(
     log_E = torch.tensor(math.log(E_start), dtype=torch.float64, device=device, requires_grad=True)
     opt = torch.optim.Adam([log_E], lr=lr)
     res = FitResult(E_true=float(E_true), E_start=float(E_start), target=target.detach().cpu())
-    best = (math.inf, float(log_E))
+    best = (math.inf, float(log_E.detach()))
     t0 = time.perf_counter()
     for step in range(steps):
         opt.zero_grad()
@@ -120,13 +122,17 @@ def fit_youngs_modulus(
             f"step {step + 1:3d}/{steps}: E = {E_now:.4g} Pa (true {E_true:.4g}, error "
             f"{100 * abs(E_now - E_true) / E_true:.1f} %), loss {value:.3e}"
         )
-        if value > best[0]:  # overshot: back to the best E with half the step (and Adam's momentum reset)
+        # overshot: back to the best E with half the step (and Adam's momentum reset). A loss within
+        # NOISE of the best is no overshoot: on a GPU the same E gives losses that differ in the last
+        # digits (atomics sum in varying order), and treating that as one froze the fit at the best E.
+        if value > best[0] * (1.0 + NOISE):
             with torch.no_grad():
                 log_E.fill_(best[1])
             lr *= 0.5
             opt = torch.optim.Adam([log_E], lr=lr)
         else:
-            best = (value, float(log_E))
+            if value < best[0]:
+                best = (value, float(log_E.detach()))
             opt.step()
     res.E.append(math.exp(best[1]))  # the answer: the E of the lowest loss seen
     res.loss.append(best[0])

@@ -18,12 +18,14 @@ import torch
 _NEIGHBOURS = ((1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0, 1), (0, 0, -1))
 
 
-def _member(sorted_keys: torch.Tensor, query: torch.Tensor) -> torch.Tensor:
-    """query ∈ sorted_keys, elementwise (binary search)."""
-    if sorted_keys.numel() == 0:
-        return torch.zeros_like(query, dtype=torch.bool)
-    i = torch.searchsorted(sorted_keys, query).clamp_max(sorted_keys.numel() - 1)
-    return sorted_keys[i] == query
+_OFFSETS: dict = {}
+
+
+def _neighbour_offsets(device) -> torch.Tensor:  # [6, 3] int64, made once per device
+    key = str(device)
+    if key not in _OFFSETS:
+        _OFFSETS[key] = torch.tensor(_NEIGHBOURS, dtype=torch.long, device=device)
+    return _OFFSETS[key]
 
 
 def overlap_packed(x: torch.Tensor, fragment: torch.Tensor, h: float, K: int, max_depth: int = 8) -> torch.Tensor:
@@ -58,9 +60,10 @@ def overlap_packed(x: torch.Tensor, fragment: torch.Tensor, h: float, K: int, ma
     alive = valid & (voxels >= 0)
     level = torch.zeros(occ.numel(), dtype=torch.long, device=x.device)
     last = occ.numel() - 1
-    steps = [(torch.tensor(d, device=x.device) * stride).sum() * K for d in _NEIGHBOURS]
-    js = torch.stack([torch.searchsorted(occ, occ + step).clamp_max(last) for step in steps])  # [6, V] neighbours
-    same = torch.stack([occ[j] == occ + step for j, step in zip(js, steps)]).all(0)  # all six there, same owner
+    steps = (_neighbour_offsets(x.device) * stride).sum(1) * K  # [6] key offsets of the face neighbours
+    wanted = occ[None, :] + steps[:, None]  # [6, V]: the neighbour's key if it has the same owner
+    js = torch.searchsorted(occ, wanted.reshape(-1)).clamp_max(last).view(6, -1)  # [6, V] neighbours
+    same = (occ[js] == wanted).all(0)  # all six there, same owner
     cpu = x.device.type == "cpu"
     for _ in range(max_depth):
         alive = alive & same & alive[js].all(0)
