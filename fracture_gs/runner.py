@@ -8,10 +8,13 @@ Ctrl-C or a divergence keeps every frame and metric already written.
 from __future__ import annotations
 
 import json
+import os
 import queue
 import sys
 import threading
 import time
+from collections import deque
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Optional
 
@@ -336,35 +339,50 @@ def compose_comparison(
 ):
     """Side-by-side video at matched frames with captions and, after the latch, circular insets
     around the latched interface projected into each panel. A variant that stopped early (diverged,
-    interrupted) holds its last frame, captioned with why."""
+    interrupted) holds its last frame, captioned with why. Frames are composed and written as PNGs by
+    a pool of threads (numpy, OpenCV and the PNG encoder release the GIL), a bounded window ahead of
+    the encoder, which takes them in order."""
     statuses = statuses or ["ok"] * len(variants)
     n = max(len(f) for f in frame_lists)
     if isinstance(topology, list):  # a history: the inset follows the first event's interface
         topology = topology[0]
     latch_frame = topology.latch_frame if topology is not None else None
-    with VideoWriter(out_dir / "comparison.mp4", fps=cfg.render.fps) as video:
+
+    def one(i: int) -> np.ndarray:
+        with phases.section("compose"):
+            panels = []
+            for frames in frame_lists:
+                img = frames[min(i, len(frames) - 1)]
+                if latch_frame is not None and i >= latch_frame and i < len(frames):
+                    cx, cy, r = compose.interface_region(topology.point, topology.normal, 0.04, painter.camera(i))
+                    if 0 <= cx < img.shape[1] and 0 <= cy < img.shape[0]:
+                        r = float(np.clip(r, 8, cfg.render.inset_radius))
+                        img = compose.add_inset(img, (cx, cy), r, cfg.render.inset_zoom)
+                panels.append(img)
+            caps = [
+                compose.caption_text(v, i * cfg.frame_dt, i)
+                if i < len(f)
+                else f"{compose.caption_text(v, (len(f) - 1) * cfg.frame_dt, len(f) - 1)}  {st.split(':')[0]}"
+                for v, f, st in zip(variants, frame_lists, statuses)
+            ]
+            frame = compose.side_by_side(panels, caps)
+        with phases.section("io"):
+            save_png(out_dir / "frames" / f"compare_{i:04d}.png", frame)
+        return frame
+
+    workers = max(1, min(8, os.cpu_count() or 1))
+    with VideoWriter(out_dir / "comparison.mp4", fps=cfg.render.fps) as video, ThreadPoolExecutor(workers) as pool:
+        pending: deque = deque()
         for i in range(n):
-            with phases.section("compose"):
-                panels = []
-                for frames in frame_lists:
-                    img = frames[min(i, len(frames) - 1)]
-                    if latch_frame is not None and i >= latch_frame and i < len(frames):
-                        cx, cy, r = compose.interface_region(topology.point, topology.normal, 0.04, painter.camera(i))
-                        if 0 <= cx < img.shape[1] and 0 <= cy < img.shape[0]:
-                            r = float(np.clip(r, 8, cfg.render.inset_radius))
-                            img = compose.add_inset(img, (cx, cy), r, cfg.render.inset_zoom)
-                    panels.append(img)
-                caps = [
-                    compose.caption_text(v, i * cfg.frame_dt, i)
-                    if i < len(f)
-                    else f"{compose.caption_text(v, (len(f) - 1) * cfg.frame_dt, len(f) - 1)}  {st.split(':')[0]}"
-                    for v, f, st in zip(variants, frame_lists, statuses)
-                ]
-                frame = compose.side_by_side(panels, caps)
+            pending.append(pool.submit(one, i))
+            if len(pending) > 2 * workers:
+                frame = pending.popleft().result()
+                with phases.section("encode"):
+                    video.write(frame)
+        while pending:
+            frame = pending.popleft().result()
             with phases.section("encode"):
                 video.write(frame)
-            with phases.section("io"):
-                save_png(out_dir / "frames" / f"compare_{i:04d}.png", frame)
 
 
 def _run_in_turn(cfg, gs, order, device, out_dir, painter, metrics_file, export):
