@@ -23,6 +23,7 @@ class PhaseTimer:
         self.enabled = False
         self.sync_device = None
         self._lock = threading.Lock()
+        self._device = threading.RLock()  # no device-wide sync while a thread records a CUDA graph
         self._local = threading.local()
         self.seconds: dict[str, float] = {}
         self.calls: dict[str, int] = {}
@@ -40,7 +41,19 @@ class PhaseTimer:
         if self.sync_device is not None:
             import torch
 
-            torch.cuda.synchronize(self.sync_device)
+            with self._device:
+                torch.cuda.synchronize(self.sync_device)
+
+    @contextlib.contextmanager
+    def capturing(self):
+        """Hold off the profiler's device syncs from every thread while this thread records a CUDA
+        graph (a device-wide sync during a capture is an error: the renderer's thread ended a profiled
+        run that way). Free when profiling is off."""
+        if self.sync_device is None or not self.enabled:
+            yield
+            return
+        with self._device:
+            yield
 
     @contextlib.contextmanager
     def section(self, name: str):

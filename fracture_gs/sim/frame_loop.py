@@ -15,6 +15,7 @@ import torch
 import warp as wp
 
 from ..errors import SimulationDiverged
+from ..profiling import phases
 from ..runtime import side_stream
 from .clock import tick
 from .layout import COUNT_ESCAPED, COUNT_POOL_OVERFLOW, COUNT_SLOT_OVERFLOW
@@ -72,7 +73,7 @@ class FrameLoop:
         self.grid.reset_claims()  # claims last one frame
         graphs = self.use_graphs and self.device.startswith("cuda") and self.frame > 0
         if graphs and (self._graph is None or self._graph_key() != self._graph_key_value):
-            with self._stream_scope():
+            with self._stream_scope(), phases.capturing():
                 with wp.ScopedCapture(
                     device=self.device, stream=wp.get_stream(self.device), force_module_load=False
                 ) as capture:

@@ -1,0 +1,62 @@
+"""The phase timer of `render-sim --profile` (`fracture_gs.profiling`): busy time per phase from any
+thread, and no device-wide sync from any thread while another thread records a CUDA graph (such a sync
+is a CUDA error; the renderer's thread ended a profiled GPU run that way)."""
+
+import threading
+import time
+
+import torch
+
+from fracture_gs.profiling import PhaseTimer
+
+
+def test_sections_charge_their_own_phase_from_any_thread():
+    t = PhaseTimer()
+    t.enable()
+    with t.section("simulate"):
+        time.sleep(0.05)
+        with t.section("diagnostics"):  # nested: charged to itself only
+            time.sleep(0.05)
+
+    def render():
+        with t.section("render"):
+            time.sleep(0.05)
+
+    worker = threading.Thread(target=render)
+    worker.start()
+    with t.section("render"):  # concurrently on this thread: busy times add up
+        time.sleep(0.05)
+    worker.join()
+    assert 0.045 <= t.seconds["simulate"] < 0.09 and 0.045 <= t.seconds["diagnostics"] < 0.09
+    assert t.seconds["render"] >= 0.095
+    assert t.calls == {"simulate": 1, "diagnostics": 1, "render": 2}
+    assert "| simulate |" in t.report()
+
+
+def test_no_device_sync_while_another_thread_records_a_graph(monkeypatch):
+    """A thread inside `capturing()` holds off every other thread's section-boundary device sync until
+    the capture ends; with profiling off, `capturing()` costs nothing and takes no lock."""
+    events = []
+    monkeypatch.setattr(torch.cuda, "synchronize", lambda device=None: events.append(("sync", time.perf_counter())))
+    t = PhaseTimer()
+    t.enable(sync_device="cuda:0")
+    started = threading.Event()
+
+    def capture():
+        with t.capturing():
+            started.set()
+            time.sleep(0.2)
+            events.append(("capture ended", time.perf_counter()))
+
+    a = threading.Thread(target=capture)
+    a.start()
+    started.wait()
+    with t.section("render"):  # syncs at entry and exit: both must wait for the capture
+        pass
+    a.join()
+    names = [e[0] for e in events]
+    assert names == ["capture ended", "sync", "sync"], names
+    off = PhaseTimer()
+    with off.capturing():
+        assert off._device.acquire(blocking=False)  # not held
+        off._device.release()
