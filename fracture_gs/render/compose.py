@@ -199,18 +199,25 @@ def _bilinear(img: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:  # [
     x0, y0 = np.floor(x).astype(int), np.floor(y).astype(int)
     x1, y1 = np.minimum(x0 + 1, w - 1), np.minimum(y0 + 1, h - 1)
     fx, fy = (x - x0)[..., None], (y - y0)[..., None]
-    f = img.astype(np.float64)
-    return (f[y0, x0] * (1 - fx) + f[y0, x1] * fx) * (1 - fy) + (f[y1, x0] * (1 - fx) + f[y1, x1] * fx) * fy
+    f = lambda yy, xx: img[yy, xx].astype(np.float64)  # gather first: only the sampled pixels in float64
+    return (f(y0, x0) * (1 - fx) + f(y0, x1) * fx) * (1 - fy) + (f(y1, x0) * (1 - fx) + f(y1, x1) * fx) * fy
 
 
 def magnify(img, center_xy, zoom: float, inset_xy, inset_r: float) -> tuple[np.ndarray, np.ndarray]:
     """Pixels of the inset disc and their values: inset pixel centre p maps to the source point
     center + (p − inset_centre)/zoom, sampled bilinearly. Returns (mask [H,W] bool, values [n,3])."""
     h, w = img.shape[:2]
-    ys, xs = np.mgrid[0:h, 0:w] + 0.5
-    mask = (xs - inset_xy[0]) ** 2 + (ys - inset_xy[1]) ** 2 <= inset_r**2
-    sx = center_xy[0] + (xs[mask] - inset_xy[0]) / zoom
-    sy = center_xy[1] + (ys[mask] - inset_xy[1]) / zoom
+    # only the disc's bounding box (pixel centres k + 0.5 within inset_r of the centre), row-major as before
+    x0 = min(w, max(0, math.floor(inset_xy[0] - inset_r - 1)))
+    x1 = min(w, max(x0, math.ceil(inset_xy[0] + inset_r + 1)))
+    y0 = min(h, max(0, math.floor(inset_xy[1] - inset_r - 1)))
+    y1 = min(h, max(y0, math.ceil(inset_xy[1] + inset_r + 1)))
+    ys, xs = np.mgrid[y0:y1, x0:x1] + 0.5
+    disc = (xs - inset_xy[0]) ** 2 + (ys - inset_xy[1]) ** 2 <= inset_r**2
+    mask = np.zeros((h, w), bool)
+    mask[y0:y1, x0:x1] = disc
+    sx = center_xy[0] + (xs[disc] - inset_xy[0]) / zoom
+    sy = center_xy[1] + (ys[disc] - inset_xy[1]) / zoom
     return mask, np.clip(np.rint(_bilinear(img, sx, sy)), 0, 255).astype(np.uint8)
 
 
