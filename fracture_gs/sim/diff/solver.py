@@ -17,6 +17,8 @@ boundaries and domain walls, fragment contact with the latched normal (restituti
 
 from __future__ import annotations
 
+import contextlib
+import gc
 import math
 from dataclasses import dataclass
 from typing import Optional
@@ -253,6 +255,20 @@ class DiffSimulator:
         return out
 
 
+@contextlib.contextmanager
+def _gc_paused():
+    """Python's cyclic collector held off while a frame's tape is recorded and replayed: the tape
+    creates thousands of short-lived array objects, and a full collection in the middle stalled single
+    backward passes by several times their length on a GPU (BENCHMARKS.md, issue 15)."""
+    enabled = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if enabled:
+            gc.enable()
+
+
 def _wp(t: torch.Tensor, requires_grad: bool):
     """A Warp array over a float32 copy of torch tensor t ([N], [N,3] or [N,3,3])."""
     t = t.detach().to(torch.float32).contiguous().clone()
@@ -281,7 +297,7 @@ class _Frame(torch.autograd.Function):
     def backward(ctx, gx, gv, gC, gF):
         sim, plan = ctx.sim, ctx.plan
         inputs = ctx.saved_tensors
-        with torch_stream(sim.device):
+        with torch_stream(sim.device), _gc_paused():
             state = [_wp(t, True) for t in inputs[:4]]
             params = [_wp(t, True) for t in inputs[4:]]
             tape = wp.Tape()
