@@ -37,11 +37,6 @@ def main(argv=None) -> int:
     p.add_argument("--particles", type=int, default=None, help="default: the paper's 171,553")
     p.add_argument("--substeps", type=int, default=10, help="substeps per timed frame")
     p.add_argument("--repeats", type=int, default=7)
-    p.add_argument(
-        "--keep-pool",
-        action="store_true",
-        help="keep freed memory in Warp's CUDA pool between passes (wp.set_mempool_release_threshold)",
-    )
     a = p.parse_args(argv)
     dev = a.device
     gs = assets.build("ficus", size="paper", n=a.particles)
@@ -57,8 +52,6 @@ def main(argv=None) -> int:
     C, F = P.C.clone().requires_grad_(), P.F.clone().requires_grad_()
     frame_dt = a.substeps * cfg.sim.dt
     cuda = dev.startswith("cuda")
-    if cuda and a.keep_pool:
-        wp.set_mempool_release_threshold(dev, 8 << 30)
     warp_base = wp.get_mempool_used_mem_current(dev) if cuda else 0
     rows = []
     for _ in range(a.repeats + 1):
@@ -94,7 +87,7 @@ def main(argv=None) -> int:
         "particles": len(P),
         "grid": 128,
         "substeps_per_frame": a.substeps,
-        "keep_pool": a.keep_pool,
+        "warp_pool_release_threshold_MiB": wp.get_mempool_release_threshold(dev) / 2**20 if cuda else None,
         **med,
         "backward_over_forward": med["backward_ms_per_substep"] / med["forward_ms_per_substep"],
         "backward_over_forward_per_repeat": [

@@ -72,6 +72,8 @@ class DiffSimulator:
     ):
         ensure_warp()
         self.cfg, self.device = cfg, str(device)
+        if self.device.startswith("cuda"):
+            _keep_tape_memory(self.device, x0.shape[0])
         self.spec = variant_spec(cfg.variant)
         if self.spec.per_fragment_pass:
             raise SimulationError(
@@ -253,6 +255,18 @@ class DiffSimulator:
         self.time += frame_dt
         self.frame += 1
         return out
+
+
+TAPE_BYTES_PER_PARTICLE = 16 << 10  # twice the measured peak of a recorded frame (7 KiB per particle, K = 2)
+
+
+def _keep_tape_memory(device: str, n: int) -> None:
+    """Let Warp's CUDA pool keep a recorded frame's worth of freed memory. Above its release threshold the
+    pool hands freed blocks back to the driver, so every backward pass re-allocated each substep's
+    buffers from the driver: 1.9x the forward with the memory kept, 2.3-3.9x (and single passes near 20x)
+    without (ficus, 171,553 particles, H200; BENCHMARKS.md). Only ever raises the threshold."""
+    if wp.is_mempool_enabled(device) and wp.get_mempool_release_threshold(device) < TAPE_BYTES_PER_PARTICLE * n:
+        wp.set_mempool_release_threshold(device, TAPE_BYTES_PER_PARTICLE * n)
 
 
 @contextlib.contextmanager
