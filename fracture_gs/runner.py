@@ -334,27 +334,39 @@ def _json_default(o):
     raise TypeError(type(o))
 
 
-def compose_comparison(
-    cfg, variants, frame_lists, topology: Optional[Topology], painter: Painter, out_dir: Path, statuses=None
-):
-    """Side-by-side video at matched frames with captions and, after the latch, circular insets
-    around the latched interface projected into each panel. A variant that stopped early (diverged,
-    interrupted) holds its last frame, captioned with why. Frames are composed and written as PNGs by
-    a pool of threads (numpy, OpenCV and the PNG encoder release the GIL), a bounded window ahead of
-    the encoder, which takes them in order."""
-    statuses = statuses or ["ok"] * len(variants)
-    n = max(len(f) for f in frame_lists)
-    if isinstance(topology, list):  # a history: the inset follows the first event's interface
-        topology = topology[0]
-    latch_frame = topology.latch_frame if topology is not None else None
+class ComparisonVideo:
+    """comparison.mp4 and frames/compare_NNNN.png: the variants side by side at matched frames, with
+    captions and, after the latch, circular insets around the latched interface projected into each
+    panel. A variant that stopped early (diverged, interrupted) holds its last frame, captioned with
+    why. Frames go out in order. `start_live` composes on a worker thread while the last variant still
+    runs (frame i once that variant has rendered it; the others are finished); `finish` composes the
+    rest with a pool of threads (numpy, OpenCV and the PNG encoder release the GIL), a bounded window
+    ahead of the encoder, and closes the video."""
 
-    def one(i: int) -> np.ndarray:
+    def __init__(
+        self, cfg, variants, frame_lists, topology: Optional[Topology], painter: Painter, out_dir: Path, statuses
+    ):
+        self.cfg, self.variants, self.frame_lists = cfg, list(variants), list(frame_lists)
+        self.painter, self.out_dir, self.statuses = painter, out_dir, list(statuses)
+        if isinstance(topology, list):  # a history: the inset follows the first event's interface
+            topology = topology[0]
+        self.topology = topology
+        self.video = VideoWriter(out_dir / "comparison.mp4", fps=cfg.render.fps)
+        self.next = 0  # the first frame not yet written
+        self._stop = threading.Event()
+        self._thread: Optional[threading.Thread] = None
+        self._error: Optional[BaseException] = None
+
+    def frame(self, i: int) -> np.ndarray:
+        """Comparison frame i, also saved as frames/compare_NNNN.png."""
+        cfg, topo = self.cfg, self.topology
+        latch_frame = topo.latch_frame if topo is not None else None
         with phases.section("compose"):
             panels = []
-            for frames in frame_lists:
+            for frames in self.frame_lists:
                 img = frames[min(i, len(frames) - 1)]
                 if latch_frame is not None and i >= latch_frame and i < len(frames):
-                    cx, cy, r = compose.interface_region(topology.point, topology.normal, 0.04, painter.camera(i))
+                    cx, cy, r = compose.interface_region(topo.point, topo.normal, 0.04, self.painter.camera(i))
                     if 0 <= cx < img.shape[1] and 0 <= cy < img.shape[0]:
                         r = float(np.clip(r, 8, cfg.render.inset_radius))
                         img = compose.add_inset(img, (cx, cy), r, cfg.render.inset_zoom)
@@ -363,34 +375,90 @@ def compose_comparison(
                 compose.caption_text(v, i * cfg.frame_dt, i)
                 if i < len(f)
                 else f"{compose.caption_text(v, (len(f) - 1) * cfg.frame_dt, len(f) - 1)}  {st.split(':')[0]}"
-                for v, f, st in zip(variants, frame_lists, statuses)
+                for v, f, st in zip(self.variants, self.frame_lists, self.statuses)
             ]
             frame = compose.side_by_side(panels, caps)
         with phases.section("io"):
-            save_png(out_dir / "frames" / f"compare_{i:04d}.png", frame)
+            save_png(self.out_dir / "frames" / f"compare_{i:04d}.png", frame)
         return frame
 
-    workers = max(1, min(8, os.cpu_count() or 1))
-    with VideoWriter(out_dir / "comparison.mp4", fps=cfg.render.fps) as video, ThreadPoolExecutor(workers) as pool:
-        pending: deque = deque()
-        for i in range(n):
-            pending.append(pool.submit(one, i))
-            if len(pending) > 2 * workers:
-                frame = pending.popleft().result()
-                with phases.section("encode"):
-                    video.write(frame)
-        while pending:
-            frame = pending.popleft().result()
-            with phases.section("encode"):
-                video.write(frame)
+    def _encode(self, frame: np.ndarray) -> None:
+        with phases.section("encode"):
+            self.video.write(frame)
+        self.next += 1
+
+    def start_live(self, live: list) -> None:
+        """Compose frame i as soon as `live` (the running variant's frame list) holds it."""
+
+        def work() -> None:
+            try:
+                while True:
+                    if self.next < len(live):
+                        self._encode(self.frame(self.next))
+                    elif self._stop.is_set():
+                        return
+                    else:
+                        time.sleep(0.005)
+            except BaseException as exc:  # noqa: BLE001 - raised by finish()
+                self._error = exc
+
+        self._thread = threading.Thread(target=work, name="fgs-compare", daemon=True)
+        self._thread.start()
+
+    def _stop_live(self) -> None:
+        if self._thread is not None:
+            self._stop.set()
+            self._thread.join()
+            self._thread = None
+
+    def abort(self) -> None:
+        """Stop composing and close the video as it is (the caller writes another)."""
+        self._stop_live()
+        self.video.close()
+
+    def finish(self, statuses=None) -> None:
+        """Compose and write the frames not written yet, then close the video."""
+        self._stop_live()
+        if statuses is not None:
+            self.statuses = list(statuses)
+        try:
+            if self._error is not None:
+                raise self._error
+            n = max(len(f) for f in self.frame_lists)
+            workers = max(1, min(8, os.cpu_count() or 1))
+            with ThreadPoolExecutor(workers) as pool:
+                pending: deque = deque()
+                for i in range(self.next, n):
+                    pending.append(pool.submit(self.frame, i))
+                    if len(pending) > 2 * workers:
+                        self._encode(pending.popleft().result())
+                while pending:
+                    self._encode(pending.popleft().result())
+        finally:
+            self.video.close()
 
 
-def _run_in_turn(cfg, gs, order, device, out_dir, painter, metrics_file, export):
-    """The variants one after the other on one device; the first's topology is replayed by the rest."""
-    frames, summaries, topology, interrupted = {}, {}, None, False
+def compose_comparison(
+    cfg, variants, frame_lists, topology: Optional[Topology], painter: Painter, out_dir: Path, statuses=None
+):
+    """The comparison video of finished variants (`ComparisonVideo`)."""
+    statuses = statuses or ["ok"] * len(variants)
+    ComparisonVideo(cfg, variants, frame_lists, topology, painter, out_dir, statuses).finish()
+
+
+def _run_in_turn(cfg, gs, order, device, out_dir, painter, metrics_file, export, variants):
+    """The variants one after the other on one device; the first's topology is replayed by the rest.
+    While the last one runs, the comparison video (panels in `variants` order) is composed beside it
+    when the others all have frames and the topology is known; returns that `ComparisonVideo` (or None)."""
+    frames, summaries, topology, interrupted, live = {}, {}, None, False, None
     try:
-        for variant in order:
+        for k, variant in enumerate(order):
             frames[variant] = []
+            if k > 0 and k == len(order) - 1 and topology is not None and all(frames[v] for v in order[:k]):
+                statuses = [summaries[v]["status"] if v in summaries else "ok" for v in variants]
+                panels = [frames[v] for v in variants]
+                live = ComparisonVideo(cfg, variants, panels, topology, painter, out_dir, statuses)
+                live.start_live(frames[variant])
             summaries[variant], topology = run_variant(
                 cfg, gs, variant, device, out_dir, painter, topology, metrics_file, frames[variant], export
             )
@@ -401,7 +469,11 @@ def _run_in_turn(cfg, gs, order, device, out_dir, painter, metrics_file, export)
                 break
     except KeyboardInterrupt:  # between variants
         interrupted = True
-    return frames, summaries, topology, interrupted
+    except BaseException:
+        if live is not None:
+            live.abort()
+        raise
+    return frames, summaries, topology, interrupted, live
 
 
 def run_render_sim(
@@ -441,16 +513,22 @@ def run_render_sim(
             frames, summaries, topology, interrupted = run_on_devices(
                 run_variant, Painter, cfg, gs, scene.background, order, list(devices), out_dir, metrics_file, export
             )
+            live = None
             if topology is not None:
                 save_history(out_dir / "topology.npz", topology)
         else:
-            frames, summaries, topology, interrupted = _run_in_turn(
-                cfg, gs, order, device, out_dir, painter, metrics_file, export
+            frames, summaries, topology, interrupted, live = _run_in_turn(
+                cfg, gs, order, device, out_dir, painter, metrics_file, export, list(variants)
             )
     done = [v for v in variants if v in summaries and frames[v]]
-    if done:
-        statuses = [summaries[v]["status"] for v in done]
-        compose_comparison(cfg, done, [frames[v] for v in done], topology, painter, out_dir, statuses)
+    statuses = [summaries[v]["status"] for v in done]
+    if live is not None and done == live.variants:
+        live.finish(statuses)
+    else:
+        if live is not None:  # a variant ended with no frame: compose the ones that have frames
+            live.abort()
+        if done:
+            compose_comparison(cfg, done, [frames[v] for v in done], topology, painter, out_dir, statuses)
     summary = {
         "name": cfg.name,
         "scene": cfg.scene,

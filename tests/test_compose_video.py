@@ -148,3 +148,44 @@ def test_save_png_roundtrip(tmp_path):
     save_png(tmp_path / "a" / "x.png", img)
     back = cv2.imread(str(tmp_path / "a" / "x.png"))[..., ::-1]
     np.testing.assert_array_equal(back, img, err_msg=f"seed {seed}")
+
+
+def test_comparison_composed_live_equals_composed_after(tmp_path):
+    """The comparison video composed beside the last variant's run (frame i once that variant has it)
+    writes the same frames as composing after every variant finished, including a variant that
+    stopped early (it holds its last frame, captioned with its status) and the last variant ending
+    after the others."""
+    import threading
+    import time
+
+    from fracture_gs.config import SceneConfig
+    from fracture_gs.runner import ComparisonVideo, compose_comparison
+
+    cfg = SceneConfig(name="t", frame_dt=0.01)
+    rng = np.random.default_rng(0)
+    frames = {v: [rng.integers(0, 256, (24, 32, 3), dtype=np.uint8) for _ in range(n)] for v, n in (("a", 9), ("b", 5))}
+    last = [rng.integers(0, 256, (24, 32, 3), dtype=np.uint8) for _ in range(12)]
+    statuses = ["ok", "diverged at frame 5: CFL", "ok"]
+    variants = ["a", "b", "c"]
+    after = tmp_path / "after"
+    compose_comparison(cfg, variants, [frames["a"], frames["b"], last], None, None, after, statuses)
+    live_dir, growing = tmp_path / "live", []
+    live = ComparisonVideo(
+        cfg, variants, [frames["a"], frames["b"], growing], None, None, live_dir, statuses[:2] + ["ok"]
+    )
+    live.start_live(growing)
+
+    def produce():
+        for img in last:
+            growing.append(img)
+            time.sleep(0.01)
+
+    t = threading.Thread(target=produce)
+    t.start()
+    t.join()
+    live.finish(statuses)
+    names = sorted(p.name for p in (after / "frames").iterdir())
+    assert len(names) == 12 and names == sorted(p.name for p in (live_dir / "frames").iterdir())
+    for n in names:
+        assert np.array_equal(cv2.imread(str(after / "frames" / n)), cv2.imread(str(live_dir / "frames" / n))), n
+    assert read_video(live_dir / "comparison.mp4")[0] == 12
