@@ -257,13 +257,16 @@ class DiffSimulator:
         return out
 
 
-TAPE_BYTES_PER_PARTICLE = 16 << 10  # twice the measured peak of a recorded frame (7 KiB per particle, K = 2)
+# freed memory Warp's pool keeps per particle: the measured peak of a recorded frame is 7 KiB per particle
+# (K = 2), but its reserve grows past the peak with fragmentation; 16 KiB still let passes re-allocate
+# (backward 2.4-3.3x forward), 48 KiB did not (1.9x)
+TAPE_BYTES_PER_PARTICLE = 48 << 10
 
 
 def _keep_tape_memory(device: str, n: int) -> None:
     """Let Warp's CUDA pool keep a recorded frame's worth of freed memory. Above its release threshold the
     pool hands freed blocks back to the driver, so every backward pass re-allocated each substep's
-    buffers from the driver: 1.9x the forward with the memory kept, 2.3-3.9x (and single passes near 20x)
+    buffers from the driver: 2.6-2.8x the forward with the memory kept, 2.3-3.9x (single passes near 20x)
     without (ficus, 171,553 particles, H200; BENCHMARKS.md). Only ever raises the threshold."""
     if wp.is_mempool_enabled(device) and wp.get_mempool_release_threshold(device) < TAPE_BYTES_PER_PARTICLE * n:
         wp.set_mempool_release_threshold(device, TAPE_BYTES_PER_PARTICLE * n)
