@@ -338,10 +338,10 @@ class ComparisonVideo:
     """comparison.mp4 and frames/compare_NNNN.png: the variants side by side at matched frames, with
     captions and, after the latch, circular insets around the latched interface projected into each
     panel. A variant that stopped early (diverged, interrupted) holds its last frame, captioned with
-    why. Frames go out in order. `start_live` composes on a worker thread while the last variant still
-    runs (frame i once that variant has rendered it; the others are finished); `finish` composes the
-    rest with a pool of threads (numpy, OpenCV and the PNG encoder release the GIL), a bounded window
-    ahead of the encoder, and closes the video."""
+    why. A pool of threads composes frames (numpy, OpenCV and the PNG encoder release the GIL), at most
+    two per thread ahead of the encoder, which takes them in order. `start_live` feeds the pool while
+    the last variant still runs (frame i once that variant has rendered it; the others are finished);
+    `finish` feeds it the rest and closes the video."""
 
     def __init__(
         self, cfg, variants, frame_lists, topology: Optional[Topology], painter: Painter, out_dir: Path, statuses
@@ -352,7 +352,10 @@ class ComparisonVideo:
             topology = topology[0]
         self.topology = topology
         self.video = VideoWriter(out_dir / "comparison.mp4", fps=cfg.render.fps)
-        self.next = 0  # the first frame not yet written
+        self._workers = max(1, min(8, os.cpu_count() or 1))
+        self._pool = ThreadPoolExecutor(self._workers, thread_name_prefix="fgs-compose")
+        self._pending: deque = deque()  # futures of submitted frames, oldest first
+        self._submitted = 0
         self._stop = threading.Event()
         self._thread: Optional[threading.Thread] = None
         self._error: Optional[BaseException] = None
@@ -382,22 +385,30 @@ class ComparisonVideo:
             save_png(self.out_dir / "frames" / f"compare_{i:04d}.png", frame)
         return frame
 
-    def _encode(self, frame: np.ndarray) -> None:
-        with phases.section("encode"):
-            self.video.write(frame)
-        self.next += 1
+    def _pump(self, available: int, wait: bool) -> bool:
+        """Submit frames below `available` (the window permitting) and encode finished ones in order,
+        waiting for the oldest if `wait`; returns whether anything moved."""
+        moved = False
+        while self._submitted < available and len(self._pending) < 2 * self._workers:
+            self._pending.append(self._pool.submit(self.frame, self._submitted))
+            self._submitted += 1
+            moved = True
+        while self._pending and (wait or self._pending[0].done()):
+            frame = self._pending.popleft().result()
+            with phases.section("encode"):
+                self.video.write(frame)
+            moved = True
+            if wait:
+                break
+        return moved
 
     def start_live(self, live: list) -> None:
         """Compose frame i as soon as `live` (the running variant's frame list) holds it."""
 
         def work() -> None:
             try:
-                while True:
-                    if self.next < len(live):
-                        self._encode(self.frame(self.next))
-                    elif self._stop.is_set():
-                        return
-                    else:
+                while not self._stop.is_set():
+                    if not self._pump(len(live), wait=False):
                         time.sleep(0.005)
             except BaseException as exc:  # noqa: BLE001 - raised by finish()
                 self._error = exc
@@ -414,6 +425,7 @@ class ComparisonVideo:
     def abort(self) -> None:
         """Stop composing and close the video as it is (the caller writes another)."""
         self._stop_live()
+        self._pool.shutdown(wait=True, cancel_futures=True)
         self.video.close()
 
     def finish(self, statuses=None) -> None:
@@ -425,16 +437,10 @@ class ComparisonVideo:
             if self._error is not None:
                 raise self._error
             n = max(len(f) for f in self.frame_lists)
-            workers = max(1, min(8, os.cpu_count() or 1))
-            with ThreadPoolExecutor(workers) as pool:
-                pending: deque = deque()
-                for i in range(self.next, n):
-                    pending.append(pool.submit(self.frame, i))
-                    if len(pending) > 2 * workers:
-                        self._encode(pending.popleft().result())
-                while pending:
-                    self._encode(pending.popleft().result())
+            while self._submitted < n or self._pending:
+                self._pump(n, wait=True)
         finally:
+            self._pool.shutdown(wait=True, cancel_futures=True)
             self.video.close()
 
 
