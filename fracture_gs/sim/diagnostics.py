@@ -85,6 +85,7 @@ class Diagnostics:
         self.open_max = -math.inf
         self.reapproach = 0.0
         self.shadow: Grid | None = None
+        self.shadow_rows = 0  # pool rows the shadow transfer used last frame
         self.shadow_stress = None
         self.first_contact_time = None
         self.contact_max = {
@@ -203,7 +204,9 @@ class Diagnostics:
         with sim._stream_scope():
             sim.compute_stress(self.shadow_stress, commit=False)
             self.shadow.n_fields = sim.n_fragments
-            self.shadow.ensure_pool(max(rows, sim.pool_rows, 256))
+            # the shadow claims a row at every node two fragments reach (the solver's solo particles
+            # claim none), so it sizes its pool from its own last frame, not only from the solver's
+            self.shadow.ensure_pool(max(rows, sim.pool_rows, self.shadow_rows, 256))
             self.shadow_counts.zero_()
             sim.p2g(
                 sim.dt, target=self.shadow, multifield=True, stress=self.shadow_stress_wp, counts=self.shadow_counts_wp
@@ -213,6 +216,7 @@ class Diagnostics:
             K = sim.n_fragments
             cf, shared, grid_mass = self.shadow.field_sums(sim.eps_m, K)
         dev.add("shadow_overflow", self.shadow_counts[COUNT_POOL_OVERFLOW])
+        dev.add("shadow_rows", self.shadow.rows_used())
         dev.add("mixing_cf", cf)
         dev.add("shared", shared)
         mp = self.particle_mass
@@ -222,6 +226,7 @@ class Diagnostics:
         """The rare frame whose shadow pool overflowed: grow it and redo the transfer numbers (another read)."""
         for _ in range(8):
             if h["shadow_overflow"][0] == 0:
+                self.shadow_rows = max(int(h["shadow_rows"][0]), self.shadow_rows // 2)  # as the solver's pool
                 return
             dev = Packed()
             self._transfer(dev, rows=2 * self.shadow.capacity)
