@@ -338,10 +338,10 @@ class ComparisonVideo:
     """comparison.mp4 and frames/compare_NNNN.png: the variants side by side at matched frames, with
     captions and, after the latch, circular insets around the latched interface projected into each
     panel. A variant that stopped early (diverged, interrupted) holds its last frame, captioned with
-    why. A pool of threads composes frames (numpy, OpenCV and the PNG encoder release the GIL), at most
-    two per thread ahead of the encoder, which takes them in order. `start_live` feeds the pool while
-    the last variant still runs (frame i once that variant has rendered it; the others are finished);
-    `finish` feeds it the rest and closes the video."""
+    why. Frames go out in order. `start_live` composes them one at a time on a worker thread while the
+    last variant still runs (frame i once that variant has rendered it; the others are finished);
+    `finish` stops it after its current frame and composes the rest with a pool of threads (numpy,
+    OpenCV and the PNG encoder release the GIL), at most two per thread ahead of the encoder."""
 
     def __init__(
         self, cfg, variants, frame_lists, topology: Optional[Topology], painter: Painter, out_dir: Path, statuses
@@ -385,30 +385,28 @@ class ComparisonVideo:
             save_png(self.out_dir / "frames" / f"compare_{i:04d}.png", frame)
         return frame
 
-    def _pump(self, available: int, wait: bool) -> bool:
-        """Submit frames below `available` (the window permitting) and encode finished ones in order,
-        waiting for the oldest if `wait`; returns whether anything moved."""
-        moved = False
+    def _pump(self, available: int) -> None:
+        """Submit frames below `available` (the window permitting), then encode the oldest in order."""
         while self._submitted < available and len(self._pending) < 2 * self._workers:
             self._pending.append(self._pool.submit(self.frame, self._submitted))
             self._submitted += 1
-            moved = True
-        while self._pending and (wait or self._pending[0].done()):
+        if self._pending:
             frame = self._pending.popleft().result()
             with phases.section("encode"):
                 self.video.write(frame)
-            moved = True
-            if wait:
-                break
-        return moved
 
     def start_live(self, live: list) -> None:
         """Compose frame i as soon as `live` (the running variant's frame list) holds it."""
 
-        def work() -> None:
+        def work() -> None:  # one frame at a time: a pool here took the GIL from the solver's thread
             try:
                 while not self._stop.is_set():
-                    if not self._pump(len(live), wait=False):
+                    if self._submitted < len(live):
+                        frame = self.frame(self._submitted)
+                        self._submitted += 1
+                        with phases.section("encode"):
+                            self.video.write(frame)
+                    else:
                         time.sleep(0.005)
             except BaseException as exc:  # noqa: BLE001 - raised by finish()
                 self._error = exc
@@ -438,7 +436,7 @@ class ComparisonVideo:
                 raise self._error
             n = max(len(f) for f in self.frame_lists)
             while self._submitted < n or self._pending:
-                self._pump(n, wait=True)
+                self._pump(n)
         finally:
             self._pool.shutdown(wait=True, cancel_futures=True)
             self.video.close()
