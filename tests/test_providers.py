@@ -13,7 +13,7 @@ import torch
 from simutil import block, config, particles
 
 from fracture_gs import sim as S
-from fracture_gs.sim.providers.stress import StressProvider, least_variance_axis, mean_direction
+from fracture_gs.sim.providers.stress import StressProvider, least_variance_axis, mean_direction, principal_stress
 
 DX = 1 / 32
 X_WEAK = 0.59  # weakened slice: off-centre by ~3Δx, so a plane at the centre fails the 2Δx check
@@ -273,3 +273,25 @@ def test_stress_spike_must_persist(device, seed, spike, latches):
     assert sim.latched == latches, (spike, provider.summary())
     if latches:
         assert sim.topology.latch_frame == 4 and abs(sim.topology.point[0] - X_WEAK) < 0.5 * DX, provider.summary()
+
+
+def test_principal_stress_of_unmeasurable_rows_is_zero():
+    """σ = sym(τ)/det F: a row with det F = 0 or an overflowed τ has no measurable stress (zero value,
+    zero direction, so it cannot trigger a fracture), a finite row near float64's range decomposes
+    without overflow, and ordinary rows keep eigh's exact bits."""
+    g = torch.Generator().manual_seed(0)
+    F = torch.eye(3) + 0.2 * torch.randn(64, 3, 3, generator=g)  # [N,3,3]
+    tau = 1e6 * torch.randn(64, 3, 3, generator=g)  # [N,3,3]
+    J = torch.linalg.det(F.double())
+    sym = 0.5 * (tau.double() + tau.double().transpose(1, 2)) / J[:, None, None]
+    values, vectors = torch.linalg.eigh(sym)
+    F[0] = 0.0
+    tau[1, 0, 0] = float("inf")
+    tau[2] = 3e38
+    F[3] = 1e-12 * torch.eye(3)  # det F = 1e-36: σ ≈ 1e42 Pa
+    s, d = principal_stress(tau, F)  # [N], [N,3]
+    assert torch.isfinite(s).all() and torch.isfinite(d).all()
+    assert s[:2].eq(0).all() and d[:2].eq(0).all()
+    assert s[2] > 1e38 and torch.allclose(d[2].abs(), torch.full((3,), 3**-0.5, dtype=torch.float64))
+    assert torch.isfinite(s[3]) and s[3] > 1e40
+    assert torch.equal(s[4:], values[4:, -1]) and torch.equal(d[4:], vectors[4:, :, -1])

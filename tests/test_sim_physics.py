@@ -121,6 +121,33 @@ def test_stiff_material_over_cfl_raises(device):
     assert "frame" in msg and "CFL" in msg and info.value.count > 0
 
 
+def test_overflowed_deformation_raises_before_the_provider_reads_it():
+    """A state whose F overflows in a frame's last substep (x and v still finite) is a divergence:
+    SimulationDiverged stops the frame before the stress provider decomposes that F (found by the
+    fuzz suite: one squashed StVK particle at 5 m/s, E = 1.1e7 Pa, adaptive Δt at CFL 0.9)."""
+    from fracture_gs.config import TopologyConfig
+
+    P = S.Particles(
+        x=torch.tensor([[0.47390952706336975, 0.4550097584724426, 0.5120224356651306]]),
+        v=torch.tensor([[-2.317880153656006, 1.3735198974609375, -1.6882860660552979]]),
+        F=torch.diag(torch.tensor([0.1, 1.0, 1.0]))[None],
+        mass=torch.full((1,), 181.77269981612667 / 32**3),
+        volume=torch.full((1,), 1.0 / 32**3),
+        E=11264580.856116684,
+        nu=0.06223582926476704,
+        material="stvk_hencky_vm",
+        yield_stress=365994.9816066345,
+        friction_angle=14.89633581734932,
+        sigma_R=1.0,
+    )
+    cfg = config(16, variant="local_multifield", adaptive_dt=True, cfl=0.9, dt=2e-3, max_substeps_per_frame=200)
+    provider = S.StressProvider(TopologyConfig(provider="stress", min_particles=1, persist_frames=1))
+    sim = S.Simulator(cfg, P, device="cpu", provider=provider)
+    with pytest.raises(S.SimulationDiverged, match="non-finite state"):
+        for _ in range(2):
+            sim.advance(0.01)
+
+
 @pytest.mark.parametrize("J", [0.05, 20.0])
 def test_extreme_volume_change_stays_finite(device, J):
     """Large compression (J → 0.05) and stretch (J → 20): every model gives finite stress and a

@@ -198,10 +198,16 @@ class FrameLoop:
                 self.latch(topology)
 
     def _bad_particles(self, dt: float) -> torch.Tensor:
-        """Particles that are non-finite or faster than Δx/Δt (a device count)."""
+        """Particles with a non-finite x, v, F or C, or faster than Δx/Δt (a device count).
+
+        F and C are checked too: the last substep of a frame can overflow F while x and v are still
+        finite, and the event provider then reads F (stress, eigen-decomposition) before any later
+        substep would have spread the overflow into v."""
         P = self.particles
         speed = P.v.norm(dim=1)
-        bad = ~torch.isfinite(speed) | ~torch.isfinite(P.x).all(dim=1) | (speed > self.grid.dx / dt)
+        finite = torch.isfinite(P.x).all(dim=1) & torch.isfinite(speed)
+        finite &= torch.isfinite(P.F.flatten(1)).all(dim=1) & torch.isfinite(P.C.flatten(1)).all(dim=1)
+        bad = ~finite | (speed > self.grid.dx / dt)
         return bad.sum()
 
     def _frame_check(self, dt: float) -> tuple[int, int, int, int, int]:
@@ -229,8 +235,8 @@ class FrameLoop:
         )
         raise SimulationDiverged(
             f"simulation diverged at frame {self.frame} (t = {self.time:.4g}s): {count} of {len(self.particles)} "
-            f"particles have a non-finite or exploding velocity; likely cause: {cause}. Lower sim.dt or set "
-            f"sim.adaptive_dt = true.",
+            f"particles have a non-finite state (x, v, F or C) or an exploding velocity; likely cause: {cause}. "
+            f"Lower sim.dt or set sim.adaptive_dt = true.",
             frame=self.frame,
             count=count,
             cause=cause,

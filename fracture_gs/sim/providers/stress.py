@@ -35,10 +35,18 @@ def principal_stress(tau: torch.Tensor, F: torch.Tensor) -> tuple[torch.Tensor, 
     J = torch.linalg.det(F.double())  # [N]
     tau = tau.double()
     sigma = 0.5 * (tau + tau.transpose(1, 2)) / J[:, None, None]  # [N,3,3]
-    parts = [torch.linalg.eigh(s) for s in sigma.split(EIGH_CHUNK)]  # ascending, columns
-    values = torch.cat([v for v, _ in parts])
-    vectors = torch.cat([e for _, e in parts])
-    return values[:, -1], vectors[:, :, -1]  # [N], [N,3]
+    # eigh fails on a single non-finite row and can overflow on huge ones: decompose σ divided by
+    # the power of two nearest max|σ| (exact, so finite rows give the same bits as before) and
+    # scale back; a row that is not finite (J = 0, overflowed τ) has no measurable stress and reads
+    # as zero with a zero direction, so it never triggers a fracture on its own.
+    finite = torch.isfinite(sigma).flatten(1).all(dim=1)  # [N]
+    peak = sigma.abs().flatten(1).amax(dim=1).where(finite, 0.0)  # [N]
+    scale = torch.ldexp(torch.ones_like(peak), torch.frexp(peak).exponent)  # [N] power of two, 1 for 0
+    unit = torch.where(finite[:, None, None], sigma / scale[:, None, None], 0.0)
+    parts = [torch.linalg.eigh(s) for s in unit.split(EIGH_CHUNK)]  # ascending, columns
+    values = torch.cat([v for v, _ in parts])[:, -1] * scale.where(finite, 0.0)  # [N]
+    vectors = torch.cat([e for _, e in parts])[:, :, -1].where(finite[:, None], 0.0)  # [N,3]
+    return values, vectors
 
 
 def orient(n: torch.Tensor) -> torch.Tensor:
