@@ -7,6 +7,7 @@ Ctrl-C or a divergence keeps every frame and metric already written.
 
 from __future__ import annotations
 
+import copy
 import json
 import os
 import queue
@@ -54,6 +55,13 @@ class Painter:
         self.exposed_rgb: Optional[torch.Tensor] = None
         self.exposed_count = 0
         self.width, self.height = int(cfg.render.width), int(cfg.render.height)
+
+    def for_variant(self) -> Painter:
+        """A painter for one variant's frames: the scene's tensors shared (read only), the exposed-interior
+        colours its own (they follow that variant's fracture, not the previous variant's last frame)."""
+        painter = copy.copy(self)
+        painter.exposed_rgb, painter.exposed_count = None, 0
+        return painter
 
     def camera(self, frame: int):
         return from_config(self.cfg.camera, self.width, self.height, t=frame / self.frames)
@@ -262,7 +270,7 @@ def run_variant(
     sim = make_simulator(cfg, gs, variant, device, topology=topology, provider=provider)
     rows, status, t0 = [], "ok", time.perf_counter()
     bar = progress_bar(cfg.frames, f"{variant:>20s}", position)
-    sink = FrameSink(painter, out_dir / f"{variant}.mp4", cfg.render.fps, frames_store)
+    sink = FrameSink(painter.for_variant(), out_dir / f"{variant}.mp4", cfg.render.fps, frames_store)
     interrupted = False
     try:
         for out in simulate(sim, painter.cov0, cfg.frames, cfg.frame_dt):

@@ -145,3 +145,16 @@ def test_a_worker_process_that_dies_is_named(tmp_path):
             crash_the_follower, runner.Painter, tiny(), gs, None, ["stress_zero", "full"], ["cpu", "cpu"],
             tmp_path, io.StringIO(), None,
         )  # fmt: skip
+
+
+def test_each_variant_paints_with_its_own_exposed_interior_colours():
+    """The exposed-interior colours follow one variant's fracture: a variant's painter starts without
+    the previous variant's colours (two render threads never share them) and shares the scene's tensors."""
+    from fracture_gs.pipeline import prepare_scene
+
+    scene = prepare_scene(tiny(), "cpu")
+    painter = runner.Painter(scene.gaussians, scene.cfg, "cpu")
+    painter.exposed_rgb, painter.exposed_count = torch.ones(3, 3), 3  # left by a previous variant
+    fresh = painter.for_variant()
+    assert fresh.exposed_rgb is None and fresh.exposed_count == 0
+    assert painter.exposed_count == 3 and fresh.cov0 is painter.cov0 and fresh.sh is painter.sh
