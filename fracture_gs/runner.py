@@ -458,13 +458,16 @@ def compose_comparison(
     ComparisonVideo(cfg, variants, frame_lists, topology, painter, out_dir, statuses).finish()
 
 
-def _run_in_turn(cfg, gs, order, device, out_dir, painter, metrics_file, export, variants):
+def _run_in_turn(cfg, gs, order, device, out_dir, painter, metrics_file, export, variants, stop=None):
     """The variants one after the other on one device; the first's topology is replayed by the rest.
     While the last one runs, the comparison video (panels in `variants` order) is composed beside it
     when the others all have frames and the topology is known; returns that `ComparisonVideo` (or None)."""
     frames, summaries, topology, interrupted, live = {}, {}, None, False, None
     try:
         for k, variant in enumerate(order):
+            if stop is not None and stop.is_set():
+                interrupted = True
+                break
             frames[variant] = []
             if k > 0 and k == len(order) - 1 and topology is not None and all(frames[v] for v in order[:k]):
                 statuses = [summaries[v]["status"] if v in summaries else "ok" for v in variants]
@@ -472,7 +475,7 @@ def _run_in_turn(cfg, gs, order, device, out_dir, painter, metrics_file, export,
                 live = ComparisonVideo(cfg, variants, panels, topology, painter, out_dir, statuses)
                 live.start_live(frames[variant])
             summaries[variant], topology = run_variant(
-                cfg, gs, variant, device, out_dir, painter, topology, metrics_file, frames[variant], export
+                cfg, gs, variant, device, out_dir, painter, topology, metrics_file, frames[variant], export, stop=stop
             )
             if topology is not None and not (out_dir / "topology.npz").exists():
                 save_history(out_dir / "topology.npz", topology)
@@ -497,12 +500,15 @@ def run_render_sim(
     profile: bool = False,
     export_ply: Optional[int] = None,
     devices: Optional[list] = None,
+    stop=None,
 ) -> dict:
     """The main job. Returns the summary dict (also written to summary.json / summary.md); with
     `profile`, the time per phase is in summary["profile"] and profile.md; with `export_ply` = N, every
     N-th frame of every variant also goes to ply/<variant>/frame_NNNN.ply (3DGS, the scene's frame).
     A captured PLY scene is resolved first (capture.resolve): config.toml is the resolved config. With
-    `devices` (several), the variants run side by side, one per device (`fracture_gs.parallel`)."""
+    `devices` (several), the variants run side by side, one per device (`fracture_gs.parallel`).
+    `stop`: a threading Event that interrupts the run at the next frame, like Ctrl-C (the CLI sets it
+    from its SIGINT handler, so an interrupt Python drops inside a finalizer still stops the run)."""
     out_dir = output_dir(out_dir)
     if profile:
         phases.enable(sync_device=device if device.startswith("cuda") else None)
@@ -530,7 +536,7 @@ def run_render_sim(
                 save_history(out_dir / "topology.npz", topology)
         else:
             frames, summaries, topology, interrupted, live = _run_in_turn(
-                cfg, gs, order, device, out_dir, painter, metrics_file, export, list(variants)
+                cfg, gs, order, device, out_dir, painter, metrics_file, export, list(variants), stop
             )
     done = [v for v in variants if v in summaries and frames[v]]
     statuses = [summaries[v]["status"] for v in done]
@@ -541,6 +547,7 @@ def run_render_sim(
             live.abort()
         if done:
             compose_comparison(cfg, done, [frames[v] for v in done], topology, painter, out_dir, statuses)
+    interrupted = interrupted or (stop is not None and stop.is_set())
     summary = {
         "name": cfg.name,
         "scene": cfg.scene,

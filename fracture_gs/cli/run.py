@@ -3,14 +3,39 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
+import signal
 import sys
+import threading
 from pathlib import Path
 from typing import Any
 
 from ..io.outputs import output_dir, output_file
 from .devices import resolve_device
 from .parser import CliError
+
+
+@contextlib.contextmanager
+def sigint_event():
+    """A threading Event that Ctrl-C sets, besides raising KeyboardInterrupt as usual. Python drops an
+    exception raised in a finalizer (`__del__`, printed as "Exception ignored"), and a signal handler
+    can run inside one; the run still stops at its next frame because the event is set. Outside the
+    main thread (no signal handlers there) the event is only returned."""
+    stop = threading.Event()
+    if threading.current_thread() is not threading.main_thread():
+        yield stop
+        return
+
+    def handler(signum, frame):
+        stop.set()
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGINT, handler)
+    try:
+        yield stop
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def _print_summary(summary: Any) -> None:
@@ -60,7 +85,8 @@ def cmd_render_sim(args: argparse.Namespace) -> int:
     extra = {"export_ply": args.export_ply} if getattr(args, "export_ply", None) else {}
     if devices and len(devices) > 1:
         extra["devices"] = devices
-    summary = run(cfg, list(cfg.variants), device, out_dir, profile=args.profile, **extra) or {}
+    with sigint_event() as stop:
+        summary = run(cfg, list(cfg.variants), device, out_dir, profile=args.profile, stop=stop, **extra) or {}
     table = out_dir / "summary.md"
     print(table.read_text() if table.exists() else json.dumps(summary, indent=2, default=str))
     print(
