@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+import threading
 from pathlib import Path
 
 import pytest
@@ -144,8 +145,8 @@ def test_resolve_device(monkeypatch):
 def test_render_sim_dispatches_to_runner(monkeypatch, tmp_path, capsys):
     calls = {}
 
-    def fake_run(cfg, variants, device, out_dir, profile=False):
-        calls.update(cfg=cfg, variants=variants, device=device, out_dir=out_dir, profile=profile)
+    def fake_run(cfg, variants, device, out_dir, profile=False, stop=None):
+        calls.update(cfg=cfg, variants=variants, device=device, out_dir=out_dir, profile=profile, stop=stop)
         return {"video": str(out_dir / "compare.mp4")}
 
     monkeypatch.setattr(runner, "run_render_sim", fake_run)
@@ -170,11 +171,12 @@ def test_render_sim_dispatches_to_runner(monkeypatch, tmp_path, capsys):
     assert code == 0, capsys.readouterr().err
     assert calls["variants"] == ["baseline", "full"] and calls["device"] == "cpu" and calls["out_dir"] == tmp_path
     assert calls["cfg"].frames == 3 and calls["cfg"].sim.grid_shape == (128, 128, 128)
+    assert isinstance(calls["stop"], threading.Event) and not calls["stop"].is_set()  # Ctrl-C would set it
     assert "compare.mp4" in capsys.readouterr().out
 
 
 def test_keyboard_interrupt_reports_partial_outputs(monkeypatch, tmp_path, capsys):
-    def interrupted(cfg, variants, device, out_dir, profile=False):
+    def interrupted(cfg, variants, device, out_dir, profile=False, stop=None):
         raise KeyboardInterrupt
 
     monkeypatch.setattr(runner, "run_render_sim", interrupted)
@@ -183,7 +185,7 @@ def test_keyboard_interrupt_reports_partial_outputs(monkeypatch, tmp_path, capsy
 
 
 def test_bugs_keep_their_traceback(monkeypatch):
-    def broken(cfg, variants, device, out_dir, profile=False):
+    def broken(cfg, variants, device, out_dir, profile=False, stop=None):
         raise RuntimeError("bug")
 
     monkeypatch.setattr(runner, "run_render_sim", broken)
