@@ -101,6 +101,8 @@ def test_ctrl_c_keeps_partial_outputs(tmp_path):
         stderr=subprocess.PIPE,
         text=True,
         env=env,
+        # Ctrl-C as in a terminal, also when the suite itself runs where SIGINT is ignored (nohup)
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )
     metrics = out / "metrics.jsonl"
     deadline = time.time() + 300
@@ -128,15 +130,22 @@ def test_ctrl_c_dropped_inside_a_finalizer_still_sets_the_stop_event():
 
     dropped = []
     hook, sys.unraisablehook = sys.unraisablehook, lambda u: dropped.append(u.exc_type)
+    outer = signal.signal(signal.SIGINT, signal.default_int_handler)  # as in an interactive shell
     try:
         with sigint_event() as stop:
             obj = Finalized()
             del obj
             assert stop.is_set()
+        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # restored
+        signal.signal(signal.SIGINT, signal.SIG_IGN)  # a nohup job: Ctrl-C stays ignored
+        with sigint_event() as stop:
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(0.01)
+            assert not stop.is_set()
     finally:
         sys.unraisablehook = hook
+        signal.signal(signal.SIGINT, outer)
     assert dropped == [KeyboardInterrupt]
-    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # restored
 
 
 def test_stop_event_interrupts_the_run_and_keeps_its_outputs(tmp_path):

@@ -212,8 +212,10 @@ def test_drucker_prager_returns_onto_cone(device, seed):
     tau = sim.stress.double().cpu()
     dn, tr = deviatoric_norm(tau)
     alpha = sim.particles.alpha.double().cpu()
-    scale = tau.flatten(1).norm(dim=1) + 1.0
-    tol = 5e-4 * scale  # float32 SVD/log/exp; a missing return would be off by O(1)
+    # float32 SVD/log/exp: relative 5e-4, plus 8 float32 ulps of strain at the shear modulus near the cone's
+    # apex, where τ → 0 (150 seeds stayed under 0.8 such ulps; a missing return would be off by O(|τ|))
+    mu = 1e5 / (2 * (1 + 0.3))
+    tol = 5e-4 * tau.flatten(1).norm(dim=1) + 8 * mu * 2.0**-23
     assert (tr <= tol).all(), f"seed {seed}"
     assert (dn <= -alpha * tr + tol).all(), f"seed {seed}"
     assert ((dn - (-alpha * tr)).abs() < tol).float().mean() > 0.2  # many particles sit on the cone
