@@ -101,7 +101,7 @@ def test_ctrl_c_keeps_partial_outputs(tmp_path):
         stderr=subprocess.PIPE,
         text=True,
         env=env,
-        # Ctrl-C as in a terminal, also when the suite itself runs where SIGINT is ignored (nohup)
+        # Ctrl-C as in a terminal, also when the suite runs as a background job of a script (SIGINT ignored, inherited)
         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )
     metrics = out / "metrics.jsonl"
@@ -137,7 +137,7 @@ def test_ctrl_c_dropped_inside_a_finalizer_still_sets_the_stop_event():
             del obj
             assert stop.is_set()
         assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # restored
-        signal.signal(signal.SIGINT, signal.SIG_IGN)  # a nohup job: Ctrl-C stays ignored
+        signal.signal(signal.SIGINT, signal.SIG_IGN)  # a background job of a script: Ctrl-C stays ignored
         with sigint_event() as stop:
             os.kill(os.getpid(), signal.SIGINT)
             time.sleep(0.01)

@@ -21,8 +21,8 @@ def sigint_event():
     """A threading Event that Ctrl-C sets, besides raising KeyboardInterrupt as usual. Python drops an
     exception raised in a finalizer (`__del__`, printed as "Exception ignored"), and a signal handler
     can run inside one; the run still stops at its next frame because the event is set. Outside the
-    main thread (no signal handlers there), or where SIGINT is ignored (a `nohup` job, as Python leaves
-    it), the event is only returned."""
+    main thread (no signal handlers there), or where SIGINT is ignored (a background job of a
+    non-interactive shell, as Python leaves it), the event is only returned."""
     stop = threading.Event()
     if threading.current_thread() is not threading.main_thread() or signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
         yield stop
