@@ -508,7 +508,8 @@ def run_render_sim(
     A captured PLY scene is resolved first (capture.resolve): config.toml is the resolved config. With
     `devices` (several), the variants run side by side, one per device (`fracture_gs.parallel`).
     `stop`: a threading Event that interrupts the run at the next frame, like Ctrl-C (the CLI sets it
-    from its SIGINT handler, so an interrupt Python drops inside a finalizer still stops the run)."""
+    from its SIGINT handler, so an interrupt Python drops inside a finalizer still stops the run; with
+    `devices` the worker processes stop on Ctrl-C themselves and the event only marks the summary)."""
     out_dir = output_dir(out_dir)
     if profile:
         phases.enable(sync_device=device if device.startswith("cuda") else None)
