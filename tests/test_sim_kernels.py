@@ -86,7 +86,9 @@ def _rotation_of_kernel(F: wp.array(dtype=wp.mat33), R: wp.array(dtype=wp.mat33)
 def test_fixed_corotated_rotation_is_the_polar_factor(device, seed):
     """R of fixed-corotated (`constitutive.rotation_of`: scaled Newton where det F > 0, the SVD where F
     is inverted or nearly flat) is a rotation (RᵀR = I, det R = +1) equal to U Vᵀ of the float64 SVD
-    with rotations U, V to 1e-5, on either side of the Newton/SVD switch, and finite for every F."""
+    with rotations U, V on either side of the Newton/SVD switch, to 64 float32 roundings times the polar
+    factor's condition number σ₁/(|σ₂| − |σ₃|) (≤ 1e-5 where that is ≤ 10; 40 seeds stayed under 17
+    roundings), and finite for every F."""
     g = torch.Generator().manual_seed(seed)
     n = 4096
     U, V = rand_rotations(n, g), rand_rotations(n, g)
@@ -116,9 +118,13 @@ def test_fixed_corotated_rotation_is_the_polar_factor(device, seed):
     assert (torch.linalg.det(R) - 1).abs().max() <= 1e-5
     # U Vᵀ is well defined where no two singular values nearly cancel (σ_i + σ_j ≫ 0)
     a = s.abs().sort(dim=1, descending=True).values
-    well = (a[:, 1] - a[:, 2]) / a[:, 0] > 1e-2
+    gap = (a[:, 1] - a[:, 2]) / a[:, 0]  # 1 / condition number of U Vᵀ
+    well = gap > 1e-2
     well[4 * k : 4 * k + 8] = False
     expected = U @ V.transpose(1, 2)
     expected[4 * k + 8 : 4 * k + 16] = torch.eye(3, dtype=torch.float64)
     err = (R - expected).abs().amax(dim=(1, 2))
-    assert err[well].max() <= 1e-5, f"max |R − U Vᵀ| = {err[well].max():.2e} (seed {seed})"
+    bound = 64 * 2.0**-24 / gap.clamp_min(1e-2)
+    worst = (err / bound)[well].max()
+    assert worst <= 1, f"|R − U Vᵀ| is {worst:.2f} of its bound (seed {seed})"
+    assert err[well & (gap >= 0.1)].max() <= 1e-5
