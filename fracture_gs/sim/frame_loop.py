@@ -141,7 +141,7 @@ class FrameLoop:
                     self.grid.ensure_pool(self.pool_rows)
                 self._reset_boxes()
                 self.grid.zero()
-                self.solo.zero_()  # the whole grid, every particle claims its slots
+                self.set_solo(None)  # the whole grid, every particle claims its slots
                 vmax = None
             n, dt = self.frame_substeps(frame_dt, vmax)
             self.dt = dt

@@ -199,6 +199,31 @@ def slot0_readable(g: GridView, base: wp.vec3i, k: int):
     return readable != 0
 
 
+@wp.func
+def launch_particle(
+    t: int,
+    n: int,
+    solo: wp.array(dtype=wp.int32),
+    order: wp.array(dtype=wp.int32),
+    first: wp.array(dtype=wp.int32),
+    split: int,
+):
+    """Particle of G2P's thread t, or −1. With `split` the launch has 2n threads: the first `first[0]`
+    take the particles that are not solo (`order` lists them first), so their slot lookups, 27 serial
+    hash probes each, start before the dense bulk and hide under it instead of finishing last; threads
+    n … 2n−1 take the solo particles in their own order (coalesced, no indirection). Only G2P: in P2G
+    the same order did not help (H200, BENCHMARKS.md) and the extra threads cost 5 µs."""
+    if split == 0:
+        return t
+    if t < n:
+        if t < first[0]:
+            return order[t]
+        return -1
+    if solo[t - n] == 0:
+        return -1
+    return t - n
+
+
 @wp.kernel
 def p2g(
     x: wp.array(dtype=wp.vec3),  # [N]
@@ -438,6 +463,9 @@ def g2p(
     F: wp.array(dtype=wp.mat33),
     fragment: wp.array(dtype=wp.int32),
     solo: wp.array(dtype=wp.int32),  # [N] as in p2g
+    order: wp.array(dtype=wp.int32),  # [N] the particles that are not solo first (read with split)
+    first: wp.array(dtype=wp.int32),  # [1] how many are not solo
+    split: int,  # 1: 2N threads, the particles that are not solo first (`launch_particle`)
     multifield: int,
     only_fragment: int,
     clock: Clock,  # Δt
@@ -448,7 +476,9 @@ def g2p(
 ):
     """Eqs. field_g2p, field_apic, field_deformation from the particle's own field only (no fallback):
     v = Σ w v_i; C = 4/Δx² Σ w v_i (x_i − x_p)ᵀ; F ← (I + Δt Σ v_i ∇wᵀ) F; x ← x + Δt v."""
-    p = wp.tid()
+    p = launch_particle(wp.tid(), x.shape[0], solo, order, first, split)
+    if p < 0:
+        return
     k = routed_field(fragment[p], only_fragment, multifield)
     if k < 0:
         return
