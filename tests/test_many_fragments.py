@@ -509,39 +509,3 @@ def test_solo_mask_cube_max_is_the_3d_max_pool(r):
     t = torch.randn(1, 1, 17, 23, 11, generator=g)
     t[t > 1.0] = float("-inf")
     assert torch.equal(_cube_max(t, r), torch.nn.functional.max_pool3d(t, 2 * r + 1, stride=1, padding=r))
-
-
-def test_particles_that_are_not_solo_launch_first(device, seed):
-    """G2P may launch the particles that are not solo first (`Simulator.slow_first`, on by default on a
-    GPU, where their slot lookups then run under the dense bulk): every particle is still gathered
-    exactly once, so two pieces advance bitwise as with the plain launch (G2P is per particle), and the
-    next P2G still deposits every particle's mass (Σ of every slot's mass = Σ m_p)."""
-    sims = []
-    for slow_first in (False, True):
-        g = torch.Generator().manual_seed(seed)
-        n = 3000  # a slab at rest, long in x and cut in two across it: particles far from the cut are solo
-        x = torch.tensor([0.1, 0.35, 0.35]) + torch.tensor([0.8, 0.3, 0.3]) * torch.rand(n, 3, generator=g)
-        P = S.Particles(x=x, mass=0.5 + torch.rand(n, generator=g), volume=torch.full((n,), 1e-5), E=1e4, nu=0.3)
-        cfg = config(32, variant="full", gravity=(0.0, 0.0, -9.8), dt=1e-3, field_slots=8)
-        sim = S.Simulator(cfg, P, device=device)
-        P = sim.particles
-        sim.slow_first = slow_first
-        sim.latch(S.Topology.from_plane(P.x.cpu(), (0.5, 0.5, 0.5), (1.0, 0.2, 0.1), band_width=1.5 / 32))
-        for _ in range(3):
-            sim.advance(5e-3)
-        sims.append(sim)
-    plain, split = sims
-    solo = split.solo.bool()
-    assert 0.05 < float(solo.float().mean()) < 0.95, "both launch parts are exercised"
-    assert int(split._first) == int((~solo).sum())
-    assert torch.equal(split._order[: int(split._first)].sort().values.long(), torch.nonzero(~solo).flatten())
-    split.compute_stress(split.stress, commit=False)
-    split.p2g(1e-3)
-    total = split.grid._mp[:, 3].sum().double()  # every slot, dense and pooled (solo deposits claim no owner)
-    torch.testing.assert_close(total, split.particles.mass.sum().double(), rtol=1e-6, atol=0.0)
-    for name in ("x", "v", "C", "F"):
-        a, b = getattr(plain.particles, name).cpu(), getattr(split.particles, name).cpu()
-        if device == "cpu":
-            assert torch.equal(a, b), name
-        elif name != "C":  # P2G's float32 atomics sum in another order on every run; C of a body at rest is that noise
-            assert rel_err(b, a) <= 1e-5, f"{name} (seed {seed})"

@@ -147,6 +147,7 @@ KERNEL_PHASES = {
     "clear_dense": "reset",
     "clear_pool": "reset",
     "p2g": "p2g",
+    "p2g_fanout": "p2g",
     "grid_update_dense": "grid",
     "grid_update_pool": "grid",
     "g2p": "g2p",

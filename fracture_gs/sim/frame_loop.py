@@ -60,6 +60,7 @@ class FrameLoop:
             self.record_contact,
             self.cfg.wall_cells,
             self.clock.capacity,
+            self._fan_cap,
         )
 
     def _frame_substeps_run(self, n: int, dt: float, start: float) -> None:

@@ -28,7 +28,7 @@ from .layout import COUNT_CLAMPED, MAX_SLOTS, N_COUNTS
 from .neighbourhood import cell_order, fragment_centroids, solo_mask
 from .particles import Particles, SimulationError
 from .topology import Topology
-from .transfer_kernels import clear_dense, clear_pool, g2p, grid_update_dense, grid_update_pool, p2g
+from .transfer_kernels import clear_dense, clear_pool, g2p, grid_update_dense, grid_update_pool, p2g, p2g_fanout
 
 MULTIFIELD_VARIANTS = tuple(v for v, s in VARIANTS.items() if s.multifield)
 RELEASE_VARIANTS = tuple(v for v, s in VARIANTS.items() if s.release)
@@ -106,6 +106,11 @@ class Simulator(FrameLoop):
         # their slot lookups then run under the dense bulk instead of after it (FractureFields at K = 2 on
         # an H200: 1.6 % of the particles made G2P 18 µs slower than the shared field's)
         self.slow_first = self.device.startswith("cuda")
+        # and P2G gives each of those particles 27 threads, one per stencil node (`p2g_fanout`), so its
+        # claims and atomics do not run 27 in a row after the dense bulk; the launch covers a power-of-two
+        # capacity ≥ their count (read once per frame in `set_solo`), so recorded graphs rarely change
+        self.fanout = self.device.startswith("cuda")
+        self._fan_cap = 0
         self._order = torch.arange(n, dtype=torch.int32, device=self.device)
         self._first = torch.full((1,), n, dtype=torch.int32, device=self.device)
         self.counts = torch.zeros(N_COUNTS, dtype=torch.int32, device=self.device)  # see layout.COUNT_*
@@ -224,9 +229,12 @@ class Simulator(FrameLoop):
             self.solo.zero_()
         else:
             self.solo.copy_(mask)
-        if self.slow_first:
+        if self.slow_first or self.fanout:
             self._order.copy_(torch.argsort(self.solo, stable=True))
             self._first.copy_((self.solo == 0).sum().view(1))
+        if self.fanout:
+            n = len(self.particles) if mask is None else int(self._first)  # the frame's second host read
+            self._fan_cap = 0 if n == 0 else min(len(self.particles), max(256, 1 << (n - 1).bit_length()))
 
     def _split(self, multi: int) -> bool:
         """Whether G2P launches the particles that are not solo first (multi-field grids, on a GPU by
@@ -347,6 +355,7 @@ class Simulator(FrameLoop):
         else:
             g.clear()
             lo, hi = wp.vec3i(0, 0, 0), wp.vec3i(*g.shape)
+        fan = self.fanout and multi and target is None and only_fragment < 0 and self._fan_cap > 0
         wp.launch(
             p2g,
             dim=len(self.particles),
@@ -363,6 +372,7 @@ class Simulator(FrameLoop):
                 w["solo"] if target is None else w["no_solo"],
                 multi,
                 only_fragment,
+                int(fan),
                 self.clock.view,
                 g.view,
                 lo,
@@ -370,6 +380,27 @@ class Simulator(FrameLoop):
                 w["counts"] if counts is None else counts,
             ],
         )
+        if fan:
+            wp.launch(
+                p2g_fanout,
+                dim=27 * self._fan_cap,
+                device=self.device,
+                inputs=[
+                    w["x"],
+                    w["v"],
+                    w["C"],
+                    w["mass"],
+                    w["volume"],
+                    w["stress"] if stress is None else stress,
+                    w["fragment"],
+                    w["band"],
+                    w["order"],
+                    w["first"],
+                    self.clock.view,
+                    g.view,
+                    w["counts"] if counts is None else counts,
+                ],
+            )
 
     def _update_grid(self) -> None:
         g, multi = self.grid, int(self.multifield)

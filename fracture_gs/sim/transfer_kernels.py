@@ -237,6 +237,7 @@ def p2g(
     solo: wp.array(dtype=wp.int32),  # [N] 1: no other fragment within reach this frame (dense slot 0, no claims)
     multifield: int,
     only_fragment: int,  # ≥ 0: skip every particle of another fragment (global fragment pass)
+    fanout: int,  # 1: the particles that are not solo are left to `p2g_fanout` (one thread per node)
     clock: Clock,  # Δt
     g: GridView,
     lo: wp.vec3i,  # active box [lo, hi): a stencil outside it is counted (the frame is redone)
@@ -258,6 +259,8 @@ def p2g(
     force = -clock_dt(clock) * volume[p] * stress[p]
     in_band = band[p]
     dense = multifield == 0 or solo[p] != 0
+    if not dense and fanout != 0:
+        return  # `p2g_fanout` deposits it, one thread per stencil node
     if not dense and in_band == 0:
         dense = slot0_owned(g, base, k)
     if dense:  # one field at every node reached, in slot 0: unrolled, one reduction per node
@@ -277,6 +280,47 @@ def p2g(
         if in_band != 0 and row >= 0:
             wp.atomic_add(g.band, row * g.slots + s, weight * m)
         atomic_add_vec4(g.mp, idx, wp.vec4(mom[0], mom[1], mom[2], weight * m))
+
+
+@wp.kernel
+def p2g_fanout(
+    x: wp.array(dtype=wp.vec3),  # [N]
+    v: wp.array(dtype=wp.vec3),  # [N]
+    C: wp.array(dtype=wp.mat33),  # [N]
+    mass: wp.array(dtype=float),  # [N]
+    volume: wp.array(dtype=float),  # [N]
+    stress: wp.array(dtype=wp.mat33),  # [N]
+    fragment: wp.array(dtype=wp.int32),  # [N]
+    band: wp.array(dtype=wp.int32),  # [N]
+    order: wp.array(dtype=wp.int32),  # [N] the particles that are not solo first
+    first: wp.array(dtype=wp.int32),  # [1] how many are not solo
+    clock: Clock,
+    g: GridView,
+    counts: wp.array(dtype=wp.int32),
+):
+    """`p2g`'s deposits of the particles that are not solo, thread t = 27 i + q taking stencil node q of
+    the i-th listed particle: each thread's slot claim and atomics are one node long, so these particles
+    no longer finish after the dense bulk with 27 serial claims each (the launch has 27 × a capacity ≥
+    first[0] threads). The same terms, indices and claims as `p2g`'s loop; `p2g` counted the escapes."""
+    t = wp.tid()
+    i = t // 27
+    if i >= first[0]:
+        return
+    p = order[i]
+    k = routed_field(fragment[p], -1, 1)
+    xi = (x[p] - g.origin) * g.inv_dx
+    base = stencil_base(xi, g.shape)
+    f = xi - wp.vec3(float(base[0]), float(base[1]), float(base[2]))
+    weight, grad, dpos, o = node_terms_q(t - 27 * i, f, g.dx, g.inv_dx)
+    n = flat(base + o, wp.vec3i(0, 0, 0), g.shape)
+    m = mass[p]
+    force = -clock_dt(clock) * volume[p] * stress[p]
+    mom = weight * m * (v[p] + C[p] * dpos) + force * grad
+    in_band = band[p]
+    idx, row, s = deposit_index(g, n, k, in_band, counts)
+    if in_band != 0 and row >= 0:
+        wp.atomic_add(g.band, row * g.slots + s, weight * m)
+    atomic_add_vec4(g.mp, idx, wp.vec4(mom[0], mom[1], mom[2], weight * m))
 
 
 @wp.kernel

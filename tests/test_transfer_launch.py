@@ -1,0 +1,105 @@
+"""How the transfer launches its threads on a GPU (DESIGN.md "Performance rules"): the particles that are
+not solo first in G2P, and one P2G thread per (such particle, stencil node). Both change only which thread
+does what; the physics is the same up to the order of float32 sums, which these tests bound."""
+
+import pytest
+import torch
+from simutil import config, rel_err
+
+from fracture_gs import sim as S
+from fracture_gs.sim.layout import COUNT_SLOT_OVERFLOW
+from fracture_gs.sim.providers.cuts import voronoi_labels
+from fracture_gs.sim.providers.voronoi import voronoi_sites
+
+
+def slab(seed, device, fragments=2, slots=8, n=3000):
+    """A slab at rest under gravity, long in x, cut in two across it (or into Voronoi pieces): particles
+    far from the cuts are solo, the rest take the slot path."""
+    g = torch.Generator().manual_seed(seed)
+    x = torch.tensor([0.1, 0.35, 0.35]) + torch.tensor([0.8, 0.3, 0.3]) * torch.rand(n, 3, generator=g)
+    P = S.Particles(x=x, mass=0.5 + torch.rand(n, generator=g), volume=torch.full((n,), 1e-5), E=1e4, nu=0.3)
+    cfg = config(32, variant="full", gravity=(0.0, 0.0, -9.8), dt=1e-3, field_slots=slots)
+    sim = S.Simulator(cfg, P, device=device)
+    x = sim.particles.x.cpu()
+    if fragments == 2:
+        topo = S.Topology.from_plane(x, (0.5, 0.5, 0.5), (1.0, 0.2, 0.1), band_width=1.5 / 32)
+    else:
+        fragment, band = voronoi_labels(x, voronoi_sites(x, fragments, seed), 1.5 / 32)
+        topo = S.Topology(fragment=fragment, band=band, normal=(1.0, 0.0, 0.0), point=(0.5, 0.5, 0.5))
+    return sim, topo
+
+
+def test_particles_that_are_not_solo_launch_first(device, seed):
+    """G2P may launch the particles that are not solo first (`Simulator.slow_first`, on by default on a
+    GPU, where their slot lookups then run under the dense bulk): every particle is still gathered
+    exactly once, so two pieces advance bitwise as with the plain launch (G2P is per particle), and the
+    next P2G still deposits every particle's mass (Σ of every slot's mass = Σ m_p)."""
+    sims = []
+    for slow_first in (False, True):
+        sim, topo = slab(seed, device)
+        sim.slow_first = slow_first
+        sim.latch(topo)
+        for _ in range(3):
+            sim.advance(5e-3)
+        sims.append(sim)
+    plain, split = sims
+    solo = split.solo.bool()
+    assert 0.05 < float(solo.float().mean()) < 0.95, "both launch parts are exercised"
+    assert int(split._first) == int((~solo).sum())
+    assert torch.equal(split._order[: int(split._first)].sort().values.long(), torch.nonzero(~solo).flatten())
+    split.compute_stress(split.stress, commit=False)
+    split.p2g(1e-3)
+    total = split.grid._mp[:, 3].sum().double()  # every slot, dense and pooled (solo deposits claim no owner)
+    torch.testing.assert_close(total, split.particles.mass.sum().double(), rtol=1e-6, atol=0.0)
+    for name in ("x", "v", "C", "F"):
+        a, b = getattr(plain.particles, name).cpu(), getattr(split.particles, name).cpu()
+        if device == "cpu":
+            assert torch.equal(a, b), name
+        elif name != "C":  # P2G's float32 atomics sum in another order on every run; C of a body at rest is that noise
+            assert rel_err(b, a) <= 1e-5, f"{name} (seed {seed})"
+
+
+@pytest.mark.parametrize("fragments,slots", [(2, 8), (6, 2)])
+def test_p2g_fans_the_particles_that_are_not_solo_out_one_thread_per_node(device, seed, fragments, slots):
+    """P2G may give each particle that is not solo 27 threads, one per stencil node (`Simulator.fanout`, on
+    by default on a GPU, so their slot claims do not run 27 in a row after the dense bulk). Every thread
+    makes the deposit the particle's own loop would: one P2G puts every particle's mass and momentum into
+    the same fields (on the CPU the claims come in the same order, so the same slots and the same overflow
+    counts, with 2 slots at Voronoi corners too), differing only by the order of float32 sums, and three
+    frames advance the same to float32 rounding."""
+    sims = []
+    for fanout in (False, True):
+        sim, topo = slab(seed, device, fragments, slots)
+        sim.fanout = fanout
+        sim.latch(topo)
+        for _ in range(3):
+            sim.advance(5e-3)
+        sims.append(sim)
+    plain, fanned = sims
+    solo = fanned.solo.bool()
+    assert float(solo.float().mean()) < 0.95, "the fan-out is exercised"
+    assert fragments > 2 or float(solo.float().mean()) > 0.05, "so are the dense deposits (two pieces)"
+    cap = fanned._fan_cap  # a power of two, or every particle
+    assert cap >= int((~solo).sum()) and (cap & (cap - 1) == 0 or cap == len(solo))
+    for name in ("x", "v", "F"):
+        a, b = getattr(plain.particles, name).cpu(), getattr(fanned.particles, name).cpu()
+        assert rel_err(b, a) <= 1e-5, f"{name} (seed {seed})"
+    # one P2G of the same state both ways
+    grids = []
+    for fanout in (False, True):
+        fanned.fanout = fanout
+        fanned.grid.reset_claims()
+        fanned.counts.zero_()
+        fanned.compute_stress(fanned.stress, commit=False)
+        fanned.p2g(1e-3)
+        g = fanned.grid
+        grids.append((g._mp.cpu().double(), g._owner.cpu(), g.pool_owner.cpu(), fanned.counts.cpu()))
+    (mp0, own0, pool0, c0), (mp1, own1, pool1, c1) = grids
+    torch.testing.assert_close(mp1[:, 3].sum(), fanned.particles.mass.sum().double().cpu(), rtol=1e-6, atol=0.0)
+    if device == "cpu":
+        assert torch.equal(own0, own1) and torch.equal(pool0, pool1), "the same slots, claimed in the same order"
+        assert torch.equal(c0, c1), f"the same counters {c0.tolist()} (escaped, clamped, slot and pool overflows)"
+        if slots == 2:
+            assert int(c0[COUNT_SLOT_OVERFLOW]) > 0, "the Voronoi corners overflow two slots"
+        scale = mp0.abs().amax(0)  # [4]: per component, the largest magnitude
+        assert ((mp1 - mp0).abs() <= 1e-5 * scale).all()
