@@ -60,13 +60,14 @@ def test_particles_that_are_not_solo_launch_first(device, seed):
 
 
 @pytest.mark.parametrize("fragments,slots", [(2, 8), (6, 2)])
-def test_p2g_fans_the_particles_that_are_not_solo_out_one_thread_per_node(device, seed, fragments, slots):
-    """P2G may give each particle that is not solo 27 threads, one per stencil node (`Simulator.fanout`, on
-    by default on a GPU, so their slot claims do not run 27 in a row after the dense bulk). Every thread
-    makes the deposit the particle's own loop would: one P2G puts every particle's mass and momentum into
-    the same fields (on the CPU the claims come in the same order, so the same slots and the same overflow
-    counts, with 2 slots at Voronoi corners too), differing only by the order of float32 sums, and three
-    frames advance the same to float32 rounding."""
+def test_particles_that_are_not_solo_fan_out_one_thread_per_node(device, seed, fragments, slots):
+    """The particles that are not solo may fan out (`Simulator.fanout`, on by default on a GPU, so their
+    slot lookups do not run 27 in a row after the dense bulk): in P2G one thread per stencil node makes the
+    deposit the particle's own loop would, so one P2G puts every particle's mass and momentum into the same
+    fields (on the CPU the claims come in the same order: the same slots and overflow counts, with 2 slots
+    at Voronoi corners too), differing only by the order of float32 sums; in G2P the 32 lanes of a warp
+    share a particle's stencil (on the CPU lane 0 gathers it alone, in the loop's order: bitwise the same
+    particles); three frames advance the same to float32 rounding."""
     sims = []
     for fanout in (False, True):
         sim, topo = slab(seed, device, fragments, slots)
@@ -103,3 +104,26 @@ def test_p2g_fans_the_particles_that_are_not_solo_out_one_thread_per_node(device
             assert int(c0[COUNT_SLOT_OVERFLOW]) > 0, "the Voronoi corners overflow two slots"
         scale = mp0.abs().amax(0)  # [4]: per component, the largest magnitude
         assert ((mp1 - mp0).abs() <= 1e-5 * scale).all()
+    # one G2P from the same fields both ways (the grid as the fanned-out P2G left it)
+    fanned.fanout = True
+    fanned.g2p_fanout_max = 1.0  # however many they are
+    fanned.set_clock(1e-3)
+    fanned._update_grid()
+    start = {name: getattr(fanned.particles, name).clone() for name in ("x", "v", "C", "F")}
+    gathered = []
+    for fanout in (False, True):
+        for name, value in start.items():
+            getattr(fanned.particles, name).copy_(value)
+        fanned.fanout = fanout
+        fanned._g2p()
+        gathered.append({name: getattr(fanned.particles, name).cpu().clone() for name in start})
+    assert not torch.equal(gathered[1]["x"], start["x"].cpu()), "G2P moved the particles"
+    for name in start:
+        a, b = gathered[0][name], gathered[1][name]
+        if device == "cpu":
+            assert torch.equal(a, b), name
+        elif name != "C":  # the warp sums the 27 nodes as a tree, not in the loop's order
+            assert rel_err(b, a) <= 1e-5, f"{name} (seed {seed})"
+        else:  # C = 4/Δx² Σ w v_i (x_i − x_p)ᵀ cancels for a body at rest: 27 roundings of |C| ≤ 6 max|v_i|/Δx
+            bound = 27 * 2.0**-24 * 6 * float(gathered[0]["v"].norm(dim=1).max()) * 32
+            assert float((b - a).abs().max()) <= bound, f"C (seed {seed})"

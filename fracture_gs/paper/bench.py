@@ -151,6 +151,7 @@ KERNEL_PHASES = {
     "grid_update_dense": "grid",
     "grid_update_pool": "grid",
     "g2p": "g2p",
+    "g2p_fanout": "g2p",
 }
 """Warp kernel name -> Table 2 phase (the transfer kernels of sim/transfer_kernels.py)."""
 

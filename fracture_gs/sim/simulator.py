@@ -22,13 +22,14 @@ from .boundary import Boundaries
 from .clock import FrameClock
 from .constitutive import compute_stress, lame
 from .contact import NORMAL_LATCHED, NORMAL_MASS_GRADIENT
+from .fanout_kernels import LANES, g2p_fanout, p2g_fanout
 from .frame_loop import FrameLoop
 from .grid import Grid, check_inside, fit_grid
 from .layout import COUNT_CLAMPED, MAX_SLOTS, N_COUNTS
 from .neighbourhood import cell_order, fragment_centroids, solo_mask
 from .particles import Particles, SimulationError
 from .topology import Topology
-from .transfer_kernels import clear_dense, clear_pool, g2p, grid_update_dense, grid_update_pool, p2g, p2g_fanout
+from .transfer_kernels import clear_dense, clear_pool, g2p, grid_update_dense, grid_update_pool, p2g
 
 MULTIFIELD_VARIANTS = tuple(v for v, s in VARIANTS.items() if s.multifield)
 RELEASE_VARIANTS = tuple(v for v, s in VARIANTS.items() if s.release)
@@ -102,14 +103,17 @@ class Simulator(FrameLoop):
         self.stress = torch.zeros(n, 3, 3, dtype=torch.float32, device=self.device)
         self.solo = torch.zeros(n, dtype=torch.int32, device=self.device)  # see `_update_solo`
         self._no_solo = torch.zeros(n, dtype=torch.int32, device=self.device)
-        # G2P launches the particles that are not solo first (`transfer_kernels.launch_particle`): on a GPU
-        # their slot lookups then run under the dense bulk instead of after it (FractureFields at K = 2 on
-        # an H200: 1.6 % of the particles made G2P 18 µs slower than the shared field's)
+        # The particles that are not solo (1.6 % at K = 2 on the Table 2 ficus) do 27 serial slot lookups
+        # each; on a GPU their threads finished long after the dense bulk. `fanout` (CUDA default) gives
+        # each of them one thread per stencil node in P2G, and a warp in G2P while they are at most
+        # `g2p_fanout_max` of the particles (`fanout_kernels`; when they are the bulk, per-particle threads
+        # already fill the GPU and the warp's shuffles only cost: BENCHMARKS.md). The launches cover a
+        # power-of-two capacity ≥ their count, read once per frame in `set_solo` (graphs record again only
+        # when it changes). `slow_first`, the earlier remedy, launches them first in G2P otherwise.
         self.slow_first = self.device.startswith("cuda")
-        # and P2G gives each of those particles 27 threads, one per stencil node (`p2g_fanout`), so its
-        # claims and atomics do not run 27 in a row after the dense bulk; the launch covers a power-of-two
-        # capacity ≥ their count (read once per frame in `set_solo`), so recorded graphs rarely change
         self.fanout = self.device.startswith("cuda")
+        self.g2p_fanout_max = 1.0 / 16
+        self._slow = n
         self._fan_cap = 0
         self._order = torch.arange(n, dtype=torch.int32, device=self.device)
         self._first = torch.full((1,), n, dtype=torch.int32, device=self.device)
@@ -234,7 +238,15 @@ class Simulator(FrameLoop):
             self._first.copy_((self.solo == 0).sum().view(1))
         if self.fanout:
             n = len(self.particles) if mask is None else int(self._first)  # the frame's second host read
+            self._slow = n
             self._fan_cap = 0 if n == 0 else min(len(self.particles), max(256, 1 << (n - 1).bit_length()))
+
+    def _fans_out(self, multi: int, only_fragment: int, gather: bool = False) -> bool:
+        """Whether the particles that are not solo take `fanout_kernels` (multi-field grids with a fan-out
+        capacity, on a GPU by default; not in the global fragment pass); `gather`: in G2P, where it also
+        needs them to be few (at most `g2p_fanout_max` of the particles)."""
+        few = not gather or self._slow <= self.g2p_fanout_max * len(self.particles)
+        return bool(self.fanout and multi and only_fragment < 0 and self._fan_cap > 0 and few)
 
     def _split(self, multi: int) -> bool:
         """Whether G2P launches the particles that are not solo first (multi-field grids, on a GPU by
@@ -355,7 +367,7 @@ class Simulator(FrameLoop):
         else:
             g.clear()
             lo, hi = wp.vec3i(0, 0, 0), wp.vec3i(*g.shape)
-        fan = self.fanout and multi and target is None and only_fragment < 0 and self._fan_cap > 0
+        fan = target is None and self._fans_out(multi, only_fragment)
         wp.launch(
             p2g,
             dim=len(self.particles),
@@ -446,7 +458,8 @@ class Simulator(FrameLoop):
         g, w = self.grid, self.wp
         arrays = [w["x"], w["v"], w["C"], w["F"], w["fragment"], w["solo"]]
         multi = int(self.multifield)
-        split = self._split(multi)
+        fan = self._fans_out(multi, only_fragment, gather=True)
+        split = self._split(multi) and not fan
 
         def launch(a: int, b: int, counts) -> None:
             wp.launch(
@@ -454,10 +467,19 @@ class Simulator(FrameLoop):
                 dim=(b - a) * (2 if split else 1),
                 device=self.device,
                 inputs=[t[a:b] for t in arrays]
-                + [w["order"], w["first"], int(split)]
+                + [w["order"], w["first"], int(split), int(fan)]
                 + [multi, only_fragment, self.clock.view, g.view, self._lower, self._upper, counts],
             )
 
+        if fan:
+            wp.launch(
+                g2p_fanout,
+                dim=LANES * self._fan_cap,
+                device=self.device,
+                inputs=arrays[:5]
+                + [w["order"], w["first"], int(self.device.startswith("cuda")), self.clock.view, g.view]
+                + [self._lower, self._upper, w["counts"]],
+            )
         ranges = [(0, len(self.particles))] if split or not self._ranges else self._ranges
         if len(ranges) == 1:
             launch(*ranges[0], w["counts"])

@@ -237,7 +237,7 @@ def p2g(
     solo: wp.array(dtype=wp.int32),  # [N] 1: no other fragment within reach this frame (dense slot 0, no claims)
     multifield: int,
     only_fragment: int,  # ≥ 0: skip every particle of another fragment (global fragment pass)
-    fanout: int,  # 1: the particles that are not solo are left to `p2g_fanout` (one thread per node)
+    fanout: int,  # 1: the particles that are not solo are left to `fanout_kernels.p2g_fanout`
     clock: Clock,  # Δt
     g: GridView,
     lo: wp.vec3i,  # active box [lo, hi): a stencil outside it is counted (the frame is redone)
@@ -260,7 +260,7 @@ def p2g(
     in_band = band[p]
     dense = multifield == 0 or solo[p] != 0
     if not dense and fanout != 0:
-        return  # `p2g_fanout` deposits it, one thread per stencil node
+        return  # `fanout_kernels.p2g_fanout` deposits it, one thread per stencil node
     if not dense and in_band == 0:
         dense = slot0_owned(g, base, k)
     if dense:  # one field at every node reached, in slot 0: unrolled, one reduction per node
@@ -280,47 +280,6 @@ def p2g(
         if in_band != 0 and row >= 0:
             wp.atomic_add(g.band, row * g.slots + s, weight * m)
         atomic_add_vec4(g.mp, idx, wp.vec4(mom[0], mom[1], mom[2], weight * m))
-
-
-@wp.kernel
-def p2g_fanout(
-    x: wp.array(dtype=wp.vec3),  # [N]
-    v: wp.array(dtype=wp.vec3),  # [N]
-    C: wp.array(dtype=wp.mat33),  # [N]
-    mass: wp.array(dtype=float),  # [N]
-    volume: wp.array(dtype=float),  # [N]
-    stress: wp.array(dtype=wp.mat33),  # [N]
-    fragment: wp.array(dtype=wp.int32),  # [N]
-    band: wp.array(dtype=wp.int32),  # [N]
-    order: wp.array(dtype=wp.int32),  # [N] the particles that are not solo first
-    first: wp.array(dtype=wp.int32),  # [1] how many are not solo
-    clock: Clock,
-    g: GridView,
-    counts: wp.array(dtype=wp.int32),
-):
-    """`p2g`'s deposits of the particles that are not solo, thread t = 27 i + q taking stencil node q of
-    the i-th listed particle: each thread's slot claim and atomics are one node long, so these particles
-    no longer finish after the dense bulk with 27 serial claims each (the launch has 27 × a capacity ≥
-    first[0] threads). The same terms, indices and claims as `p2g`'s loop; `p2g` counted the escapes."""
-    t = wp.tid()
-    i = t // 27
-    if i >= first[0]:
-        return
-    p = order[i]
-    k = routed_field(fragment[p], -1, 1)
-    xi = (x[p] - g.origin) * g.inv_dx
-    base = stencil_base(xi, g.shape)
-    f = xi - wp.vec3(float(base[0]), float(base[1]), float(base[2]))
-    weight, grad, dpos, o = node_terms_q(t - 27 * i, f, g.dx, g.inv_dx)
-    n = flat(base + o, wp.vec3i(0, 0, 0), g.shape)
-    m = mass[p]
-    force = -clock_dt(clock) * volume[p] * stress[p]
-    mom = weight * m * (v[p] + C[p] * dpos) + force * grad
-    in_band = band[p]
-    idx, row, s = deposit_index(g, n, k, in_band, counts)
-    if in_band != 0 and row >= 0:
-        wp.atomic_add(g.band, row * g.slots + s, weight * m)
-    atomic_add_vec4(g.mp, idx, wp.vec4(mom[0], mom[1], mom[2], weight * m))
 
 
 @wp.kernel
@@ -499,6 +458,35 @@ def grid_update_pool(
             g.vel[g.n_nodes + r * (g.slots - 1) + s - 1] = v
 
 
+@wp.func
+def finish_g2p(
+    p: int,
+    vp: wp.vec3,
+    B: wp.mat33,
+    gradv: wp.mat33,
+    dt: float,
+    inv_dx: float,
+    x: wp.array(dtype=wp.vec3),
+    v: wp.array(dtype=wp.vec3),
+    C: wp.array(dtype=wp.mat33),
+    F: wp.array(dtype=wp.mat33),
+    lower: wp.vec3,
+    upper: wp.vec3,
+    counts: wp.array(dtype=wp.int32),
+):
+    """Write particle p's gathered v, C = 4/Δx² B, F ← (I + Δt ∇v) F and x ← x + Δt v (clamped, counted)."""
+    v[p] = vp
+    C[p] = B * (4.0 * inv_dx * inv_dx)
+    F[p] = (wp.identity(n=3, dtype=float) + dt * gradv) * F[p]
+    xn = x[p] + dt * vp
+    xc = wp.vec3(
+        wp.clamp(xn[0], lower[0], upper[0]), wp.clamp(xn[1], lower[1], upper[1]), wp.clamp(xn[2], lower[2], upper[2])
+    )
+    if xc[0] != xn[0] or xc[1] != xn[1] or xc[2] != xn[2]:
+        wp.atomic_add(counts, COUNT_CLAMPED, 1)
+    x[p] = xc
+
+
 @wp.kernel
 def g2p(
     x: wp.array(dtype=wp.vec3),
@@ -510,6 +498,7 @@ def g2p(
     order: wp.array(dtype=wp.int32),  # [N] the particles that are not solo first (read with split)
     first: wp.array(dtype=wp.int32),  # [1] how many are not solo
     split: int,  # 1: 2N threads, the particles that are not solo first (`launch_particle`)
+    fanout: int,  # 1: the particles that are not solo are left to `fanout_kernels.g2p_fanout`
     multifield: int,
     only_fragment: int,
     clock: Clock,  # Δt
@@ -526,12 +515,14 @@ def g2p(
     k = routed_field(fragment[p], only_fragment, multifield)
     if k < 0:
         return
+    dense = multifield == 0 or solo[p] != 0
+    if not dense and fanout != 0:
+        return  # `fanout_kernels.g2p_fanout` gathers it, one thread per stencil node
     dt = clock_dt(clock)
     base, f, w, dw = stencil(x[p], g.origin, g.inv_dx, g.shape)
     vp = wp.vec3(0.0)
     B = wp.mat33(0.0)
     gradv = wp.mat33(0.0)
-    dense = multifield == 0 or solo[p] != 0
     if not dense:
         dense = slot0_readable(g, base, k)
     if dense:  # every node's field of the particle in slot 0: the stencil unrolled
@@ -550,13 +541,4 @@ def g2p(
             vp = vp + weight * vi
             B = B + weight * wp.outer(vi, dpos)
             gradv = gradv + wp.outer(vi, grad)
-    v[p] = vp
-    C[p] = B * (4.0 * g.inv_dx * g.inv_dx)
-    F[p] = (wp.identity(n=3, dtype=float) + dt * gradv) * F[p]
-    xn = x[p] + dt * vp
-    xc = wp.vec3(
-        wp.clamp(xn[0], lower[0], upper[0]), wp.clamp(xn[1], lower[1], upper[1]), wp.clamp(xn[2], lower[2], upper[2])
-    )
-    if xc[0] != xn[0] or xc[1] != xn[1] or xc[2] != xn[2]:
-        wp.atomic_add(counts, COUNT_CLAMPED, 1)
-    x[p] = xc
+    finish_g2p(p, vp, B, gradv, dt, g.inv_dx, x, v, C, F, lower, upper, counts)
