@@ -66,8 +66,9 @@ def test_particles_that_are_not_solo_fan_out_one_thread_per_node(device, seed, f
     deposit the particle's own loop would, so one P2G puts every particle's mass and momentum into the same
     fields (on the CPU the claims come in the same order: the same slots and overflow counts, with 2 slots
     at Voronoi corners too), differing only by the order of float32 sums; in G2P the 32 lanes of a warp
-    share a particle's stencil (on the CPU lane 0 gathers it alone, in the loop's order: bitwise the same
-    particles); three frames advance the same to float32 rounding."""
+    share a particle's stencil, or, when they are many, each reads the slots P2G's fan-out deposited into
+    (kept in a cache) instead of looking them up: on the CPU (lane 0 gathers alone, in the loop's order)
+    bitwise the same particles; three frames advance the same to float32 rounding."""
     sims = []
     for fanout in (False, True):
         sim, topo = slab(seed, device, fragments, slots)
@@ -105,21 +106,18 @@ def test_particles_that_are_not_solo_fan_out_one_thread_per_node(device, seed, f
         scale = mp0.abs().amax(0)  # [4]: per component, the largest magnitude
         assert ((mp1 - mp0).abs() <= 1e-5 * scale).all()
     # one G2P from the same fields both ways (the grid as the fanned-out P2G left it)
-    fanned.fanout = True
-    fanned.g2p_fanout_max = 1.0  # however many they are
     fanned.set_clock(1e-3)
     fanned._update_grid()
     start = {name: getattr(fanned.particles, name).clone() for name in ("x", "v", "C", "F")}
-    gathered = []
-    for fanout in (False, True):
+    gathered = []  # slots looked up; a warp per particle, slots from P2G's cache; listed first, from the cache
+    for fanout, most, slow_first in ((False, 0.0, False), (True, 1.0, False), (True, 0.0, True)):
         for name, value in start.items():
             getattr(fanned.particles, name).copy_(value)
-        fanned.fanout = fanout
+        fanned.fanout, fanned.g2p_fanout_max, fanned.slow_first = fanout, most, slow_first
         fanned._g2p()
         gathered.append({name: getattr(fanned.particles, name).cpu().clone() for name in start})
     assert not torch.equal(gathered[1]["x"], start["x"].cpu()), "G2P moved the particles"
-    for name in start:
-        a, b = gathered[0][name], gathered[1][name]
+    for name, a, b in [(n, gathered[0][n], other[n]) for other in gathered[1:] for n in start]:
         if device == "cpu":
             assert torch.equal(a, b), name
         elif name != "C":  # the warp sums the 27 nodes as a tree, not in the loop's order

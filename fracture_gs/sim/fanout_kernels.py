@@ -25,8 +25,8 @@ from .transfer_kernels import (
     atomic_add_vec4,
     deposit_index,
     finish_g2p,
+    node_index,
     node_terms_q,
-    read_index,
     routed_field,
     stencil_base,
 )
@@ -84,11 +84,13 @@ def p2g_fanout(
     band: wp.array(dtype=wp.int32),  # [N]
     order: wp.array(dtype=wp.int32),  # [N] the particles that are not solo first
     first: wp.array(dtype=wp.int32),  # [1] how many are not solo
+    cache: wp.array(dtype=wp.int32),  # [27 × capacity] out: the buffer index each thread deposited into
     clock: Clock,  # Δt
     g: GridView,
     counts: wp.array(dtype=wp.int32),  # [N_COUNTS] (`p2g` counted the escapes)
 ):
-    """Deposit node q = t mod 27 of the (t div 27)-th listed particle into its fragment's slot."""
+    """Deposit node q = t mod 27 of the (t div 27)-th listed particle into its fragment's slot, and keep
+    the slot's buffer index for G2P (the same index `read_index` finds: claims last the frame)."""
     t = wp.tid()
     i = t // 27
     if i >= first[0]:
@@ -103,6 +105,7 @@ def p2g_fanout(
     mom = weight * m * (v[p] + C[p] * dpos) + force * grad
     in_band = band[p]
     idx, row, s = deposit_index(g, n, k, in_band, counts)
+    cache[t] = idx
     if in_band != 0 and row >= 0:
         wp.atomic_add(g.band, row * g.slots + s, weight * m)
     atomic_add_vec4(g.mp, idx, wp.vec4(mom[0], mom[1], mom[2], weight * m))
@@ -117,6 +120,8 @@ def g2p_fanout(
     fragment: wp.array(dtype=wp.int32),  # [N]
     order: wp.array(dtype=wp.int32),  # [N] the particles that are not solo first
     first: wp.array(dtype=wp.int32),  # [1] how many are not solo
+    cache: wp.array(dtype=wp.int32),  # [27 × capacity] P2G's buffer indices (with `cached`)
+    cached: int,  # 1: this substep's P2G fanned out and filled `cache`
     coop: int,  # 1 (CUDA): the 32 lanes share the stencil; 0 (CPU): lane 0 gathers it alone
     clock: Clock,  # Δt
     g: GridView,
@@ -141,7 +146,7 @@ def g2p_fanout(
     if coop != 0:
         if lane < 27:
             weight, grad, dpos, o = node_terms_q(lane, f, g.dx, g.inv_dx)
-            vi = g.vel[read_index(g, flat(base + o, wp.vec3i(0, 0, 0), g.shape), k)]
+            vi = g.vel[node_index(g, base + o, k, cache, 27 * i + lane, cached)]
             vp = weight * vi
             B = weight * wp.outer(vi, dpos)
             gradv = wp.outer(vi, grad)
@@ -153,7 +158,7 @@ def g2p_fanout(
     else:
         for q in range(27):
             weight, grad, dpos, o = node_terms_q(q, f, g.dx, g.inv_dx)
-            vi = g.vel[read_index(g, flat(base + o, wp.vec3i(0, 0, 0), g.shape), k)]
+            vi = g.vel[node_index(g, base + o, k, cache, 27 * i + q, cached)]
             vp = vp + weight * vi
             B = B + weight * wp.outer(vi, dpos)
             gradv = gradv + wp.outer(vi, grad)

@@ -115,6 +115,10 @@ class Simulator(FrameLoop):
         self.g2p_fanout_max = 1.0 / 16
         self._slow = n
         self._fan_cap = 0
+        # buffer index of every (listed particle, stencil node) that P2G's fan-out deposited into, read back
+        # by G2P in the same substep instead of looking the slot up again
+        self._slot_cache = torch.zeros(1, dtype=torch.int32, device=self.device)
+        self.read_slot_cache = True  # G2P reads it (off: looks the slots up again; for benchmarks)
         self._order = torch.arange(n, dtype=torch.int32, device=self.device)
         self._first = torch.full((1,), n, dtype=torch.int32, device=self.device)
         self.counts = torch.zeros(N_COUNTS, dtype=torch.int32, device=self.device)  # see layout.COUNT_*
@@ -170,6 +174,7 @@ class Simulator(FrameLoop):
         self.wp["no_solo"] = wp.from_torch(self._no_solo)
         self.wp["order"] = wp.from_torch(self._order)
         self.wp["first"] = wp.from_torch(self._first)
+        self.wp["slot_cache"] = wp.from_torch(self._slot_cache)
         self.wp["centroids"] = wp.from_torch(self.centroids, dtype=wp.vec3)
         g = self.grid
         lo = [o + (self.cfg.wall_cells - 1) * g.dx for o in g.origin]
@@ -226,9 +231,10 @@ class Simulator(FrameLoop):
         self.set_solo(solo_mask(P.x, P.fragment, g.origin, g.dx, g.shape, reach))
 
     def set_solo(self, mask: Optional[torch.Tensor]) -> None:
-        """Set the solo flags (None: no particle is solo) and, with `slow_first`, G2P's launch order, which
-        must list exactly the particles that are not solo first (device ops, no host read). Set them only
-        here: flags changed behind it would make G2P skip particles."""
+        """Set the solo flags (None: no particle is solo) and, with `slow_first` or `fanout`, the launch order,
+        which must list exactly the particles that are not solo first (device ops; with `fanout` one host read
+        of their count, which sizes the fan-out launches and P2G's slot cache). Set them only here: flags
+        changed behind it would make P2G and G2P skip particles."""
         if mask is None:
             self.solo.zero_()
         else:
@@ -240,6 +246,9 @@ class Simulator(FrameLoop):
             n = len(self.particles) if mask is None else int(self._first)  # the frame's second host read
             self._slow = n
             self._fan_cap = 0 if n == 0 else min(len(self.particles), max(256, 1 << (n - 1).bit_length()))
+            if self._slot_cache.numel() < 27 * self._fan_cap:  # grows only (a new buffer is recorded anew)
+                self._slot_cache = torch.empty(27 * self._fan_cap, dtype=torch.int32, device=self.device)
+                self.wp["slot_cache"] = wp.from_torch(self._slot_cache)
 
     def _fans_out(self, multi: int, only_fragment: int, gather: bool = False) -> bool:
         """Whether the particles that are not solo take `fanout_kernels` (multi-field grids with a fan-out
@@ -408,6 +417,7 @@ class Simulator(FrameLoop):
                     w["band"],
                     w["order"],
                     w["first"],
+                    w["slot_cache"],
                     self.clock.view,
                     g.view,
                     w["counts"] if counts is None else counts,
@@ -460,6 +470,7 @@ class Simulator(FrameLoop):
         multi = int(self.multifield)
         fan = self._fans_out(multi, only_fragment, gather=True)
         split = self._split(multi) and not fan
+        cached = int(self.read_slot_cache and self._fans_out(multi, only_fragment) and (fan or split))  # P2G filled it
 
         def launch(a: int, b: int, counts) -> None:
             wp.launch(
@@ -467,7 +478,7 @@ class Simulator(FrameLoop):
                 dim=(b - a) * (2 if split else 1),
                 device=self.device,
                 inputs=[t[a:b] for t in arrays]
-                + [w["order"], w["first"], int(split), int(fan)]
+                + [w["order"], w["first"], int(split), int(fan), w["slot_cache"], cached]
                 + [multi, only_fragment, self.clock.view, g.view, self._lower, self._upper, counts],
             )
 
@@ -477,7 +488,8 @@ class Simulator(FrameLoop):
                 dim=LANES * self._fan_cap,
                 device=self.device,
                 inputs=arrays[:5]
-                + [w["order"], w["first"], int(self.device.startswith("cuda")), self.clock.view, g.view]
+                + [w["order"], w["first"], w["slot_cache"], cached, int(self.device.startswith("cuda"))]
+                + [self.clock.view, g.view]
                 + [self._lower, self._upper, w["counts"]],
             )
         ranges = [(0, len(self.particles))] if split or not self._ranges else self._ranges

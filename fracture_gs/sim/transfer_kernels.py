@@ -173,6 +173,15 @@ def read_index(g: GridView, n: int, k: int):
 
 
 @wp.func
+def node_index(g: GridView, node: wp.vec3i, k: int, cache: wp.array(dtype=wp.int32), c: int, cached: int):
+    """Buffer index of fragment k's field at a stencil node: entry c of P2G's slot cache when this
+    substep's P2G fanned out (`fanout_kernels.p2g_fanout`), else `read_index`'s lookup."""
+    if cached != 0:
+        return cache[c]
+    return read_index(g, flat(node, wp.vec3i(0, 0, 0), g.shape), k)
+
+
+@wp.func
 def slot0_owned(g: GridView, base: wp.vec3i, k: int):
     """Fragment k already holds slot 0 at every node of the stencil (claimed earlier this frame), so
     P2G's deposits go to the dense slot: 27 independent loads (unrolled), no early exit."""
@@ -499,6 +508,8 @@ def g2p(
     first: wp.array(dtype=wp.int32),  # [1] how many are not solo
     split: int,  # 1: 2N threads, the particles that are not solo first (`launch_particle`)
     fanout: int,  # 1: the particles that are not solo are left to `fanout_kernels.g2p_fanout`
+    cache: wp.array(dtype=wp.int32),  # [27 × capacity] P2G fan-out's buffer indices, by listed rank
+    cached: int,  # 1 (with split): listed particles read their slots from `cache`, no lookups
     multifield: int,
     only_fragment: int,
     clock: Clock,  # Δt
@@ -509,7 +520,8 @@ def g2p(
 ):
     """Eqs. field_g2p, field_apic, field_deformation from the particle's own field only (no fallback):
     v = Σ w v_i; C = 4/Δx² Σ w v_i (x_i − x_p)ᵀ; F ← (I + Δt Σ v_i ∇wᵀ) F; x ← x + Δt v."""
-    p = launch_particle(wp.tid(), x.shape[0], solo, order, first, split)
+    t = wp.tid()
+    p = launch_particle(t, x.shape[0], solo, order, first, split)
     if p < 0:
         return
     k = routed_field(fragment[p], only_fragment, multifield)
@@ -523,7 +535,8 @@ def g2p(
     vp = wp.vec3(0.0)
     B = wp.mat33(0.0)
     gradv = wp.mat33(0.0)
-    if not dense:
+    use_cache = cached != 0 and split != 0 and t < x.shape[0]  # t: the particle's rank in `order`
+    if not dense and not use_cache:
         dense = slot0_readable(g, base, k)
     if dense:  # every node's field of the particle in slot 0: the stencil unrolled
         for i in range(3):
@@ -537,7 +550,7 @@ def g2p(
     else:
         for q in range(27):  # kept as a loop: the slot lookup inlines once, not 27 times
             weight, grad, dpos, o = node_terms_q(q, f, g.dx, g.inv_dx)
-            vi = g.vel[read_index(g, flat(base + o, wp.vec3i(0, 0, 0), g.shape), k)]
+            vi = g.vel[node_index(g, base + o, k, cache, 27 * t + q, wp.where(use_cache, 1, 0))]
             vp = vp + weight * vi
             B = B + weight * wp.outer(vi, dpos)
             gradv = gradv + wp.outer(vi, grad)
