@@ -74,6 +74,7 @@ def test_particles_that_are_not_solo_fan_out_one_thread_per_node(device, seed, f
         sim, topo = slab(seed, device, fragments, slots)
         sim.fanout = fanout
         sim.latch(topo)
+        assert sim._fan_cap == 0 and sim._slot_cache.numel() == 1, "nothing fans out before the frame's solo flags"
         for _ in range(3):
             sim.advance(5e-3)
         sims.append(sim)
@@ -83,6 +84,7 @@ def test_particles_that_are_not_solo_fan_out_one_thread_per_node(device, seed, f
     assert fragments > 2 or float(solo.float().mean()) > 0.05, "so are the dense deposits (two pieces)"
     cap = fanned._fan_cap  # a power of two, or every particle
     assert cap >= int((~solo).sum()) and (cap & (cap - 1) == 0 or cap == len(solo))
+    assert fanned._slot_cache.numel() == 27 * cap, "the slot cache is sized with the capacity"
     for name in ("x", "v", "F"):
         a, b = getattr(plain.particles, name).cpu(), getattr(fanned.particles, name).cpu()
         assert rel_err(b, a) <= 1e-5, f"{name} (seed {seed})"

@@ -243,11 +243,13 @@ class Simulator(FrameLoop):
             self._order.copy_(torch.argsort(self.solo, stable=True))
             self._first.copy_((self.solo == 0).sum().view(1))
         if self.fanout:
+            # None (a latch, a reorder, a redo on the whole grid) fans nothing out until the next frame's flags
             n = len(self.particles) if mask is None else int(self._first)  # the frame's second host read
             self._slow = n
-            self._fan_cap = 0 if n == 0 else min(len(self.particles), max(256, 1 << (n - 1).bit_length()))
-            if self._slot_cache.numel() < 27 * self._fan_cap:  # grows only (a new buffer is recorded anew)
-                self._slot_cache = torch.empty(27 * self._fan_cap, dtype=torch.int32, device=self.device)
+            few = mask is not None and self.multifield and n > 0
+            self._fan_cap = min(len(self.particles), max(256, 1 << (n - 1).bit_length())) if few else 0
+            if self._slot_cache.numel() != max(1, 27 * self._fan_cap):  # sized with the capacity (graphs record anew)
+                self._slot_cache = torch.empty(max(1, 27 * self._fan_cap), dtype=torch.int32, device=self.device)
                 self.wp["slot_cache"] = wp.from_torch(self._slot_cache)
 
     def _fans_out(self, multi: int, only_fragment: int, gather: bool = False) -> bool:
