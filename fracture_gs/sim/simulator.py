@@ -379,19 +379,14 @@ class Simulator(FrameLoop):
             g.clear()
             lo, hi = wp.vec3i(0, 0, 0), wp.vec3i(*g.shape)
         fan = target is None and self._fans_out(multi, only_fragment)
+        particle_arrays = [w[k] for k in ("x", "v", "C", "mass", "volume")]  # what P2G reads of each particle
+        particle_arrays += [w["stress"] if stress is None else stress, w["fragment"], w["band"]]
         wp.launch(
             p2g,
             dim=len(self.particles),
             device=self.device,
-            inputs=[
-                w["x"],
-                w["v"],
-                w["C"],
-                w["mass"],
-                w["volume"],
-                w["stress"] if stress is None else stress,
-                w["fragment"],
-                w["band"],
+            inputs=particle_arrays
+            + [
                 w["solo"] if target is None else w["no_solo"],
                 multi,
                 only_fragment,
@@ -408,15 +403,8 @@ class Simulator(FrameLoop):
                 p2g_fanout,
                 dim=27 * self._fan_cap,
                 device=self.device,
-                inputs=[
-                    w["x"],
-                    w["v"],
-                    w["C"],
-                    w["mass"],
-                    w["volume"],
-                    w["stress"] if stress is None else stress,
-                    w["fragment"],
-                    w["band"],
+                inputs=particle_arrays
+                + [
                     w["order"],
                     w["first"],
                     w["slot_cache"],
