@@ -45,16 +45,37 @@ def resolve_device(spec: str) -> str:
     return f"cuda:{index}"
 
 
+class _QuietWarpLogger:
+    """Warp's messages for the CLI: debug and info lines (module loads, the start-up banner) dropped,
+    warnings and errors passed to the logger that was active before."""
+
+    def __init__(self, inner) -> None:
+        self.inner = inner
+
+    def debug(self, message: str) -> None:
+        pass
+
+    def info(self, message: str) -> None:
+        pass
+
+    def warning(self, message: str, category=None, stacklevel: int = 1) -> None:
+        self.inner.warning(message, category=category, stacklevel=stacklevel + 1)
+
+    def error(self, message: str) -> None:
+        self.inner.error(message)
+
+
 def _prepare_warp() -> None:
-    """The CLI is an application, so it sets Warp up for the whole process: no per-module load
-    lines (log level WARNING), and on a machine without a CUDA driver Warp's native start-up
-    warning is kept off stderr so user errors stay one line (`fracture-gs info` reports devices).
-    The library itself never does this (`fracture_gs.runtime`)."""
+    """The CLI is an application, so it gives Warp the application's logger (`wp.set_logger`, Warp's hook
+    for host applications; `wp.config` is left alone): no per-module load lines, and on a machine without
+    a CUDA driver Warp's native start-up warning is kept off stderr so user errors stay one line
+    (`fracture-gs info` reports devices). The library itself never does this (`fracture_gs.runtime`)."""
     import warp as wp
 
     from ..runtime import ensure_warp
 
-    wp.config.log_level = max(wp.config.log_level, wp.LOG_WARNING)
+    if not isinstance(wp.get_logger(), _QuietWarpLogger):
+        wp.set_logger(_QuietWarpLogger(wp.get_logger()))
     available, _, _ = _cuda_devices()
     if available:
         ensure_warp()
