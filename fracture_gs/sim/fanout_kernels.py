@@ -28,7 +28,7 @@ from .transfer_kernels import (
     node_index,
     node_terms_q,
     routed_field,
-    stencil_base,
+    stencil_offset,
 )
 
 wp.set_module_options({"enable_backward": False})
@@ -64,14 +64,6 @@ def lane_sum_mat33(a: wp.mat33):
     return wp.matrix_from_rows(lane_sum_vec3(a[0]), lane_sum_vec3(a[1]), lane_sum_vec3(a[2]))
 
 
-@wp.func
-def stencil_f(xp: wp.vec3, g: GridView):
-    """Base node and fractional offset f = ξ − base of a particle (as `transfer_kernels.stencil`)."""
-    xi = (xp - g.origin) * g.inv_dx
-    base = stencil_base(xi, g.shape)
-    return base, xi - wp.vec3(float(base[0]), float(base[1]), float(base[2]))
-
-
 @wp.kernel
 def p2g_fanout(
     x: wp.array(dtype=wp.vec3),  # [N]
@@ -97,7 +89,7 @@ def p2g_fanout(
         return
     p = order[i]
     k = routed_field(fragment[p], -1, 1)
-    base, f = stencil_f(x[p], g)
+    base, f = stencil_offset(x[p], g.origin, g.inv_dx, g.shape)
     weight, grad, dpos, o = node_terms_q(t - 27 * i, f, g.dx, g.inv_dx)
     n = flat(base + o, wp.vec3i(0, 0, 0), g.shape)
     m = mass[p]
@@ -139,7 +131,7 @@ def g2p_fanout(
         return
     p = order[i]
     k = routed_field(fragment[p], -1, 1)
-    base, f = stencil_f(x[p], g)
+    base, f = stencil_offset(x[p], g.origin, g.inv_dx, g.shape)
     vp = wp.vec3(0.0)
     B = wp.mat33(0.0)
     gradv = wp.mat33(0.0)

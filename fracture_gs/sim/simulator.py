@@ -246,8 +246,8 @@ class Simulator(FrameLoop):
             # None (a latch, a reorder, a redo on the whole grid) fans nothing out until the next frame's flags
             n = len(self.particles) if mask is None else int(self._first)  # the frame's second host read
             self._slow = n
-            few = mask is not None and self.multifield and n > 0
-            self._fan_cap = min(len(self.particles), max(256, 1 << (n - 1).bit_length())) if few else 0
+            flagged = mask is not None and self.multifield and n > 0
+            self._fan_cap = min(len(self.particles), max(256, 1 << (n - 1).bit_length())) if flagged else 0
             if self._slot_cache.numel() != max(1, 27 * self._fan_cap):  # sized with the capacity (graphs record anew)
                 self._slot_cache = torch.empty(max(1, 27 * self._fan_cap), dtype=torch.int32, device=self.device)
                 self.wp["slot_cache"] = wp.from_torch(self._slot_cache)
@@ -460,7 +460,7 @@ class Simulator(FrameLoop):
         multi = int(self.multifield)
         fan = self._fans_out(multi, only_fragment, gather=True)
         split = self._split(multi) and not fan
-        cached = int(self.read_slot_cache and self._fans_out(multi, only_fragment) and (fan or split))  # P2G filled it
+        cached = int(self.read_slot_cache and self._fans_out(multi, only_fragment))  # this substep's P2G filled it
 
         def launch(a: int, b: int, counts) -> None:
             wp.launch(

@@ -77,11 +77,17 @@ def stencil_base(xi: wp.vec3, shape: wp.vec3i):
 
 
 @wp.func
-def stencil(xp: wp.vec3, origin: wp.vec3, inv_dx: float, shape: wp.vec3i):
-    """Base node, weights w[a, axis] and their ξ-derivatives dw[a, axis] for a = 0, 1, 2."""
+def stencil_offset(xp: wp.vec3, origin: wp.vec3, inv_dx: float, shape: wp.vec3i):
+    """Base node and fractional offset f = ξ − base of a particle at xp."""
     xi = (xp - origin) * inv_dx
     base = stencil_base(xi, shape)
-    f = xi - wp.vec3(float(base[0]), float(base[1]), float(base[2]))
+    return base, xi - wp.vec3(float(base[0]), float(base[1]), float(base[2]))
+
+
+@wp.func
+def stencil(xp: wp.vec3, origin: wp.vec3, inv_dx: float, shape: wp.vec3i):
+    """Base node, weights w[a, axis] and their ξ-derivatives dw[a, axis] for a = 0, 1, 2."""
+    base, f = stencil_offset(xp, origin, inv_dx, shape)
     w = wp.mat33(0.0)
     dw = wp.mat33(0.0)
     for a in range(3):
