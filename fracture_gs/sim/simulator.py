@@ -118,7 +118,6 @@ class Simulator(FrameLoop):
         # buffer index of every (listed particle, stencil node) that P2G's fan-out deposited into, read back
         # by G2P in the same substep instead of looking the slot up again
         self._slot_cache = torch.zeros(1, dtype=torch.int32, device=self.device)
-        self.read_slot_cache = True  # G2P reads it (off: looks the slots up again; for benchmarks)
         self._order = torch.arange(n, dtype=torch.int32, device=self.device)
         self._first = torch.full((1,), n, dtype=torch.int32, device=self.device)
         self.counts = torch.zeros(N_COUNTS, dtype=torch.int32, device=self.device)  # see layout.COUNT_*
@@ -460,7 +459,7 @@ class Simulator(FrameLoop):
         multi = int(self.multifield)
         fan = self._fans_out(multi, only_fragment, gather=True)
         split = self._split(multi) and not fan
-        cached = int(self.read_slot_cache and self._fans_out(multi, only_fragment))  # this substep's P2G filled it
+        cached = int(self._fans_out(multi, only_fragment))  # this substep's P2G filled the slot cache
 
         def launch(a: int, b: int, counts) -> None:
             wp.launch(
