@@ -148,7 +148,7 @@ KERNEL_PHASES = {
     "clear_pool": "reset",
     "p2g": "p2g",
     "p2g_fanout": "p2g",
-    "p2g_tiled": "p2g",
+    "p2g_runs": "p2g",
     "grid_update_dense": "grid",
     "grid_update_pool": "grid",
     "g2p": "g2p",

@@ -10,24 +10,19 @@ import torch
 
 from ..errors import SimulationError
 
-SORT_MODES = ("cell", "interleaved", "morton")
-
 
 def cell_order(x: torch.Tensor, origin, dx: float, shape, mode: str = "interleaved") -> torch.Tensor:
     """Permutation of particles (new i = old order[i]) for P2G's atomics.
 
-    `cell`: grid-cell order (locality, but the ~8 particles of a cell sit in one warp and hit the
-    same 27 nodes). `interleaved`: the k-th particle of every cell, in cell order, then the
-    (k+1)-th, ... — neighbours in memory are neighbouring cells, so a warp keeps locality while few
-    of its lanes add to the same node. `morton`: cells along a Morton (Z-order) curve, so any run of
-    consecutive particles sits in a compact block of cells (`tile_kernels.p2g_tiled`'s shared tile)."""
-    if mode not in SORT_MODES:
-        raise SimulationError(f"sort mode '{mode}' is not one of {', '.join(SORT_MODES)}")
-    cell = torch.floor((x - torch.tensor(origin, device=x.device)) / dx).long()  # [N, 3]
-    cell = torch.minimum(cell.clamp_min(0), torch.tensor(shape, device=x.device) - 1)
-    if mode == "morton":
-        key = (_spread_bits(cell[:, 0]) << 2) | (_spread_bits(cell[:, 1]) << 1) | _spread_bits(cell[:, 2])
-        return torch.argsort(key, stable=True)
+    `cell`: order of the stencil's base node ⌊ξ − 0.5⌋ (the cells of the grid shifted by half a cell):
+    consecutive particles share all 27 nodes, which `run_kernels.p2g_runs` sums before the atomics (in
+    one warp they would otherwise add to the same nodes at once). `interleaved`: the k-th
+    particle of every cell, in cell order, then the (k+1)-th, ... — neighbours in memory are
+    neighbouring cells, so a warp keeps locality while few of its lanes add to the same node."""
+    if mode not in ("cell", "interleaved"):
+        raise SimulationError(f"sort mode '{mode}' is not 'cell' or 'interleaved'")
+    shift = 0.5 if mode == "cell" else 0.0
+    cell = torch.floor((x - torch.tensor(origin, device=x.device)) / dx - shift).long()  # [N, 3]
     key = (cell[:, 0] * shape[1] + cell[:, 1]) * shape[2] + cell[:, 2]  # [N]
     order = torch.argsort(key, stable=True)
     if mode == "interleaved":
@@ -37,14 +32,6 @@ def cell_order(x: torch.Tensor, origin, dx: float, shape, mode: str = "interleav
         rank = torch.arange(len(order), device=key.device) - starts
         order = order[torch.argsort(rank * (int(sorted_key.max()) + 1) + sorted_key, stable=True)]
     return order
-
-
-def _spread_bits(c: torch.Tensor) -> torch.Tensor:  # [N] int64 < 2²¹ -> [N]: bit b moved to bit 3b
-    """Interleave zeros between the bits of a cell coordinate (one axis of a 63-bit Morton key)."""
-    out = torch.zeros_like(c)
-    for b in range(21):
-        out |= ((c >> b) & 1) << (3 * b)
-    return out
 
 
 def solo_mask(x: torch.Tensor, fragment: torch.Tensor, origin, dx: float, shape, reach: float) -> torch.Tensor | None:

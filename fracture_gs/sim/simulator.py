@@ -28,7 +28,7 @@ from .grid import Grid, check_inside, fit_grid
 from .layout import COUNT_CLAMPED, MAX_SLOTS, N_COUNTS
 from .neighbourhood import cell_order, fragment_centroids, solo_mask
 from .particles import Particles, SimulationError
-from .tile_kernels import p2g_tiled
+from .run_kernels import p2g_runs
 from .topology import Topology
 from .transfer_kernels import clear_dense, clear_pool, g2p, grid_update_dense, grid_update_pool, p2g
 
@@ -114,11 +114,10 @@ class Simulator(FrameLoop):
         self.slow_first = self.device.startswith("cuda")
         self.fanout = self.device.startswith("cuda")
         self.g2p_fanout_max = 1.0 / 16
-        # P2G of the dense-path particles through a block-shared node tile (`tile_kernels`): on only for
-        # particles sorted along a Morton curve (`sort_particles("morton")` on a GPU), where a block's
-        # particles share a few cells; in any other order most deposits would miss the tile
-        self.tiled_p2g = False
-        self.tile_block = 128  # particles per block of `p2g_tiled` (CUDA; the CPU runs one lane per block)
+        # P2G of the dense-path particles in runs of `p2g_run` consecutive particles, summed in registers while
+        # they share a cell (`run_kernels`): on (run 2) for particles sorted by cell on a GPU
+        # (`sort_particles("cell")`), where it saves global reductions; 0: one thread per particle
+        self.p2g_run = 0
         self._slow = n
         self._fan_cap = 0
         # buffer index of every (listed particle, stencil node) that P2G's fan-out deposited into, read back
@@ -386,16 +385,11 @@ class Simulator(FrameLoop):
         fan = target is None and self._fans_out(multi, only_fragment)
         particle_arrays = [w[k] for k in ("x", "v", "C", "mass", "volume")]  # what P2G reads of each particle
         particle_arrays += [w["stress"] if stress is None else stress, w["fragment"], w["band"]]
-        if self.tiled_p2g and target is None and only_fragment < 0 and (fan or not multi):
-            bd = self.tile_block if self.device != "cpu" or wp.config.enable_cpu_blocks else 1
-            wp.launch_tiled(
-                p2g_tiled,
-                dim=[-(-len(self.particles) // bd)],
-                block_dim=bd,
-                device=self.device,
-                inputs=particle_arrays[:6]
-                + [w["solo"], multi, self.clock.view, g.view, lo, hi, w["counts"] if counts is None else counts],
-            )
+        if self.p2g_run > 0 and target is None and only_fragment < 0 and (fan or not multi):
+            extra = [w["solo"], multi, self.p2g_run, self.clock.view, g.view, lo, hi]
+            extra.append(w["counts"] if counts is None else counts)
+            dim = -(-len(self.particles) // self.p2g_run)
+            wp.launch(p2g_runs, dim=dim, device=self.device, inputs=particle_arrays[:6] + extra)
         else:
             self._p2g_plain(particle_arrays, multi, only_fragment, fan, target, lo, hi, counts)
         if fan:
@@ -562,6 +556,6 @@ class Simulator(FrameLoop):
         P, g = self.particles, self.grid
         order = cell_order(P.x, g.origin, g.dx, g.shape, mode)
         P.permute(order)
-        self.tiled_p2g = mode == "morton" and self.device != "cpu"
+        self.p2g_run = 2 if mode == "cell" and self.device != "cpu" else 0
         self.set_solo(None)  # recomputed for the new order at the next frame
         return order
