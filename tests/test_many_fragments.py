@@ -509,3 +509,55 @@ def test_solo_mask_cube_max_is_the_3d_max_pool(r):
     t = torch.randn(1, 1, 17, 23, 11, generator=g)
     t[t > 1.0] = float("-inf")
     assert torch.equal(_cube_max(t, r), torch.nn.functional.max_pool3d(t, 2 * r + 1, stride=1, padding=r))
+
+
+def test_pool_mass_gradients_are_central_differences_of_each_fields_mass(device, seed):
+    """The mass-gradient contact normal's ∇m^k at a multi-fragment node (one thread per pool row and slot,
+    before the pool pass: `normal_kernels.pool_mass_gradients`) is the central difference
+    (m^k(i + e_a) − m^k(i − e_a)) / 2Δx of fragment k's nodal masses, neighbours clamped into the grid
+    (the float64 dense K-field reference), for every slot holding a field with mass; zero otherwise."""
+    import warp as wp
+
+    from fracture_gs.sim.layout import OWNER_MASK
+    from fracture_gs.sim.normal_kernels import pool_mass_gradients
+
+    sim, topo = voronoi_state(seed, device, variant="full")
+    sim.latch(topo)
+    P, g, dt = sim.particles, sim.grid, 1e-3
+    sim.fit_active_box(0.0)
+    sim.compute_stress(sim.stress, commit=True)
+    K = sim.n_fragments
+    args = (P.x.cpu(), P.v.cpu(), P.C.cpu(), P.mass.cpu(), P.volume.cpu(), sim.stress.cpu(), P.fragment.cpu().long())
+    gm = ref.p2g(*args, K, g.shape, g.origin, g.dx, dt)[0].reshape(K, *g.shape)  # [K, X, Y, Z] float64
+    sim.set_solo(None)  # every particle through the slot claims
+    sim.p2g(dt)
+    grad0 = sim._pool_gradient_buffer()
+    wp.launch(pool_mass_gradients, dim=g.capacity * g.slots, device=sim.device, inputs=[g.view, sim.eps_m, grad0])
+    rows = torch.nonzero(g.key.cpu() >= 0).flatten()
+    assert len(rows) > 50, "pool rows where pieces meet"
+    S1, n_nodes = g.slots - 1, g.n_nodes
+    pad = torch.nn.functional.pad(gm[None], (1, 1, 1, 1, 1, 1), mode="replicate")[0]  # clamped neighbours
+    checked = 0
+    for r in rows.tolist():
+        n = int(g.key[r])
+        i, j, l = n // (g.shape[1] * g.shape[2]), (n // g.shape[2]) % g.shape[1], n % g.shape[2]  # noqa: E741
+        for s in range(g.slots):
+            if s == 0:
+                k, got = int(g._owner[n] & OWNER_MASK) - 1, sim._grad0[r].cpu().double()
+            else:
+                k, got = int(g.pool_owner[r * S1 + s - 1]), g._vel[n_nodes + r * S1 + s - 1].cpu().double()
+            if k < 0 or float(gm[k, i, j, l]) <= sim.eps_m:
+                assert torch.equal(got, torch.zeros(3, dtype=torch.float64)), (r, s)
+                continue
+            c = (i + 1, j + 1, l + 1)
+            want = torch.stack(
+                [
+                    pad[k, c[0] + 1, c[1], c[2]] - pad[k, c[0] - 1, c[1], c[2]],
+                    pad[k, c[0], c[1] + 1, c[2]] - pad[k, c[0], c[1] - 1, c[2]],
+                    pad[k, c[0], c[1], c[2] + 1] - pad[k, c[0], c[1], c[2] - 1],
+                ]
+            ) * (0.5 / g.dx)
+            scale = float(gm[k].max()) / g.dx
+            assert float((got - want).abs().max()) <= 1e-5 * scale, f"row {r} slot {s} fragment {k} (seed {seed})"
+            checked += 1
+    assert checked > 100

@@ -151,6 +151,7 @@ KERNEL_PHASES = {
     "p2g_runs": "p2g",
     "grid_update_dense": "grid",
     "grid_update_pool": "grid",
+    "pool_mass_gradients": "grid",
     "g2p": "g2p",
     "g2p_fanout": "g2p",
 }

@@ -27,6 +27,7 @@ from .frame_loop import FrameLoop
 from .grid import Grid, check_inside, fit_grid
 from .layout import COUNT_CLAMPED, MAX_SLOTS, N_COUNTS
 from .neighbourhood import cell_order, fragment_centroids, solo_mask
+from .normal_kernels import pool_mass_gradients
 from .particles import Particles, SimulationError
 from .run_kernels import p2g_runs
 from .topology import Topology
@@ -123,6 +124,7 @@ class Simulator(FrameLoop):
         # buffer index of every (listed particle, stencil node) that P2G's fan-out deposited into, read back
         # by G2P in the same substep instead of looking the slot up again
         self._slot_cache = torch.zeros(1, dtype=torch.int32, device=self.device)
+        self._grad0 = None  # see `_pool_gradient_buffer`
         self._order = torch.arange(n, dtype=torch.int32, device=self.device)
         self._first = torch.full((1,), n, dtype=torch.int32, device=self.device)
         self.counts = torch.zeros(N_COUNTS, dtype=torch.int32, device=self.device)  # see layout.COUNT_*
@@ -217,6 +219,8 @@ class Simulator(FrameLoop):
         ]
         box = tuple(lo) + tuple(hi)
         moved = g.ensure_pool(self.pool_rows) if self.multifield else False
+        if self.multifield:
+            self._pool_gradient_buffer()
         if box != self.box or moved:
             self._set_box(box)
             g.zero()
@@ -427,6 +431,14 @@ class Simulator(FrameLoop):
         )
         if multi:
             c = self.cfg.contact
+            grad0 = self._pool_gradient_buffer()
+            if self.normal_mode == NORMAL_MASS_GRADIENT:
+                wp.launch(
+                    pool_mass_gradients,
+                    dim=g.capacity * g.slots,
+                    device=self.device,
+                    inputs=[g.view, self.eps_m, grad0],
+                )
             wp.launch(
                 grid_update_pool,
                 dim=g.capacity,
@@ -450,8 +462,17 @@ class Simulator(FrameLoop):
                     g.wp["stats"],
                     g.wp["pair_stats"],
                     g.max_fragments,
+                    grad0,
                 ],
             )
+
+    def _pool_gradient_buffer(self):
+        """[capacity] vec3 for ∇m of each pool row's slot-0 field (`normal_kernels`), sized with the pool:
+        between frames by `fit_active_box`, so never inside a graph capture."""
+        if self._grad0 is None or self._grad0.shape[0] != self.grid.capacity:
+            self._grad0 = torch.zeros(max(1, self.grid.capacity), 3, dtype=torch.float32, device=self.device)
+            self.wp["grad0"] = wp.from_torch(self._grad0, dtype=wp.vec3)
+        return self.wp["grad0"]
 
     def _g2p(self, only_fragment: int = -1) -> None:
         """Per particle but for the clamp counter: on the CPU one launch per core's share, each with its

@@ -351,38 +351,6 @@ def grid_update_dense(
     g.vel[n] = v
 
 
-@wp.func
-def field_mass(g: GridView, node: wp.vec3i, k: int):
-    """Mass of fragment k's field at `node` (0 if absent; the node is clamped into the grid)."""
-    c = wp.vec3i(
-        wp.clamp(node[0], 0, g.shape[0] - 1), wp.clamp(node[1], 0, g.shape[1] - 1), wp.clamp(node[2], 0, g.shape[2] - 1)
-    )
-    n = flat(c, wp.vec3i(0, 0, 0), g.shape)
-    word = g.owner[n]
-    if (word & OWNER_MASK) == k + 1:
-        return g.mp[n][3]
-    if (word & ROW_FLAG) == 0:
-        return 0.0
-    row = find_row(g.key, n, g.mask)
-    if row < 0:
-        return 0.0
-    j = find_pool_slot(g.pool_owner, row, g.slots, k)
-    if j == 0:
-        return 0.0
-    return g.mp[field_index(n, row, j, g.n_nodes, g.slots)][3]
-
-
-@wp.func
-def mass_gradient(g: GridView, node: wp.vec3i, k: int):
-    """∇m^k at `node` by central differences of fragment k's nodal masses [kg/m]."""
-    out = wp.vec3(0.0)
-    for a in range(3):
-        e = wp.vec3i(0, 0, 0)
-        e[a] = 1
-        out[a] = (field_mass(g, node + e, k) - field_mass(g, node - e, k)) * (0.5 * g.inv_dx)
-    return out
-
-
 @wp.kernel
 def grid_update_pool(
     g: GridView,
@@ -403,6 +371,7 @@ def grid_update_pool(
     stats: wp.array(dtype=float),  # [N_STATS]
     pair_stats: wp.array(dtype=float),  # [K·K·N_PAIR_STATS]
     n_fragments: int,  # K (pair rows of pair_stats)
+    grad0: wp.array(dtype=wp.vec3),  # [capacity] ∇m of slot 0's field (mass-gradient normals)
 ):
     """Nodes with a pool row: every field normalized, the contact projection between every pair of
     active, approaching fields in contact (ordered by fragment id), then the boundaries. In contact:
@@ -432,10 +401,10 @@ def grid_update_pool(
             q = g.mp[i]
             m[s] = q[3]
             V[s] = normalized(q, eps_m, dt, gravity)
-    if gate != 0 and normal_mode == NORMAL_MASS_GRADIENT:
-        for s in range(g.slots):
-            if frag[s] >= 0 and m[s] > eps_m:
-                G[s] = mass_gradient(g, node, frag[s])
+    if gate != 0 and normal_mode == NORMAL_MASS_GRADIENT:  # ∇m of each field, from `pool_mass_gradients`
+        G[0] = grad0[r]
+        for s in range(1, g.slots):
+            G[s] = g.vel[g.n_nodes + r * (g.slots - 1) + s - 1]
     if gate != 0:
         for a in range(g.slots):
             for c in range(a + 1, g.slots):
