@@ -48,11 +48,14 @@ def topology(P: Particles, K: int, dx: float) -> Topology:
     return Topology(fragment=fragment, band=band, normal=(0.0, 0.0, 1.0), point=(0.5, 0.5, 0.4))
 
 
-def build(cfg, P, topo, variant, device):
+def build(cfg, P, topo, variant, device, sort="cell"):
     c = copy.deepcopy(cfg.sim)
     c.variant = variant
     sim = Simulator(c, P.clone(), device=device)
     sim.record_contact = False
+    if sort != "built":  # the same order for every branch (cell: P2G in runs on a GPU)
+        o = sim.sort_particles(sort).cpu()
+        topo = Topology(fragment=topo.fragment[o], band=topo.band[o], normal=topo.normal, point=topo.point)
     sim.latch(topo)
     sim.fit_active_box(0.05)
     sim.set_clock(c.dt)
@@ -115,6 +118,9 @@ def main(argv=None) -> int:
     p.add_argument("--warmup", type=int, default=20)
     p.add_argument("--trials", type=int, default=3)
     p.add_argument("--placements", type=int, default=3)
+    p.add_argument(
+        "--sort", choices=("cell", "interleaved", "built"), default="cell", help="particle order (default cell)"
+    )
     a = p.parse_args(argv)
     if a.device.startswith("cuda"):  # graph capture needs a non-default stream
         torch.cuda.set_stream(torch.cuda.Stream(a.device))
@@ -126,7 +132,7 @@ def main(argv=None) -> int:
         topo = topology(P, K, cfg.sim.dx)
         out = {"K": K}
         for label, variant in BRANCHES:
-            sims = [build(cfg, P, topo, variant, a.device) for _ in range(a.placements)]
+            sims = [build(cfg, P, topo, variant, a.device, a.sort) for _ in range(a.placements)]
             ms = time_builds(sims, a.steps, a.warmup, a.trials)
             out[label] = {
                 "median_ms": statistics.median(ms),
@@ -145,7 +151,7 @@ def main(argv=None) -> int:
         rows.append(out)
         print(json.dumps(out), flush=True)
     dev = torch.cuda.get_device_name(a.device) if a.device.startswith("cuda") else "cpu"
-    print(f"\n### K fragments ({dev}, {len(P)} particles, {a.n}³)\n")
+    print(f"\n### K fragments ({dev}, {len(P)} particles, {a.n}³, {a.sort} order)\n")
     print(
         "| K | Shared ms | FractureFields ms | × Shared | Shared MiB | FF MiB | × memory | FF slot cache MiB "
         "| × memory with it | pool rows | overflow |"

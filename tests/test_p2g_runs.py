@@ -78,12 +78,12 @@ def test_runs_with_fragments_advance_the_same(device, seed):
 
 
 def test_runs_are_on_only_for_cell_order_on_a_gpu(device):
-    """Runs pay only where consecutive particles share cells: `sort_particles("cell")` turns them on (2
+    """Runs pay only where consecutive particles share cells: `sort_particles("cell")` turns them on (4
     particles per thread) on a GPU, the interleaved order turns them off, and the CPU keeps one particle per
     thread (a single thread runs the launch: nothing to save)."""
     sim, _ = slab(0, device)
     assert sim.p2g_run == 0
     sim.sort_particles("cell")
-    assert sim.p2g_run == (2 if device != "cpu" else 0)
+    assert sim.p2g_run == (4 if device != "cpu" else 0)
     sim.sort_particles("interleaved")
     assert sim.p2g_run == 0

@@ -211,10 +211,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-graph", action="store_true", help="time plain launches, no CUDA graph")
     p.add_argument(
         "--sort",
-        choices=("interleaved", "cell"),
-        default="interleaved",
-        help="particle order (default interleaved; cell also sums each thread's particles of a cell before P2G's"
-        " atomics, on a GPU)",
+        choices=("cell", "interleaved"),
+        default="cell",
+        help="particle order (default cell: on a GPU, P2G then sums each thread's run of particles that share a"
+        " cell before its atomics)",
     )
     p.add_argument("--accuracy", action="store_true", help="run the speed-against-error sweeps instead of Table 2")
     p.add_argument("--quick", action="store_true", help="with --accuracy: the short sweep (CPU: a few minutes)")

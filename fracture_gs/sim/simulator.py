@@ -33,6 +33,8 @@ from .run_kernels import p2g_runs
 from .topology import Topology
 from .transfer_kernels import clear_dense, clear_pool, g2p, grid_update_dense, grid_update_pool, p2g
 
+P2G_RUN = 4  # particles per P2G thread in cell order on a GPU (H100, Table 2 ficus: 2 / 4 / 8 → P2G 40 / 34 / 30 µs
+# against 68 one per thread; 8 was slower at K = 16, where most particles fan out: BENCHMARKS.md)
 MULTIFIELD_VARIANTS = tuple(v for v, s in VARIANTS.items() if s.multifield)
 RELEASE_VARIANTS = tuple(v for v, s in VARIANTS.items() if s.release)
 
@@ -116,7 +118,7 @@ class Simulator(FrameLoop):
         self.fanout = self.device.startswith("cuda")
         self.g2p_fanout_max = 1.0 / 16
         # P2G of the dense-path particles in runs of `p2g_run` consecutive particles, summed in registers while
-        # they share a cell (`run_kernels`): on (run 2) for particles sorted by cell on a GPU
+        # they share a cell (`run_kernels`): on (run 4) for particles sorted by cell on a GPU
         # (`sort_particles("cell")`), where it saves global reductions; 0: one thread per particle
         self.p2g_run = 0
         self._slow = n
@@ -571,12 +573,12 @@ class Simulator(FrameLoop):
             self._diagnostics = Diagnostics(self)
         return self._diagnostics
 
-    def sort_particles(self, mode: str = "interleaved") -> torch.Tensor:
+    def sort_particles(self, mode: str = "cell") -> torch.Tensor:
         """Reorder particles for P2G's atomics (`neighbourhood.cell_order`); returns `order` (new
         particle i was old order[i])."""
         P, g = self.particles, self.grid
         order = cell_order(P.x, g.origin, g.dx, g.shape, mode)
         P.permute(order)
-        self.p2g_run = 2 if mode == "cell" and self.device != "cpu" else 0
+        self.p2g_run = P2G_RUN if mode == "cell" and self.device != "cpu" else 0
         self.set_solo(None)  # recomputed for the new order at the next frame
         return order
