@@ -7,6 +7,7 @@ import torch
 from simutil import rel_err
 from test_transfer_launch import slab
 
+from fracture_gs import sim as S
 from fracture_gs.sim.layout import COUNT_ESCAPED
 
 
@@ -55,35 +56,42 @@ def test_runs_deposit_the_same_fields(device, seed, order, run):
 
 
 def test_runs_with_fragments_advance_the_same(device, seed):
-    """After a cut the runs take the solo particles and the fan-out the others (FractureFields' own fields,
-    slot claims unchanged): three frames advance x, v and F as with one thread per particle to float32
-    rounding, and one P2G of the final state deposits every particle's mass."""
+    """After a cut near one end the runs take the solo particles (most of them) and the fan-out the others
+    (FractureFields' own fields, slot claims unchanged): three frames advance x, v and F as with one thread per
+    particle to float32 rounding, and one P2G of the final state deposits every particle's mass. Where most
+    particles take the slot path (a cut through the middle of this slab), P2G goes back to one per thread."""
     sims = []
     for run in (0, 4):
-        sim, topo = slab(seed, device, sort="cell")
+        sim, _ = slab(seed, device, sort="cell")
         sim.fanout = True  # the runs leave the particles that are not solo to the fan-out
         sim.p2g_run = run
-        sim.latch(topo)
+        sim.latch(S.Topology.from_plane(sim.particles.x.cpu(), (0.25, 0.5, 0.5), (1.0, 0.2, 0.1), band_width=1.5 / 32))
         for _ in range(3):
             sim.advance(5e-3)
         sims.append(sim)
     plain, runs = sims
     solo = runs.solo.bool()
-    assert 0.05 < float(solo.float().mean()) < 0.95, "both the runs and the fan-out are exercised"
+    assert 0.5 < float(solo.float().mean()) < 0.95, "both the runs and the fan-out are exercised"
+    assert runs._run_length(1) == 4
     for name in ("x", "v", "F"):
         a, b = getattr(plain.particles, name).cpu(), getattr(runs.particles, name).cpu()
         assert rel_err(b, a) <= 1e-5, f"{name} (seed {seed})"
     mp, _ = one_p2g(runs, 4)
     torch.testing.assert_close(mp[:, 3].sum(), runs.particles.mass.sum().double().cpu(), rtol=1e-6, atol=0.0)
+    middle, topo = slab(seed, device, sort="cell")
+    middle.fanout, middle.p2g_run = True, 4
+    middle.latch(topo)
+    middle.advance(5e-3)
+    assert float(middle.solo.float().mean()) < 0.5 and middle._run_length(1) == 0 and middle._run_length(0) == 4
 
 
 def test_runs_are_on_only_for_cell_order_on_a_gpu(device):
-    """Runs pay only where consecutive particles share cells: `sort_particles("cell")` turns them on (4
+    """Runs pay only where consecutive particles share cells: `sort_particles("cell")` turns them on (8
     particles per thread) on a GPU, the interleaved order turns them off, and the CPU keeps one particle per
     thread (a single thread runs the launch: nothing to save)."""
     sim, _ = slab(0, device)
     assert sim.p2g_run == 0
     sim.sort_particles("cell")
-    assert sim.p2g_run == (4 if device != "cpu" else 0)
+    assert sim.p2g_run == (8 if device != "cpu" else 0)
     sim.sort_particles("interleaved")
     assert sim.p2g_run == 0

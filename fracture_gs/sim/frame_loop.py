@@ -61,6 +61,7 @@ class FrameLoop:
             self.cfg.wall_cells,
             self.clock.capacity,
             self._fan_cap,
+            self._run_length(int(self.multifield)),
         )
 
     def _frame_substeps_run(self, n: int, dt: float, start: float) -> None:

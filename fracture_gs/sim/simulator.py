@@ -33,8 +33,8 @@ from .run_kernels import p2g_runs
 from .topology import Topology
 from .transfer_kernels import clear_dense, clear_pool, g2p, grid_update_dense, grid_update_pool, p2g
 
-P2G_RUN = 4  # particles per P2G thread in cell order on a GPU (H100, Table 2 ficus: 2 / 4 / 8 → P2G 40 / 34 / 30 µs
-# against 68 one per thread; 8 was slower at K = 16, where most particles fan out: BENCHMARKS.md)
+P2G_RUN = 8  # particles per P2G thread in cell order on a GPU (H100, Table 2 ficus: runs of 2 / 4 / 8 → P2G 40 / 34 /
+# 30 µs against 67 one per thread); not while most particles take the slot path (K = 16: 4 % slower; BENCHMARKS.md)
 MULTIFIELD_VARIANTS = tuple(v for v, s in VARIANTS.items() if s.multifield)
 RELEASE_VARIANTS = tuple(v for v, s in VARIANTS.items() if s.release)
 
@@ -118,7 +118,7 @@ class Simulator(FrameLoop):
         self.fanout = self.device.startswith("cuda")
         self.g2p_fanout_max = 1.0 / 16
         # P2G of the dense-path particles in runs of `p2g_run` consecutive particles, summed in registers while
-        # they share a cell (`run_kernels`): on (run 4) for particles sorted by cell on a GPU
+        # they share a cell (`run_kernels`): on (runs of P2G_RUN) for particles sorted by cell on a GPU
         # (`sort_particles("cell")`), where it saves global reductions; 0: one thread per particle
         self.p2g_run = 0
         self._slow = n
@@ -269,6 +269,11 @@ class Simulator(FrameLoop):
         few = not gather or self._slow <= self.g2p_fanout_max * len(self.particles)
         return bool(self.fanout and multi and only_fragment < 0 and self._fan_cap > 0 and few)
 
+    def _run_length(self, multi: int) -> int:
+        """Particles per thread of P2G's runs: `p2g_run`, or 0 (one per thread) on a multi-field grid where
+        more than half of the particles take the slot path (the runs then only cost: BENCHMARKS.md)."""
+        return self.p2g_run if not multi or 2 * self._slow <= len(self.particles) else 0
+
     def _split(self, multi: int) -> bool:
         """Whether G2P launches the particles that are not solo first (multi-field grids, on a GPU by
         default: on the CPU a single thread runs every launch in order, so it only costs)."""
@@ -391,10 +396,10 @@ class Simulator(FrameLoop):
         fan = target is None and self._fans_out(multi, only_fragment)
         particle_arrays = [w[k] for k in ("x", "v", "C", "mass", "volume")]  # what P2G reads of each particle
         particle_arrays += [w["stress"] if stress is None else stress, w["fragment"], w["band"]]
-        if self.p2g_run > 0 and target is None and only_fragment < 0 and (fan or not multi):
-            extra = [w["solo"], multi, self.p2g_run, self.clock.view, g.view, lo, hi]
+        if self._run_length(multi) > 0 and target is None and only_fragment < 0 and (fan or not multi):
+            extra = [w["solo"], multi, self._run_length(multi), self.clock.view, g.view, lo, hi]
             extra.append(w["counts"] if counts is None else counts)
-            dim = -(-len(self.particles) // self.p2g_run)
+            dim = -(-len(self.particles) // self._run_length(multi))
             wp.launch(p2g_runs, dim=dim, device=self.device, inputs=particle_arrays[:6] + extra)
         else:
             self._p2g_plain(particle_arrays, multi, only_fragment, fan, target, lo, hi, counts)
