@@ -65,7 +65,7 @@ def test_runs_with_fragments_advance_the_same(device, seed):
         sim, _ = slab(seed, device, sort="cell")
         sim.fanout = True  # the runs leave the particles that are not solo to the fan-out
         sim.p2g_run = run
-        sim.latch(S.Topology.from_plane(sim.particles.x.cpu(), (0.25, 0.5, 0.5), (1.0, 0.2, 0.1), band_width=1.5 / 32))
+        sim.latch(S.Topology.from_plane(sim.particles.x.cpu(), (0.18, 0.5, 0.5), (1.0, 0.2, 0.1), band_width=1.5 / 32))
         for _ in range(3):
             sim.advance(5e-3)
         sims.append(sim)
