@@ -130,3 +130,44 @@ def test_particles_that_are_not_solo_fan_out_one_thread_per_node(device, seed, f
         else:  # C = 4/Δx² Σ w v_i (x_i − x_p)ᵀ cancels for a body at rest: 27 roundings of |C| ≤ 6 max|v_i|/Δx
             bound = 27 * 2.0**-24 * 6 * float(gathered[0]["v"].norm(dim=1).max()) * 32
             assert float((b - a).abs().max()) <= bound, f"C (seed {seed})"
+
+
+@pytest.mark.parametrize("run", [2, 8])
+def test_fan_out_sums_consecutive_particles_of_one_cell_and_piece(device, seed, run):
+    """The fan-out may take `run` listed particles per (particle group, stencil node) thread
+    (`Simulator.fanout_run`): consecutive ones with the same stencil base, fragment and band flag add their
+    deposits at the node first and make one slot claim and one reduction, and every member's slot-cache
+    entry gets the group's buffer index. A shattered slab in cell order (most listed particles share a cell
+    and a piece with their predecessor) then deposits every particle's mass, and one G2P that reads the
+    cache gathers the same v, C and F as with one particle per thread to float32 rounding (a wrong cache
+    entry would read another fragment's field or an empty slot)."""
+    sim, topo = slab(seed, device, fragments=6, slots=4, n=12000, sort="cell")
+    sim.fanout, sim.g2p_fanout_max = True, 1.0  # G2P fans out too: it reads every listed particle's cache entries
+    sim.latch(topo)
+    sim.advance(5e-3)  # the frame's solo flags and fan-out capacity
+    listed = sim._order[: int(sim._first)].long().cpu()
+    g = sim.grid
+    base = torch.floor((sim.particles.x.cpu()[listed] - torch.tensor(g.origin)) / g.dx - 0.5).long()
+    key = torch.cat([base, sim.particles.fragment.cpu()[listed, None].long()], 1)
+    same = (key[1:] == key[:-1]).all(1) & (torch.arange(1, len(key)) % run != 0)
+    assert int(same.sum()) > len(listed) // 4, "groups form"
+    start = {name: getattr(sim.particles, name).clone() for name in ("x", "v", "C", "F")}
+    gathered = []
+    for r in (1, run):
+        for name, value in start.items():
+            getattr(sim.particles, name).copy_(value)
+        sim.fanout_run = r
+        sim._slot_cache.fill_(0)  # node 0, far from the slab: an entry P2G forgets reads an empty field
+        sim.grid.reset_claims()
+        sim.counts.zero_()
+        sim.compute_stress(sim.stress, commit=False)
+        sim.p2g(1e-3)
+        total = sim.grid._mp[:, 3].sum().double()
+        torch.testing.assert_close(total, sim.particles.mass.sum().double(), rtol=1e-6, atol=0.0)
+        sim.update_grid(1e-3)
+        sim.g2p(1e-3)
+        gathered.append({name: getattr(sim.particles, name).cpu().clone() for name in start})
+    for name in ("x", "v", "F"):
+        assert rel_err(gathered[1][name], gathered[0][name]) <= 1e-5, f"{name} (seed {seed})"
+    vmax = float(gathered[0]["v"].norm(dim=1).max())
+    assert float((gathered[1]["C"] - gathered[0]["C"]).abs().max()) <= 1e-4 * max(vmax, 1e-3) * 32
