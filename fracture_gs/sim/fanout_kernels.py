@@ -64,25 +64,6 @@ def lane_sum_mat33(a: wp.mat33):
     return wp.matrix_from_rows(lane_sum_vec3(a[0]), lane_sum_vec3(a[1]), lane_sum_vec3(a[2]))
 
 
-@wp.func
-def fan_deposit(
-    g: GridView,
-    base: wp.vec3i,
-    o: wp.vec3i,
-    k: int,
-    in_band: int,
-    acc: wp.vec4,
-    counts: wp.array(dtype=wp.int32),
-):
-    """Add a group's sum at one stencil node to fragment k's slot (`p2g`'s claims, band mass included);
-    returns the slot's buffer index."""
-    idx, row, s = deposit_index(g, flat(base + o, wp.vec3i(0, 0, 0), g.shape), k, in_band, counts)
-    if in_band != 0 and row >= 0:
-        wp.atomic_add(g.band, row * g.slots + s, acc[3])
-    atomic_add_vec4(g.mp, idx, acc)
-    return idx
-
-
 @wp.kernel
 def p2g_fanout(
     x: wp.array(dtype=wp.vec3),  # [N]
@@ -95,51 +76,31 @@ def p2g_fanout(
     band: wp.array(dtype=wp.int32),  # [N]
     order: wp.array(dtype=wp.int32),  # [N] the particles that are not solo first
     first: wp.array(dtype=wp.int32),  # [1] how many are not solo
-    cache: wp.array(dtype=wp.int32),  # [27 × capacity] out: the buffer index each deposit went to
-    run: int,  # listed particles per thread (a power of two dividing the capacity)
+    cache: wp.array(dtype=wp.int32),  # [27 × capacity] out: the buffer index each thread deposited into
     clock: Clock,  # Δt
     g: GridView,
     counts: wp.array(dtype=wp.int32),  # [N_COUNTS] (`p2g` counted the escapes)
 ):
-    """Deposit node q = t mod 27 of the listed particles run·(t div 27) … + run − 1 into their fragments'
-    slots; consecutive ones with the same stencil base, fragment and band flag are summed first and make
-    one claim and one reduction. Keep each particle's buffer index for G2P (the same index `read_index`
-    finds: claims last the frame). With run = 1, one particle per thread."""
+    """Deposit node q = t mod 27 of the (t div 27)-th listed particle into its fragment's slot, and keep
+    the slot's buffer index for G2P (the same index `read_index` finds: claims last the frame)."""
     t = wp.tid()
-    seg = t // 27
-    q = t - 27 * seg
-    end = wp.min(seg * run + run, first[0])
-    dt = clock_dt(clock)
-    acc = wp.vec4(0.0)
-    cur = wp.vec3i(-1, -1, -1)
-    cur_k = int(-1)  # noqa: UP018 (a dynamic Warp variable)
-    cur_band = int(0)  # noqa: UP018
-    start = int(0)  # noqa: UP018 (the group's first listed index)
-    o = wp.vec3i(q // 9, (q // 3) % 3, q % 3)
-    for i in range(seg * run, end):
-        p = order[i]
-        k = routed_field(fragment[p], -1, 1)
-        in_band = band[p]
-        base, f = stencil_offset(x[p], g.origin, g.inv_dx, g.shape)
-        if base[0] != cur[0] or base[1] != cur[1] or base[2] != cur[2] or k != cur_k or in_band != cur_band:
-            if cur[0] >= 0:
-                idx = fan_deposit(g, cur, o, cur_k, cur_band, acc, counts)
-                for j in range(start, i):
-                    cache[27 * j + q] = idx
-            acc = wp.vec4(0.0)
-            cur = base
-            cur_k = k
-            cur_band = in_band
-            start = i
-        weight, grad, dpos, o = node_terms_q(q, f, g.dx, g.inv_dx)
-        m = mass[p]
-        force = -dt * volume[p] * stress[p]
-        mom = weight * m * (v[p] + C[p] * dpos) + force * grad
-        acc = acc + wp.vec4(mom[0], mom[1], mom[2], weight * m)
-    if cur[0] >= 0:
-        idx = fan_deposit(g, cur, o, cur_k, cur_band, acc, counts)
-        for j in range(start, end):
-            cache[27 * j + q] = idx
+    i = t // 27
+    if i >= first[0]:
+        return
+    p = order[i]
+    k = routed_field(fragment[p], -1, 1)
+    base, f = stencil_offset(x[p], g.origin, g.inv_dx, g.shape)
+    weight, grad, dpos, o = node_terms_q(t - 27 * i, f, g.dx, g.inv_dx)
+    n = flat(base + o, wp.vec3i(0, 0, 0), g.shape)
+    m = mass[p]
+    force = -clock_dt(clock) * volume[p] * stress[p]
+    mom = weight * m * (v[p] + C[p] * dpos) + force * grad
+    in_band = band[p]
+    idx, row, s = deposit_index(g, n, k, in_band, counts)
+    cache[t] = idx
+    if in_band != 0 and row >= 0:
+        wp.atomic_add(g.band, row * g.slots + s, weight * m)
+    atomic_add_vec4(g.mp, idx, wp.vec4(mom[0], mom[1], mom[2], weight * m))
 
 
 @wp.kernel

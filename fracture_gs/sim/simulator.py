@@ -117,7 +117,6 @@ class Simulator(FrameLoop):
         self.slow_first = self.device.startswith("cuda")
         self.fanout = self.device.startswith("cuda")
         self.g2p_fanout_max = 1.0 / 16
-        self.fanout_run = 1  # listed particles per P2G fan-out thread (a power of two ≤ 256)
         # P2G of the dense-path particles in runs of `p2g_run` consecutive particles, summed in registers while
         # they share a cell (`run_kernels`): on (runs of P2G_RUN) for particles sorted by cell on a GPU
         # (`sort_particles("cell")`), where it saves global reductions; 0: one thread per particle
@@ -407,14 +406,13 @@ class Simulator(FrameLoop):
         if fan:
             wp.launch(
                 p2g_fanout,
-                dim=27 * (self._fan_cap // self.fanout_run),
+                dim=27 * self._fan_cap,
                 device=self.device,
                 inputs=particle_arrays
                 + [
                     w["order"],
                     w["first"],
                     w["slot_cache"],
-                    self.fanout_run,
                     self.clock.view,
                     g.view,
                     w["counts"] if counts is None else counts,
