@@ -1,14 +1,15 @@
 """P2G of the dense-path particles in runs: a thread deposits `run` consecutive particles and sums in registers
-those that share a stencil base, so particles sorted by cell (`neighbourhood.cell_order(mode="cell")`) reach
-each of their 27 nodes with one global reduction per run and cell instead of one per particle.
+those that share a stencil base, so particles sorted by their stencil's base node
+(`neighbourhood.cell_order(mode="cell")`) reach each of their 27 nodes with one global reduction per run and
+base instead of one per particle.
 
 The same deposits as `transfer_kernels.p2g`'s dense path (Eq. multifield_p2g, slot 0):
 m_i += Σ_p w_ip m_p,  p_i += Σ_p w_ip m_p (v_p + C_p(x_i − x_p)) − Δt V⁰ τ_p ∇w_ip.
 Any order is correct (a change of base flushes the sums); with run = 1 the fields are bitwise `p2g`'s, otherwise
 they differ by the order of float32 sums. Particles that are not solo on a multi-field grid are left to
 `fanout_kernels.p2g_fanout` (the host takes this kernel only with it, and never for the global fragment pass).
-Measured (BENCHMARKS.md): in cell order with run = 2, P2G of the Table 2 ficus 69 → 64 µs on an H100; a
-block-shared node tile was 4× slower (shared-memory float atomics compile to compare-and-swap loops).
+Measured (BENCHMARKS.md, H100, Table 2 ficus): P2G 67 µs one particle per thread, 40 / 34 / 30 µs in runs of
+2 / 4 / 8; a block-shared node tile was 4× slower (shared-memory float atomics compile to compare-and-swap loops).
 """
 
 from __future__ import annotations
@@ -52,8 +53,8 @@ def p2g_runs(
     hi: wp.vec3i,
     counts: wp.array(dtype=wp.int32),  # [N_COUNTS] running counters
 ):
-    """`p2g`'s dense path for `run` consecutive particles: those that share a stencil base (a cell, in
-    cell or Morton order) are summed in registers and reach the grid as one reduction per node."""
+    """`p2g`'s dense path for `run` consecutive particles: those that share a stencil base are summed in
+    registers and reach the grid as one reduction per node."""
     t = wp.tid()
     acc = stencil_sums()
     cur = wp.vec3i(-1, -1, -1)
