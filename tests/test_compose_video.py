@@ -189,3 +189,17 @@ def test_comparison_composed_live_equals_composed_after(tmp_path):
     for n in names:
         assert np.array_equal(cv2.imread(str(after / "frames" / n)), cv2.imread(str(live_dir / "frames" / n))), n
     assert read_video(live_dir / "comparison.mp4")[0] == 12
+
+
+def test_missing_encoder_is_one_sentence_naming_the_fix(tmp_path, monkeypatch):
+    """An environment without imageio-ffmpeg (a dependency, but environments get assembled by hand) gets an
+    OutputError that names the package and the pip command when the first frame is written, not an
+    ImportError traceback from the writer thread."""
+    import sys
+
+    from fracture_gs.errors import OutputError
+
+    monkeypatch.setitem(sys.modules, "imageio_ffmpeg", None)  # `import imageio_ffmpeg` now raises ImportError
+    writer = VideoWriter(tmp_path / "out.mp4", fps=10)
+    with pytest.raises(OutputError, match="pip install imageio-ffmpeg"):
+        writer.write(np.zeros((8, 8, 3), dtype=np.uint8))

@@ -13,6 +13,21 @@ from typing import Iterable, Optional
 import numpy as np
 
 
+def ffmpeg():
+    """The `imageio_ffmpeg` module, or a one-sentence OutputError when it is missing (it is a dependency of
+    fracture-gs, but an environment assembled by hand may lack it; the PNG frames do not need it)."""
+    try:
+        import imageio_ffmpeg
+    except ImportError as exc:
+        from ..errors import OutputError
+
+        raise OutputError(
+            "writing MP4 video needs the package imageio-ffmpeg, which is not installed; "
+            "run `pip install imageio-ffmpeg` (a dependency of fracture-gs)"
+        ) from exc
+    return imageio_ffmpeg
+
+
 def as_uint8_rgb(img) -> np.ndarray:  # any HxW, HxWx1/3/4, float in [0,1] or uint8 -> HxWx3 uint8
     """A C-contiguous HxWx3 uint8 RGB array from uint8 or float ([0, 1]) numpy/torch images."""
     if hasattr(img, "detach"):  # torch tensor, without importing torch here
@@ -63,8 +78,7 @@ class VideoWriter:
         return False
 
     def _open(self, w: int, h: int):
-        import imageio_ffmpeg
-
+        imageio_ffmpeg = ffmpeg()
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._gen = imageio_ffmpeg.write_frames(
             str(self.path),
@@ -120,9 +134,7 @@ def save_png(path, img) -> None:
 
 def read_video(path) -> tuple[int, int, int]:
     """(n_frames, H, W) of a video, by decoding every frame (meant for tests)."""
-    import imageio_ffmpeg
-
-    gen = imageio_ffmpeg.read_frames(str(path))
+    gen = ffmpeg().read_frames(str(path))
     meta = gen.__next__()
     w, h = meta["size"]
     n = sum(1 for _ in gen)
