@@ -203,3 +203,19 @@ def test_missing_encoder_is_one_sentence_naming_the_fix(tmp_path, monkeypatch):
     writer = VideoWriter(tmp_path / "out.mp4", fps=10)
     with pytest.raises(OutputError, match="pip install imageio-ffmpeg"):
         writer.write(np.zeros((8, 8, 3), dtype=np.uint8))
+
+
+def test_encoder_without_an_executable_is_one_sentence(tmp_path, monkeypatch):
+    """imageio-ffmpeg installed but no ffmpeg executable found (a wheel unpacked without its binary's
+    execute bit, a stripped image): an OutputError naming the ways to get one, not a RuntimeError traceback."""
+    import imageio_ffmpeg
+
+    from fracture_gs.errors import OutputError
+
+    def missing():
+        raise RuntimeError("No ffmpeg exe could be found.")
+
+    monkeypatch.setattr(imageio_ffmpeg, "get_ffmpeg_exe", missing)
+    writer = VideoWriter(tmp_path / "out.mp4", fps=10)
+    with pytest.raises(OutputError, match="IMAGEIO_FFMPEG_EXE"):
+        writer.write(np.zeros((8, 8, 3), dtype=np.uint8))

@@ -14,16 +14,24 @@ import numpy as np
 
 
 def ffmpeg():
-    """The `imageio_ffmpeg` module, or a one-sentence OutputError when it is missing (it is a dependency of
-    fracture-gs, but an environment assembled by hand may lack it; the PNG frames do not need it)."""
+    """The `imageio_ffmpeg` module with a usable ffmpeg executable, or a one-sentence OutputError naming the
+    fix (it is a dependency of fracture-gs, but an environment assembled by hand may lack the package or its
+    bundled binary; the PNG frames do not need it)."""
+    from ..errors import OutputError
+
     try:
         import imageio_ffmpeg
     except ImportError as exc:
-        from ..errors import OutputError
-
         raise OutputError(
             "writing MP4 video needs the package imageio-ffmpeg, which is not installed; "
             "run `pip install imageio-ffmpeg` (a dependency of fracture-gs)"
+        ) from exc
+    try:
+        imageio_ffmpeg.get_ffmpeg_exe()
+    except RuntimeError as exc:
+        raise OutputError(
+            "writing MP4 video needs an ffmpeg executable and imageio-ffmpeg found none; reinstall it "
+            "(`pip install --force-reinstall imageio-ffmpeg`), install ffmpeg, or set IMAGEIO_FFMPEG_EXE to one"
         ) from exc
     return imageio_ffmpeg
 
