@@ -26,7 +26,7 @@ from tqdm import tqdm
 from .config import SceneConfig
 from .io.config import dump_config
 from .io.outputs import output_dir
-from .io.video import VideoWriter, save_png
+from .io.video import VideoWriter, ffmpeg, save_png
 from .pipeline import FrameOutput, make_simulator, prepare_scene, simulate
 from .profiling import phases
 from .render import compose
@@ -511,6 +511,7 @@ def run_render_sim(
     from its SIGINT handler, so an interrupt Python drops inside a finalizer still stops the run; with
     `devices` the worker processes stop on Ctrl-C themselves and the event only marks the summary)."""
     out_dir = output_dir(out_dir)
+    ffmpeg()  # a missing video encoder is one sentence now, not after the scene is prepared and simulated
     if profile:
         phases.enable(sync_device=device if device.startswith("cuda") else None)
     if device.startswith("cuda") and cfg.render.backend != "torch" and gsplat_needs_compile():

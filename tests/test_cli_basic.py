@@ -191,3 +191,18 @@ def test_bugs_keep_their_traceback(monkeypatch):
     monkeypatch.setattr(runner, "run_render_sim", broken)
     with pytest.raises(RuntimeError):
         cli.main(["render-sim", "recontact", "--device", "cpu"])
+
+
+def test_render_sim_without_video_encoder_stops_before_the_scene(tmp_path, capsys, monkeypatch):
+    """render-sim checks for imageio-ffmpeg before it prepares (or simulates) anything: one error line naming
+    the pip command and exit code 2, with no scene built."""
+    monkeypatch.setitem(sys.modules, "imageio_ffmpeg", None)  # `import imageio_ffmpeg` now raises ImportError
+
+    def never(*args, **kwargs):
+        raise AssertionError("the scene was prepared before the encoder check")
+
+    monkeypatch.setattr(runner, "prepare_scene", never)
+    code = cli.main(["render-sim", "ficus", "--frames", "2", "--device", "cpu", "--out", str(tmp_path / "run")])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert "pip install imageio-ffmpeg" in err and "Traceback" not in err
