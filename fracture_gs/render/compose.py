@@ -72,13 +72,6 @@ def caption(
     return pad_even(out)
 
 
-def _pad_to(img: np.ndarray, h: int, w: int) -> np.ndarray:
-    out = np.empty((h, w, 3), np.uint8)
-    out[:] = CANVAS
-    out[: img.shape[0], : img.shape[1]] = img
-    return out
-
-
 def side_by_side(images: Sequence, captions: Optional[Sequence[str]] = None, gap: int = 4) -> np.ndarray:
     """Images in one row (shorter ones padded with white), each under its caption if given."""
     imgs = [as_uint8_rgb(i) for i in images]
@@ -91,12 +84,18 @@ def side_by_side(images: Sequence, captions: Optional[Sequence[str]] = None, gap
         scale = min(_text_scale(c, i.shape[1] - 6, bh)[0] for i, c in zip(imgs, captions))
         imgs = [caption(i, c, bh, scale=scale) for i, c in zip(imgs, captions)]
     h = max(i.shape[0] for i in imgs)
-    parts = []
+    out = np.empty((h, sum(i.shape[1] for i in imgs) + gap * (len(imgs) - 1), 3), np.uint8)
+    canvas = np.asarray(CANVAS, np.uint8)  # filled where no image is: the gaps and below shorter images
+    x = 0
     for k, i in enumerate(imgs):
         if k:
-            parts.append(_pad_to(np.zeros((0, 0, 3), np.uint8), h, gap))
-        parts.append(_pad_to(i, h, i.shape[1]))
-    return pad_even(np.concatenate(parts, axis=1))
+            out[:, x : x + gap] = canvas
+            x += gap
+        ih, iw = i.shape[:2]
+        out[:ih, x : x + iw] = i
+        out[ih:, x : x + iw] = canvas
+        x += iw
+    return pad_even(out)
 
 
 def grid(
@@ -192,15 +191,29 @@ def _outer_tangents(c1, r1, c2, r2):
 
 
 def _bilinear(img: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:  # [..]→[..,3] float
-    """Bilinear sample at continuous pixel coordinates (pixel k's centre is at k + 0.5), edge clamp."""
+    """Bilinear sample at continuous pixel coordinates (pixel k's centre is at k + 0.5), edge clamp. Only the
+    window the coordinates reach is converted (float32: an inset's values round to uint8 the same way to within
+    one level of float64's)."""
     h, w = img.shape[:2]
     x = np.clip(x - 0.5, 0, w - 1)
     y = np.clip(y - 0.5, 0, h - 1)
-    x0, y0 = np.floor(x).astype(int), np.floor(y).astype(int)
-    x1, y1 = np.minimum(x0 + 1, w - 1), np.minimum(y0 + 1, h - 1)
-    fx, fy = (x - x0)[..., None], (y - y0)[..., None]
-    f = lambda yy, xx: img[yy, xx].astype(np.float64)  # gather first: only the sampled pixels in float64
-    return (f(y0, x0) * (1 - fx) + f(y0, x1) * fx) * (1 - fy) + (f(y1, x0) * (1 - fx) + f(y1, x1) * fx) * fy
+    x0, y0 = np.floor(x).astype(np.int32), np.floor(y).astype(np.int32)
+    if x0.size == 0:
+        return np.zeros(x.shape + img.shape[2:], np.float32)
+    ax, ay = int(x0.min()), int(y0.min())
+    win = img[ay : int(y0.max()) + 2, ax : int(x0.max()) + 2].astype(np.float32)  # the sampled window only
+    wh, ww = win.shape[:2]
+    x0, y0 = x0 - ax, y0 - ay
+    x1, y1 = np.minimum(x0 + 1, ww - 1), np.minimum(y0 + 1, wh - 1)
+    fx = (x - ax - x0).astype(np.float32)[..., None]
+    fy = (y - ay - y0).astype(np.float32)[..., None]
+    flat = win.reshape(wh * ww, -1)  # gathers by row index: `take` is several times faster than 2-D indexing
+    y0, y1 = y0 * ww, y1 * ww
+    top = np.take(flat, y0 + x0, axis=0)
+    top += (np.take(flat, y0 + x1, axis=0) - top) * fx
+    bottom = np.take(flat, y1 + x0, axis=0)
+    bottom += (np.take(flat, y1 + x1, axis=0) - bottom) * fx
+    return top + (bottom - top) * fy
 
 
 def magnify(img, center_xy, zoom: float, inset_xy, inset_r: float) -> tuple[np.ndarray, np.ndarray]:
