@@ -206,3 +206,14 @@ def test_render_sim_without_video_encoder_stops_before_the_scene(tmp_path, capsy
     err = capsys.readouterr().err
     assert code == 2
     assert "pip install imageio-ffmpeg" in err and "Traceback" not in err
+
+
+def test_info_reports_the_video_encoder(capsys, monkeypatch):
+    """`info` names the MP4 encoder render-sim will use, and without imageio-ffmpeg the sentence render-sim
+    would stop with (info itself still succeeds)."""
+    assert cli.main(["info"]) == 0
+    assert "imageio-ffmpeg" in next(line for line in capsys.readouterr().out.splitlines() if line.startswith("video"))
+    monkeypatch.setitem(sys.modules, "imageio_ffmpeg", None)
+    assert cli.main(["info"]) == 0
+    line = next(line for line in capsys.readouterr().out.splitlines() if line.startswith("video"))
+    assert "unavailable" in line and "pip install imageio-ffmpeg" in line

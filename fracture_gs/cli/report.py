@@ -74,7 +74,21 @@ def _info_lines() -> list[tuple[str, str]]:
             )
         )
     rows.append(("device", f"--device auto -> {'cuda:0' if available else 'cpu'}"))
+    rows.append(("video", _video_encoder()))
     return rows
+
+
+def _video_encoder() -> str:
+    """The MP4 encoder render-sim will use, or the sentence it would stop with."""
+    from ..errors import OutputError
+    from ..io.video import ffmpeg
+
+    try:
+        exe = ffmpeg().get_ffmpeg_exe()
+    except OutputError as exc:
+        return f"unavailable: {exc}"
+    _, version = _version_of("imageio_ffmpeg")
+    return f"imageio-ffmpeg {version}, ffmpeg {exe}"
 
 
 def cmd_info(args: argparse.Namespace) -> int:
