@@ -223,3 +223,24 @@ def test_accuracy_cases_against_known_answers():
     assert spin.error < 2e-3 and spin.extra["angular_momentum_drift"] < 1e-4
     rc = accuracy.recontact_case(1 / 32, 0.8, "cpu")
     assert rc.extra["penetration_dx"] < 0.1 and rc.extra["first_contact_time"] is not None
+
+
+def test_partial_rerun_keeps_the_figures_an_earlier_call_made(tmp_path):
+    """`fracture-gs figures --only bench` after a full call: the README keeps every figure whose image is still
+    in the folder (as it keeps the tables), a figure this call made again replaces the earlier entry, an entry
+    whose image is gone is dropped, and the order stays Figure 1, 2, ..."""
+    from fracture_gs.paper.readme import merged_figures
+
+    for name in ("fig_teaser.png", "fig_method.png"):
+        (tmp_path / name).write_bytes(b"png")
+    earlier = [
+        {"title": "Figure 1: teaser", "path": "fig_teaser.png", "caption": "old"},
+        {"title": "Figure 3: method", "path": "fig_method.png", "caption": "old"},
+        {"title": "Figure 2: gone", "path": "fig_gone.png", "caption": "old"},
+    ]
+    (tmp_path / "summary.json").write_text(json.dumps({"figure_entries": earlier}))
+    now = [{"title": "Figure 3: method", "path": str(tmp_path / "fig_method.png"), "caption": "new"}]
+    merged = merged_figures(tmp_path, now)
+    assert [f["title"] for f in merged] == ["Figure 1: teaser", "Figure 3: method"]
+    assert merged[0]["path"] == str(tmp_path / "fig_teaser.png") and merged[1]["caption"] == "new"
+    assert merged_figures(tmp_path / "nowhere", now) == now  # no earlier summary: this call's only

@@ -49,7 +49,7 @@ from .experiments import ExperimentRun, _load_cache, _save_cache, run_experiment
 from .paper_tables import _notes, _protocol_note, table1, table2, table3, table4, table5
 from .plots import curve_series, curves_figure, method_figure, method_slice, multiscene_figure, teaser_figure
 from .protocol import PROTOCOLS, _scene_render_size, prepare
-from .readme import readme_text
+from .readme import merged_figures, readme_text
 
 # --------------------------------------------------------------------------------------------
 # orchestration
@@ -356,6 +356,8 @@ def _run_figures(device, out_dir, protocol, only, reuse, progress, command, rend
         "wall_s": wall,
         "out_arg": str(out_dir),
     }
+    if only != set(GROUPS):  # a partial call (`--only`) keeps the figures an earlier call made
+        figures = merged_figures(out, figures)
     (out / "README.md").write_text(readme_text(out, tables, figures, meta))
     summary = {
         "out_dir": str(out),

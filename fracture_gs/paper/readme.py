@@ -110,6 +110,24 @@ def _extra_sections(out_dir: Path) -> list:
     return lines
 
 
+def merged_figures(out_dir: Path, figures: list) -> list:
+    """This call's figure entries plus those an earlier call (`--only`) wrote to OUT/summary.json whose images
+    are still there and that this call did not make again, in title order (Figure 1, 2, ...): a partial rerun
+    keeps the folder's other figures, as it keeps its other tables."""
+    out = Path(out_dir)
+    made = {f["title"] for f in figures}
+    try:
+        earlier = json.loads((out / "summary.json").read_text()).get("figure_entries", [])
+    except (OSError, ValueError):
+        earlier = []
+    kept = [
+        {**f, "path": str(out / f["path"])}
+        for f in earlier
+        if isinstance(f, dict) and f.get("title") not in made and (out / f.get("path", "")).is_file()
+    ]
+    return sorted(figures + kept, key=lambda f: f["title"])
+
+
 def refresh_readme(out_dir) -> Path:
     """Rewrite OUT/README.md from the files already there (tables, summary.json, figures, and the
     accuracy / other-run folders), e.g. after adding a GPU run's folder."""
