@@ -28,6 +28,7 @@ import warp as wp
 from fracture_gs import assets
 from fracture_gs.config import SceneConfig, SimConfig
 from fracture_gs.sim import Particles, Simulator, Topology
+from fracture_gs.sim.layout import COUNT_SLOT_OVERFLOW
 from fracture_gs.sim.providers.cuts import voronoi_labels
 from fracture_gs.sim.providers.voronoi import voronoi_sites
 
@@ -54,8 +55,7 @@ def build(cfg, P, topo, variant, device, sort="cell"):
     sim = Simulator(c, P.clone(), device=device)
     sim.record_contact = False
     if sort != "built":  # the same order for every branch (cell: P2G in runs on a GPU)
-        o = sim.sort_particles(sort).cpu()
-        topo = Topology(fragment=topo.fragment[o], band=topo.band[o], normal=topo.normal, point=topo.point)
+        topo = topo.permuted(sim.sort_particles(sort))
     sim.latch(topo)
     sim.fit_active_box(0.05)
     sim.set_clock(c.dt)
@@ -141,7 +141,7 @@ def main(argv=None) -> int:
                 "grid_mib": sims[0].grid.nbytes / 2**20,
                 "slot_cache_mib": sims[0]._slot_cache.numel() * 4 / 2**20 if sims[0].fanout else 0.0,
                 "pool_rows": int(sims[0].grid.rows_used()),
-                "slot_overflow": int(sims[0].counts[2]),
+                "slot_overflow": int(sims[0].counts[COUNT_SLOT_OVERFLOW]),
             }
             del sims
         out["time_ratio"] = out["FractureFields"]["median_ms"] / out["Shared"]["median_ms"]

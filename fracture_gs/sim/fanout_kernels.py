@@ -23,6 +23,7 @@ from .clock import Clock, clock_dt
 from .layout import GridView, flat
 from .transfer_kernels import (
     atomic_add_vec4,
+    deposit,
     deposit_index,
     finish_g2p,
     node_index,
@@ -94,13 +95,12 @@ def p2g_fanout(
     n = flat(base + o, wp.vec3i(0, 0, 0), g.shape)
     m = mass[p]
     force = -clock_dt(clock) * volume[p] * stress[p]
-    mom = weight * m * (v[p] + C[p] * dpos) + force * grad
     in_band = band[p]
     idx, row, s = deposit_index(g, n, k, in_band, counts)
     cache[t] = idx
     if in_band != 0 and row >= 0:
         wp.atomic_add(g.band, row * g.slots + s, weight * m)
-    atomic_add_vec4(g.mp, idx, wp.vec4(mom[0], mom[1], mom[2], weight * m))
+    atomic_add_vec4(g.mp, idx, deposit(weight, grad, dpos, m, v[p], C[p], force))
 
 
 @wp.kernel

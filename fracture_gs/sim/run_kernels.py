@@ -18,7 +18,7 @@ import warp as wp
 
 from .clock import Clock, clock_dt
 from .layout import COUNT_ESCAPED, GridView, flat, inside
-from .transfer_kernels import atomic_add_vec4, node_terms, stencil
+from .transfer_kernels import atomic_add_vec4, deposit, node_terms, stencil
 
 wp.set_module_options({"enable_backward": False})
 
@@ -78,10 +78,8 @@ def p2g_runs(
                     for l in range(3):  # noqa: E741
                         q = 9 * i + 3 * j + l
                         weight, grad, dpos = node_terms(i, j, l, f, w, dw, g.dx, g.inv_dx)
-                        mom = weight * m * (vp + Cp * dpos) + force * grad
-                        acc[q, 0] = acc[q, 0] + mom[0]
-                        acc[q, 1] = acc[q, 1] + mom[1]
-                        acc[q, 2] = acc[q, 2] + mom[2]
-                        acc[q, 3] = acc[q, 3] + weight * m
+                        d = deposit(weight, grad, dpos, m, vp, Cp, force)
+                        for c in range(4):
+                            acc[q, c] = acc[q, c] + d[c]
     if cur[0] >= 0:
         flush_run(g, cur, acc)

@@ -394,37 +394,21 @@ class Simulator(FrameLoop):
             g.clear()
             lo, hi = wp.vec3i(0, 0, 0), wp.vec3i(*g.shape)
         fan = target is None and self._fans_out(multi, only_fragment)
+        run = self._run_length(multi) if target is None and only_fragment < 0 and (fan or not multi) else 0
+        counts = w["counts"] if counts is None else counts
         particle_arrays = [w[k] for k in ("x", "v", "C", "mass", "volume")]  # what P2G reads of each particle
         particle_arrays += [w["stress"] if stress is None else stress, w["fragment"], w["band"]]
-        if self._run_length(multi) > 0 and target is None and only_fragment < 0 and (fan or not multi):
-            extra = [w["solo"], multi, self._run_length(multi), self.clock.view, g.view, lo, hi]
-            extra.append(w["counts"] if counts is None else counts)
-            dim = -(-len(self.particles) // self._run_length(multi))
+        if run > 0:  # `run_kernels.p2g_runs` takes only the first six: its particles are on the dense path
+            extra = [w["solo"], multi, run, self.clock.view, g.view, lo, hi, counts]
+            dim = -(-len(self.particles) // run)
             wp.launch(p2g_runs, dim=dim, device=self.device, inputs=particle_arrays[:6] + extra)
         else:
-            self._p2g_plain(particle_arrays, multi, only_fragment, fan, target, lo, hi, counts)
+            extra = [w["solo"] if target is None else w["no_solo"], multi, only_fragment, int(fan), self.clock.view]
+            extra += [g.view, lo, hi, counts]
+            wp.launch(p2g, dim=len(self.particles), device=self.device, inputs=particle_arrays + extra)
         if fan:
-            wp.launch(
-                p2g_fanout,
-                dim=27 * self._fan_cap,
-                device=self.device,
-                inputs=particle_arrays
-                + [
-                    w["order"],
-                    w["first"],
-                    w["slot_cache"],
-                    self.clock.view,
-                    g.view,
-                    w["counts"] if counts is None else counts,
-                ],
-            )
-
-    def _p2g_plain(self, particle_arrays, multi, only_fragment, fan, target, lo, hi, counts) -> None:
-        """`transfer_kernels.p2g`: a thread per particle, every deposit a global reduction."""
-        w, g = self.wp, target or self.grid
-        extra = [w["solo"] if target is None else w["no_solo"], multi, only_fragment, int(fan), self.clock.view]
-        extra += [g.view, lo, hi, w["counts"] if counts is None else counts]
-        wp.launch(p2g, dim=len(self.particles), device=self.device, inputs=particle_arrays + extra)
+            extra = [w["order"], w["first"], w["slot_cache"], self.clock.view, g.view, counts]
+            wp.launch(p2g_fanout, dim=27 * self._fan_cap, device=self.device, inputs=particle_arrays + extra)
 
     def _update_grid(self) -> None:
         g, multi = self.grid, int(self.multifield)

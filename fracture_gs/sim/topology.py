@@ -73,6 +73,11 @@ class Topology:
             events=[FractureEvent("plane", float(latch_time), int(latch_frame), (-1,), (0, 1), point, normal)],
         )
 
+    def permuted(self, order: torch.Tensor) -> Topology:
+        """The same topology for particles reordered as `Simulator.sort_particles` does (new i = old order[i])."""
+        o = order.to(self.fragment.device)
+        return replace(self, fragment=self.fragment[o], band=self.band[o])
+
     @property
     def n_fragments(self) -> int:
         return int(self.fragment.max()) + 1 if self.fragment.numel() else 0

@@ -137,6 +137,14 @@ def node_terms_q(q: int, f: wp.vec3, dx: float, inv_dx: float):
 
 
 @wp.func
+def deposit(weight: float, grad: wp.vec3, dpos: wp.vec3, m: float, vp: wp.vec3, Cp: wp.mat33, force: wp.mat33):
+    """What particle p adds at node i (Eq. multifield_p2g): (w m_p (v_p + C_p(x_i − x_p)) − Δt V⁰ τ_p ∇w, w m_p),
+    with force = −Δt V⁰ τ_p."""
+    mom = weight * m * (vp + Cp * dpos) + force * grad
+    return wp.vec4(mom[0], mom[1], mom[2], weight * m)
+
+
+@wp.func
 def routed_field(o: int, only_fragment: int, multifield: int):
     """Field the particle writes to and reads from (its fragment under fragment-conditioned
     transfer, else the one shared field 0), or −1 when a per-fragment pass skips it."""
@@ -284,17 +292,15 @@ def p2g(
                 for l in range(3):  # noqa: E741
                     weight, grad, dpos = node_terms(i, j, l, f, w, dw, g.dx, g.inv_dx)
                     n = flat(wp.vec3i(base[0] + i, base[1] + j, base[2] + l), wp.vec3i(0, 0, 0), g.shape)
-                    mom = weight * m * (vp + Cp * dpos) + force * grad
-                    atomic_add_vec4(g.mp, n, wp.vec4(mom[0], mom[1], mom[2], weight * m))
+                    atomic_add_vec4(g.mp, n, deposit(weight, grad, dpos, m, vp, Cp, force))
         return
     for q in range(27):  # kept as a loop: the slot claims inline once, not 27 times
         weight, grad, dpos, o = node_terms_q(q, f, g.dx, g.inv_dx)
         n = flat(base + o, wp.vec3i(0, 0, 0), g.shape)
-        mom = weight * m * (vp + Cp * dpos) + force * grad
         idx, row, s = deposit_index(g, n, k, in_band, counts)
         if in_band != 0 and row >= 0:
             wp.atomic_add(g.band, row * g.slots + s, weight * m)
-        atomic_add_vec4(g.mp, idx, wp.vec4(mom[0], mom[1], mom[2], weight * m))
+        atomic_add_vec4(g.mp, idx, deposit(weight, grad, dpos, m, vp, Cp, force))
 
 
 @wp.kernel
