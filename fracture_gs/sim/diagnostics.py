@@ -1,6 +1,6 @@
 """Per-frame diagnostics (docs/DESIGN.md "Diagnostics"): the tracker that turns `metrics.py`'s device
 tensors into one row of metrics.jsonl per frame, with one host read per frame (the fragment-aware
-overlap, whose sizes depend on the data, adds a few).
+overlap runs in Warp launches, `overlap_kernels.py`, and reads nothing back).
 
 Transfer: counterfactual and realized mixing (Eq. mixing), per-fragment mass residual (Eq.
 mass_error), shared-support node percentage — from a shadow fragment-conditioned P2G of the current
@@ -44,7 +44,8 @@ from .layout import (
     STAT_UN_AFTER,
 )
 from .metrics import SEPARATION, reapproach_ratio  # noqa: F401 (re-exported: the tracker's thresholds)
-from .penetration import collider_packed, overlap_packed, unpack_overlap
+from .overlap_kernels import VoxelOverlap
+from .penetration import collider_packed, unpack_overlap
 
 VOXEL = 0.6  # Δx: voxel edge of the fragment-aware occupied volume (`penetration.py`)
 COLLIDER_TOLERANCE = 0.5  # Δx: a node-based plane collider holds particles to within half a cell of the plane
@@ -87,6 +88,7 @@ class Diagnostics:
         self.shadow: Grid | None = None
         self.shadow_rows = 0  # pool rows the shadow transfer used last frame
         self.shadow_stress = None
+        self.voxels: VoxelOverlap | None = None  # the fragment-aware overlap's tables, made at the first latch
         self.first_contact_time = None
         self.contact_max = {
             "cp_momentum_residual": 0.0,
@@ -250,7 +252,9 @@ class Diagnostics:
         dev.add("penetration", M.penetration(P.x, self.members, self.n, 2.0 * dx))
         dev.add("identity_crossing", M.identity_crossing(P.x, P.fragment, self.members, self.n))
         dev.add("stringing", M.stringing(P.F, self.band_index))
-        dev.add("overlap", overlap_packed(P.x, P.fragment, VOXEL * dx, max(2, sim.n_fragments)))
+        if self.voxels is None:
+            self.voxels = VoxelOverlap(len(P), P.x.device)
+        dev.add("overlap", self.voxels.packed(P.x, P.fragment, VOXEL * dx, max(2, sim.n_fragments)))
         dev.add("collider", collider_packed(P.x, self.planes, COLLIDER_TOLERANCE * dx))
 
     def _interface_row(self, h: dict) -> dict:
