@@ -46,6 +46,7 @@ class FrameOutput:
         self.fragment = fragment  # [N] int32, −1 before the latch
         self.band = band  # [N] int32
         self.metrics = metrics if metrics is not None else {}
+        self.ready = None  # a CUDA event after the copies above, for a consumer on another stream
 
     @functools.cached_property
     def covars(self) -> torch.Tensor:  # [N, 3, 3]

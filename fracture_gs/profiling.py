@@ -3,8 +3,11 @@
 `phases.section("render")` times a block into the named phase, from any thread; with profiling off
 it costs one attribute test. Phases run concurrently (the renderer works on frame n while the
 solver runs frame n + 1), so their busy times can add up to more than the wall time; the report
-shows both. On CUDA, `enable(sync_device=...)` synchronises the device at every section boundary
-so GPU work is charged to the phase that launched it (a profiled run is a little slower).
+shows both. On CUDA, `enable(sync_device=...)` synchronises the calling thread's current stream at
+every section boundary, so GPU work is charged to the phase that launched it (a profiled run is a
+little slower). Only that stream: a device-wide sync would make the renderer's thread wait for the
+solver's queued substeps and the solver for the renderer's frame, a serialisation the unprofiled run
+does not have (each worker draws on its own stream, `runtime.side_stream(device, "render")`).
 """
 
 from __future__ import annotations
@@ -42,7 +45,7 @@ class PhaseTimer:
             import torch
 
             with self._device:
-                torch.cuda.synchronize(self.sync_device)
+                torch.cuda.current_stream(self.sync_device).synchronize()
 
     @contextlib.contextmanager
     def capturing(self):

@@ -7,6 +7,7 @@ Ctrl-C or a divergence keeps every frame and metric already written.
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import json
 import os
@@ -33,6 +34,7 @@ from .render import compose
 from .render.camera import from_config
 from .render.gaussians import exposed_interior_colors, sh_colors
 from .render.splat import gsplat_needs_compile, render
+from .runtime import side_stream
 from .sim import SimulationDiverged, Topology
 from .sim.topology import save_history
 
@@ -226,7 +228,7 @@ class FrameSink:
             if self.error is not None:
                 continue
             try:
-                with phases.section("render"):
+                with phases.section("render"), self._on_render_stream(out):
                     img = self.painter(out)
                 with phases.section("encode"):
                     self.video.write(img)
@@ -234,9 +236,24 @@ class FrameSink:
             except BaseException as exc:  # noqa: BLE001 - handed to the caller
                 self.error = exc
 
+    @staticmethod
+    def _on_render_stream(out: FrameOutput):
+        """On CUDA, draw on the render stream once the producer's copies of the frame are done (the event
+        `put` recorded), and keep those tensors' memory from reuse until the render stream is past them."""
+        if out.ready is None:
+            return contextlib.nullcontext()
+        stream = side_stream(out.means.device, "render")
+        stream.wait_event(out.ready)
+        for t in (out.means, out.F, out.fragment, out.band):
+            t.record_stream(stream)
+        return torch.cuda.stream(stream)
+
     def put(self, out: FrameOutput) -> None:
         if self.error is not None:
             raise self.error
+        if out.means.is_cuda:
+            out.ready = torch.cuda.Event()
+            out.ready.record(torch.cuda.current_stream(out.means.device))
         self.queue.put(out)
 
     def close(self) -> None:

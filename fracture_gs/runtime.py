@@ -57,14 +57,15 @@ def torch_stream(device: str):
 _side_streams: dict = {}
 
 
-def side_stream(device: str):
-    """One non-default torch stream per CUDA device, shared by every simulator and benchmark of the
-    process (CUDA graphs cannot record the legacy default stream). Reusing it matters: torch caches a
-    cuBLAS workspace per stream (32 MiB on Hopper), so a fresh pool stream per run held memory that
-    only came back after torch had cycled through its 32 pooled streams (found by apps/soak.py)."""
+def side_stream(device: str, purpose: str = "simulate"):
+    """One non-default torch stream per CUDA device and purpose ("simulate": every simulator and
+    benchmark of the process, as CUDA graphs cannot record the legacy default stream; "render": the
+    render-sim worker that draws frames beside the solver). Reusing them matters: torch caches a cuBLAS
+    workspace per stream (32 MiB on Hopper), so a fresh pool stream per run held memory that only came
+    back after torch had cycled through its 32 pooled streams (found by apps/soak.py)."""
     import torch
 
-    key = str(torch.device(device))
+    key = (str(torch.device(device)), purpose)
     if key not in _side_streams:
         _side_streams[key] = torch.cuda.Stream(torch.device(device))
     return _side_streams[key]

@@ -5,6 +5,7 @@ CPU kernels are deterministic). The workers are processes, as on GPUs."""
 
 import json
 
+import numpy as np
 import pytest
 import torch
 
@@ -158,3 +159,38 @@ def test_each_variant_paints_with_its_own_exposed_interior_colours():
     fresh = painter.for_variant()
     assert fresh.exposed_rgb is None and fresh.exposed_count == 0
     assert painter.exposed_count == 3 and fresh.cov0 is painter.cov0 and fresh.sh is painter.sh
+
+
+def test_frame_sink_draws_what_the_painter_draws(device, tmp_path):
+    """The render worker draws each queued frame exactly as the painter does on the caller's thread: on
+    CUDA on its own stream, after the event `put` records behind the producer's copies (the frames'
+    tensors are rewritten right after `put`, as the solver does, so a worker that ran early or read
+    recycled memory would draw something else)."""
+    from fracture_gs.pipeline import FrameOutput, prepare_scene
+
+    scene = prepare_scene(tiny(), device)
+    gs = scene.gaussians
+    painter = runner.Painter(gs, scene.cfg, device)
+    n = len(gs)
+    state = gs.means.clone()  # the solver's state, moved in place between frames
+
+    def frame(k):
+        state.add_(0.01)
+        eye = torch.eye(3, device=device).expand(n, 3, 3)
+        return FrameOutput(
+            k, 0.1 * k, state.clone(), eye.clone(), painter.cov0, torch.full((n,), -1, device=device),
+            torch.zeros(n, device=device),
+        )  # fmt: skip
+
+    direct = painter.for_variant()
+    want = [direct(frame(k)) for k in range(4)]
+    state.copy_(gs.means)
+    store: list = []
+    sink = runner.FrameSink(painter.for_variant(), tmp_path / "v.mp4", 10, store)
+    for k in range(4):
+        sink.put(frame(k))
+    state.mul_(0.0)  # the solver moving on must not reach the frames already queued
+    sink.close()
+    assert len(store) == 4
+    for a, b in zip(store, want):
+        assert np.array_equal(a, b)

@@ -34,10 +34,18 @@ def test_sections_charge_their_own_phase_from_any_thread():
 
 
 def test_no_device_sync_while_another_thread_records_a_graph(monkeypatch):
-    """A thread inside `capturing()` holds off every other thread's section-boundary device sync until
-    the capture ends; with profiling off, `capturing()` costs nothing and takes no lock."""
+    """A thread inside `capturing()` holds off every other thread's section-boundary sync until the capture
+    ends; a section syncs only the calling thread's current stream, never the whole device (which would
+    make the renderer wait for the solver's queued substeps); with profiling off, `capturing()` costs
+    nothing and takes no lock."""
     events = []
-    monkeypatch.setattr(torch.cuda, "synchronize", lambda device=None: events.append(("sync", time.perf_counter())))
+
+    class Stream:
+        def synchronize(self):
+            events.append(("sync", time.perf_counter()))
+
+    monkeypatch.setattr(torch.cuda, "current_stream", lambda device=None: Stream())
+    monkeypatch.setattr(torch.cuda, "synchronize", lambda device=None: events.append(("device sync", 0.0)))
     t = PhaseTimer()
     t.enable(sync_device="cuda:0")
     started = threading.Event()
