@@ -10,13 +10,10 @@ from __future__ import annotations
 import contextlib
 import copy
 import json
-import os
 import queue
 import sys
 import threading
 import time
-from collections import deque
-from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Optional
 
@@ -24,18 +21,18 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
+from .comparison import ComparisonProcess, ComparisonVideo, compose_comparison
 from .config import SceneConfig
 from .io.config import dump_config
 from .io.outputs import output_dir
-from .io.video import VideoWriter, ffmpeg, save_png
+from .io.video import VideoWriter, ffmpeg
 from .pipeline import FrameOutput, make_simulator, prepare_scene, simulate
 from .profiling import phases
-from .render import compose
-from .render.camera import from_config
+from .render.camera import frame_camera
 from .render.gaussians import exposed_interior_colors, sh_colors
 from .render.splat import gsplat_needs_compile, render
 from .runtime import side_stream
-from .sim import SimulationDiverged, Topology
+from .sim import SimulationDiverged
 from .sim.topology import save_history
 
 
@@ -43,7 +40,7 @@ class Painter:
     """Per-scene render state: rest covariances, SH, visibility (interior hidden until exposed)."""
 
     def __init__(self, gs, cfg: SceneConfig, device: str, background=None):
-        self.cfg = cfg.render
+        self.cfg, self.scene_cfg = cfg.render, cfg
         self.background = None
         if background is not None and len(background):  # static Gaussians outside the simulated region
             bg = background.to(device)
@@ -66,7 +63,7 @@ class Painter:
         return painter
 
     def camera(self, frame: int):
-        return from_config(self.cfg.camera, self.width, self.height, t=frame / self.frames)
+        return frame_camera(self.scene_cfg, frame)
 
     def _exposed(self, out: FrameOutput) -> torch.Tensor:
         if not self.cfg.show_exposed_interior or not bool((out.fragment >= 0).any()):
@@ -359,126 +356,11 @@ def _json_default(o):
     raise TypeError(type(o))
 
 
-class ComparisonVideo:
-    """comparison.mp4 and frames/compare_NNNN.png: the variants side by side at matched frames, with
-    captions and, after the latch, circular insets around the latched interface projected into each
-    panel. A variant that stopped early (diverged, interrupted) holds its last frame, captioned with
-    why. Frames go out in order. `start_live` composes them one at a time on a worker thread while the
-    last variant still runs (frame i once that variant has rendered it; the others are finished);
-    `finish` stops it after its current frame and composes the rest with a pool of threads (numpy,
-    OpenCV and the PNG encoder release the GIL), at most two per thread ahead of the encoder."""
-
-    def __init__(
-        self, cfg, variants, frame_lists, topology: Optional[Topology], painter: Painter, out_dir: Path, statuses
-    ):
-        self.cfg, self.variants, self.frame_lists = cfg, list(variants), list(frame_lists)
-        self.painter, self.out_dir, self.statuses = painter, out_dir, list(statuses)
-        if isinstance(topology, list):  # a history: the inset follows the first event's interface
-            topology = topology[0]
-        self.topology = topology
-        self.video = VideoWriter(out_dir / "comparison.mp4", fps=cfg.render.fps)
-        self._workers = max(1, min(8, os.cpu_count() or 1))
-        self._pool = ThreadPoolExecutor(self._workers, thread_name_prefix="fgs-compose")
-        self._pending: deque = deque()  # futures of submitted frames, oldest first
-        self._submitted = 0
-        self._stop = threading.Event()
-        self._thread: Optional[threading.Thread] = None
-        self._error: Optional[BaseException] = None
-
-    def frame(self, i: int) -> np.ndarray:
-        """Comparison frame i, also saved as frames/compare_NNNN.png."""
-        cfg, topo = self.cfg, self.topology
-        latch_frame = topo.latch_frame if topo is not None else None
-        with phases.section("compose"):
-            panels = []
-            for frames in self.frame_lists:
-                img = frames[min(i, len(frames) - 1)]
-                if latch_frame is not None and i >= latch_frame and i < len(frames):
-                    cx, cy, r = compose.interface_region(topo.point, topo.normal, 0.04, self.painter.camera(i))
-                    if 0 <= cx < img.shape[1] and 0 <= cy < img.shape[0]:
-                        r = float(np.clip(r, 8, cfg.render.inset_radius))
-                        img = compose.add_inset(img, (cx, cy), r, cfg.render.inset_zoom)
-                panels.append(img)
-            caps = [
-                compose.caption_text(v, i * cfg.frame_dt, i)
-                if i < len(f)
-                else f"{compose.caption_text(v, (len(f) - 1) * cfg.frame_dt, len(f) - 1)}  {st.split(':')[0]}"
-                for v, f, st in zip(self.variants, self.frame_lists, self.statuses)
-            ]
-            frame = compose.side_by_side(panels, caps)
-        with phases.section("io"):
-            save_png(self.out_dir / "frames" / f"compare_{i:04d}.png", frame)
-        return frame
-
-    def _pump(self, available: int) -> None:
-        """Submit frames below `available` (the window permitting), then encode the oldest in order."""
-        while self._submitted < available and len(self._pending) < 2 * self._workers:
-            self._pending.append(self._pool.submit(self.frame, self._submitted))
-            self._submitted += 1
-        if self._pending:
-            frame = self._pending.popleft().result()
-            with phases.section("encode"):
-                self.video.write(frame)
-
-    def start_live(self, live: list) -> None:
-        """Compose frame i as soon as `live` (the running variant's frame list) holds it."""
-
-        def work() -> None:  # one frame at a time: a pool here took the GIL from the solver's thread
-            try:
-                while not self._stop.is_set():
-                    if self._submitted < len(live):
-                        frame = self.frame(self._submitted)
-                        self._submitted += 1
-                        with phases.section("encode"):
-                            self.video.write(frame)
-                    else:
-                        time.sleep(0.005)
-            except BaseException as exc:  # noqa: BLE001 - raised by finish()
-                self._error = exc
-
-        self._thread = threading.Thread(target=work, name="fgs-compare", daemon=True)
-        self._thread.start()
-
-    def _stop_live(self) -> None:
-        if self._thread is not None:
-            self._stop.set()
-            self._thread.join()
-            self._thread = None
-
-    def abort(self) -> None:
-        """Stop composing and close the video as it is (the caller writes another)."""
-        self._stop_live()
-        self._pool.shutdown(wait=True, cancel_futures=True)
-        self.video.close()
-
-    def finish(self, statuses=None) -> None:
-        """Compose and write the frames not written yet, then close the video."""
-        self._stop_live()
-        if statuses is not None:
-            self.statuses = list(statuses)
-        try:
-            if self._error is not None:
-                raise self._error
-            n = max(len(f) for f in self.frame_lists)
-            while self._submitted < n or self._pending:
-                self._pump(n)
-        finally:
-            self._pool.shutdown(wait=True, cancel_futures=True)
-            self.video.close()
-
-
-def compose_comparison(
-    cfg, variants, frame_lists, topology: Optional[Topology], painter: Painter, out_dir: Path, statuses=None
-):
-    """The comparison video of finished variants (`ComparisonVideo`)."""
-    statuses = statuses or ["ok"] * len(variants)
-    ComparisonVideo(cfg, variants, frame_lists, topology, painter, out_dir, statuses).finish()
-
-
-def _run_in_turn(cfg, gs, order, device, out_dir, painter, metrics_file, export, variants, stop=None):
+def _run_in_turn(cfg, gs, order, device, out_dir, painter, metrics_file, export, variants, stop=None, worker=None):
     """The variants one after the other on one device; the first's topology is replayed by the rest.
     While the last one runs, the comparison video (panels in `variants` order) is composed beside it
-    when the others all have frames and the topology is known; returns that `ComparisonVideo` (or None)."""
+    when the others all have frames and the topology is known, by `worker` (a `ComparisonProcess`) if
+    given, else on a thread; returns what composes it (or None)."""
     frames, summaries, topology, interrupted, live = {}, {}, None, False, None
     try:
         for k, variant in enumerate(order):
@@ -489,7 +371,11 @@ def _run_in_turn(cfg, gs, order, device, out_dir, painter, metrics_file, export,
             if k > 0 and k == len(order) - 1 and topology is not None and all(frames[v] for v in order[:k]):
                 statuses = [summaries[v]["status"] if v in summaries else "ok" for v in variants]
                 panels = [frames[v] for v in variants]
-                live = ComparisonVideo(cfg, variants, panels, topology, painter, out_dir, statuses)
+                if worker is not None:
+                    live = worker
+                    live.begin(variants, panels, topology, statuses, live=variants.index(variant))
+                else:
+                    live = ComparisonVideo(cfg, variants, panels, topology, out_dir, statuses)
                 live.start_live(frames[variant])
             summaries[variant], topology = run_variant(
                 cfg, gs, variant, device, out_dir, painter, topology, metrics_file, frames[variant], export, stop=stop
@@ -543,29 +429,38 @@ def run_render_sim(
     export = (int(export_ply), scene) if export_ply else None
     # a variant with a provider runs first; its latched topology is replayed by all the others
     order = sorted(variants, key=lambda v: v == "baseline")
-    with open(out_dir / "metrics.jsonl", "w") as metrics_file:
-        if devices and len(devices) > 1:
-            from .parallel import run_on_devices
+    multi = devices and len(devices) > 1
+    # on CUDA the comparison video is composed in a process of its own (comparison.py says why)
+    worker = (
+        ComparisonProcess(cfg, out_dir, profile) if device.startswith("cuda") and len(order) > 1 and not multi else None
+    )
+    try:
+        with open(out_dir / "metrics.jsonl", "w") as metrics_file:
+            if multi:
+                from .parallel import run_on_devices
 
-            frames, summaries, topology, interrupted = run_on_devices(
-                run_variant, Painter, cfg, gs, scene.background, order, list(devices), out_dir, metrics_file, export
-            )
-            live = None
-            if topology is not None:
-                save_history(out_dir / "topology.npz", topology)
+                frames, summaries, topology, interrupted = run_on_devices(
+                    run_variant, Painter, cfg, gs, scene.background, order, list(devices), out_dir, metrics_file, export
+                )
+                live = None
+                if topology is not None:
+                    save_history(out_dir / "topology.npz", topology)
+            else:
+                frames, summaries, topology, interrupted, live = _run_in_turn(
+                    cfg, gs, order, device, out_dir, painter, metrics_file, export, list(variants), stop, worker
+                )
+        done = [v for v in variants if v in summaries and frames[v]]
+        statuses = [summaries[v]["status"] for v in done]
+        if live is not None and done == live.variants:
+            live.finish(statuses)
         else:
-            frames, summaries, topology, interrupted, live = _run_in_turn(
-                cfg, gs, order, device, out_dir, painter, metrics_file, export, list(variants), stop
-            )
-    done = [v for v in variants if v in summaries and frames[v]]
-    statuses = [summaries[v]["status"] for v in done]
-    if live is not None and done == live.variants:
-        live.finish(statuses)
-    else:
-        if live is not None:  # a variant ended with no frame: compose the ones that have frames
-            live.abort()
-        if done:
-            compose_comparison(cfg, done, [frames[v] for v in done], topology, painter, out_dir, statuses)
+            if live is not None:  # a variant ended with no frame: compose the ones that have frames
+                live.abort()
+            if done:
+                compose_comparison(cfg, done, [frames[v] for v in done], topology, out_dir, statuses)
+    finally:
+        if worker is not None:
+            worker.close()  # nothing when finish or abort ended it already
     interrupted = interrupted or (stop is not None and stop.is_set())
     summary = {
         "name": cfg.name,

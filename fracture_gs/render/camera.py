@@ -119,6 +119,12 @@ def rotate_about_axis(p: Tensor, axis: Tensor, center: Tensor, angle_deg: float)
     return center + v
 
 
+def frame_camera(scene_cfg, frame: int) -> Camera:
+    """The camera of a run's frame (`SceneConfig`): the configured camera at progress frame / frames."""
+    r = scene_cfg.render
+    return from_config(r.camera, int(r.width), int(r.height), t=frame / max(scene_cfg.frames, 1))
+
+
 def from_config(cfg: CameraConfig, width: int, height: int, t: float = 0.0) -> Camera:
     """The configured camera at run progress t ∈ [0, 1]: the eye turned by orbit_degrees·t about
     the axis `up` through `target`."""
