@@ -1,26 +1,19 @@
 """The comparison video of a render-sim run: comparison.mp4 and frames/compare_NNNN.png, the variants
-side by side at matched frames with captions and fracture insets (`ComparisonVideo`), composed beside
-the solver while the last variant runs, either on a thread of the run's process or, on CUDA, in a
-process of its own (`ComparisonProcess`).
+side by side at matched frames with captions and fracture insets (`ComparisonVideo`), composed on a
+thread beside the solver while the last variant runs, the rest with a pool after it.
 
-Why a process on CUDA (docs/DESIGN.md "Performance rules"): composing is numpy, OpenCV and PNG work
-that releases the interpreter lock in small pieces, and on a GPU run the solver's and the renderer's
-threads hold that lock most of the time, so a compose thread spent ≈ 30 ms a frame waiting for it (9 ms
-of work) and the run ended with a second of composing after the last frame was simulated (H200, bread
-paper preset). A spawned process has its own interpreter; it starts when the run starts, so its imports
-overlap with the first variants, and it receives each finished panel as a numpy array (≈ 0.26 MB).
-On the CPU the solver and the renderer already use the cores, so the thread stays.
+Tried and dropped (2026-11-26, H200, bread paper preset): composing in a spawned process fed the panels
+through a queue. Composing is not starved of the interpreter lock (it is PNG and OpenCV work that
+releases it): the process left the same ≈ 0.55 s of composing after the last frame as the thread, its
+start slowed the first variants by ≈ 0.3 s, and its exit (torch's interpreter teardown) took 0.7–0.85 s,
+so the run took 0.6–1.2 s longer in three interleaved pairs.
 """
 
 from __future__ import annotations
 
-import multiprocessing
 import os
-import queue
-import signal
 import threading
 import time
-import traceback
 from collections import deque
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
@@ -28,7 +21,6 @@ from typing import Optional
 
 import numpy as np
 
-from .errors import OutputError
 from .io.video import VideoWriter, save_png
 from .profiling import phases
 from .render import compose
@@ -146,119 +138,3 @@ def compose_comparison(cfg, variants, frame_lists, topology: Optional[Topology],
     """The comparison video of finished variants (`ComparisonVideo`)."""
     statuses = statuses or ["ok"] * len(variants)
     ComparisonVideo(cfg, variants, frame_lists, topology, out_dir, statuses).finish()
-
-
-class ComparisonProcess:
-    """`ComparisonVideo` in a spawned process, with the same `start_live` / `finish` / `abort` (and a
-    `close` for a run that never composed). Spawned at construction (the run's start); `begin` hands it the
-    variants, the topology and the panels so far, `start_live` forwards every new panel from a thread of
-    this process. The worker's compose, io and encode seconds join this process's profile."""
-
-    def __init__(self, cfg, out_dir: Path, profile: bool = False):
-        ctx = multiprocessing.get_context("spawn")
-        self._inbox, self._outbox = ctx.Queue(), ctx.Queue()
-        self.proc = ctx.Process(
-            target=_serve, args=(self._inbox, self._outbox, cfg, Path(out_dir), profile), name="fgs-compare"
-        )
-        self.proc.daemon = True
-        self.proc.start()
-        self.variants: list = []
-        self._lists: list = []
-        self._sent: list = []
-        self._stop = threading.Event()
-        self._thread: Optional[threading.Thread] = None
-        self._begun = self._closed = False
-
-    def begin(self, variants, frame_lists, topology: Optional[Topology], statuses, live: int) -> None:
-        """Variants (panel order), their frame lists (list `live` still empty and growing), the topology."""
-        self.variants, self._lists = list(variants), list(frame_lists)
-        self._sent = [0] * len(self._lists)
-        self._inbox.put(("begin", self.variants, topology, list(statuses), live))
-        self._begun = True
-        self._forward()
-
-    def _forward(self) -> None:
-        """Send the panels not sent yet, list by list (a finished variant's whole list before the live one's)."""
-        for v, frames in enumerate(self._lists):
-            while self._sent[v] < len(frames):
-                self._inbox.put(("frame", v, frames[self._sent[v]]))
-                self._sent[v] += 1
-
-    def start_live(self, live: list) -> None:
-        def work() -> None:
-            while not self._stop.is_set():
-                self._forward()
-                time.sleep(0.005)
-
-        self._thread = threading.Thread(target=work, name="fgs-compare-forward", daemon=True)
-        self._thread.start()
-
-    def _stop_forwarding(self) -> None:
-        if self._thread is not None:
-            self._stop.set()
-            self._thread.join()
-            self._thread = None
-
-    def finish(self, statuses=None) -> None:
-        """Send the last panels, let the worker compose the rest and close the video; raises its error."""
-        self._stop_forwarding()
-        self._forward()
-        self._end(("finish", None if statuses is None else list(statuses)))
-
-    def abort(self) -> None:
-        """Stop composing and close the video as it is (the caller writes another)."""
-        self._stop_forwarding()
-        self._end(("abort",), raise_error=False)
-
-    def close(self) -> None:
-        """End a worker that was never begun (a run of one variant, an interrupt before the last)."""
-        if not self._closed:
-            self._end(("abort",) if self._begun else ("quit",), raise_error=False)
-
-    def _end(self, message, raise_error: bool = True) -> None:
-        if self._closed:
-            return
-        self._closed = True
-        self._inbox.put(message)
-        reply = None
-        while reply is None:
-            try:
-                reply = self._outbox.get(timeout=0.5)
-            except queue.Empty:
-                if not self.proc.is_alive():
-                    reply = ("error", f"the comparison video worker exited with code {self.proc.exitcode}")
-        self.proc.join(timeout=30)
-        if reply[0] == "done":
-            phases.merge(reply[1], reply[2])
-        elif raise_error:
-            raise OutputError(f"the comparison video could not be written: {reply[1].strip().splitlines()[-1]}")
-
-
-def _serve(inbox, outbox, cfg, out_dir: Path, profile: bool) -> None:
-    """The worker process: a `ComparisonVideo` fed from `inbox` (begin, frame, finish, abort, quit)."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C reaches the run's process, which ends this one
-    if profile:
-        phases.enable()
-    try:
-        video, lists = None, []
-        while True:
-            msg = inbox.get()
-            if msg[0] == "begin":
-                variants, topology, statuses, live = msg[1:]
-                lists = [[] for _ in variants]
-                video = ComparisonVideo(cfg, variants, lists, topology, out_dir, statuses)
-                video.start_live(lists[live])
-            elif msg[0] == "frame":
-                lists[msg[1]].append(msg[2])
-            elif msg[0] == "finish":
-                video.finish(msg[1])
-                break
-            elif msg[0] == "abort":
-                if video is not None:
-                    video.abort()
-                break
-            else:  # quit
-                break
-        outbox.put(("done", dict(phases.seconds), dict(phases.calls)))
-    except BaseException:  # noqa: BLE001 - reported to the run's process
-        outbox.put(("error", traceback.format_exc()))

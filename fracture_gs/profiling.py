@@ -82,15 +82,6 @@ class PhaseTimer:
                 self.seconds[name] = self.seconds.get(name, 0.0) + dt - frame[1]
                 self.calls[name] = self.calls.get(name, 0) + 1
 
-    def merge(self, seconds: dict, calls: dict) -> None:
-        """Add another process's busy seconds and calls per phase (the comparison video's worker)."""
-        if not self.enabled:
-            return
-        with self._lock:
-            for name, t in seconds.items():
-                self.seconds[name] = self.seconds.get(name, 0.0) + t
-                self.calls[name] = self.calls.get(name, 0) + calls.get(name, 0)
-
     def report(self) -> str:
         """A Markdown table: phase, busy seconds, share of the wall time, calls."""
         wall = time.perf_counter() - self._t0 if self._t0 is not None else 0.0

@@ -21,7 +21,7 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
-from .comparison import ComparisonProcess, ComparisonVideo, compose_comparison
+from .comparison import ComparisonVideo, compose_comparison
 from .config import SceneConfig
 from .io.config import dump_config
 from .io.outputs import output_dir
@@ -356,11 +356,10 @@ def _json_default(o):
     raise TypeError(type(o))
 
 
-def _run_in_turn(cfg, gs, order, device, out_dir, painter, metrics_file, export, variants, stop=None, worker=None):
+def _run_in_turn(cfg, gs, order, device, out_dir, painter, metrics_file, export, variants, stop=None):
     """The variants one after the other on one device; the first's topology is replayed by the rest.
     While the last one runs, the comparison video (panels in `variants` order) is composed beside it
-    when the others all have frames and the topology is known, by `worker` (a `ComparisonProcess`) if
-    given, else on a thread; returns what composes it (or None)."""
+    when the others all have frames and the topology is known; returns that `ComparisonVideo` (or None)."""
     frames, summaries, topology, interrupted, live = {}, {}, None, False, None
     try:
         for k, variant in enumerate(order):
@@ -371,11 +370,7 @@ def _run_in_turn(cfg, gs, order, device, out_dir, painter, metrics_file, export,
             if k > 0 and k == len(order) - 1 and topology is not None and all(frames[v] for v in order[:k]):
                 statuses = [summaries[v]["status"] if v in summaries else "ok" for v in variants]
                 panels = [frames[v] for v in variants]
-                if worker is not None:
-                    live = worker
-                    live.begin(variants, panels, topology, statuses, live=variants.index(variant))
-                else:
-                    live = ComparisonVideo(cfg, variants, panels, topology, out_dir, statuses)
+                live = ComparisonVideo(cfg, variants, panels, topology, out_dir, statuses)
                 live.start_live(frames[variant])
             summaries[variant], topology = run_variant(
                 cfg, gs, variant, device, out_dir, painter, topology, metrics_file, frames[variant], export, stop=stop
@@ -429,38 +424,29 @@ def run_render_sim(
     export = (int(export_ply), scene) if export_ply else None
     # a variant with a provider runs first; its latched topology is replayed by all the others
     order = sorted(variants, key=lambda v: v == "baseline")
-    multi = devices and len(devices) > 1
-    # on CUDA the comparison video is composed in a process of its own (comparison.py says why)
-    worker = (
-        ComparisonProcess(cfg, out_dir, profile) if device.startswith("cuda") and len(order) > 1 and not multi else None
-    )
-    try:
-        with open(out_dir / "metrics.jsonl", "w") as metrics_file:
-            if multi:
-                from .parallel import run_on_devices
+    with open(out_dir / "metrics.jsonl", "w") as metrics_file:
+        if devices and len(devices) > 1:
+            from .parallel import run_on_devices
 
-                frames, summaries, topology, interrupted = run_on_devices(
-                    run_variant, Painter, cfg, gs, scene.background, order, list(devices), out_dir, metrics_file, export
-                )
-                live = None
-                if topology is not None:
-                    save_history(out_dir / "topology.npz", topology)
-            else:
-                frames, summaries, topology, interrupted, live = _run_in_turn(
-                    cfg, gs, order, device, out_dir, painter, metrics_file, export, list(variants), stop, worker
-                )
-        done = [v for v in variants if v in summaries and frames[v]]
-        statuses = [summaries[v]["status"] for v in done]
-        if live is not None and done == live.variants:
-            live.finish(statuses)
+            frames, summaries, topology, interrupted = run_on_devices(
+                run_variant, Painter, cfg, gs, scene.background, order, list(devices), out_dir, metrics_file, export
+            )
+            live = None
+            if topology is not None:
+                save_history(out_dir / "topology.npz", topology)
         else:
-            if live is not None:  # a variant ended with no frame: compose the ones that have frames
-                live.abort()
-            if done:
-                compose_comparison(cfg, done, [frames[v] for v in done], topology, out_dir, statuses)
-    finally:
-        if worker is not None:
-            worker.close()  # nothing when finish or abort ended it already
+            frames, summaries, topology, interrupted, live = _run_in_turn(
+                cfg, gs, order, device, out_dir, painter, metrics_file, export, list(variants), stop
+            )
+    done = [v for v in variants if v in summaries and frames[v]]
+    statuses = [summaries[v]["status"] for v in done]
+    if live is not None and done == live.variants:
+        live.finish(statuses)
+    else:
+        if live is not None:  # a variant ended with no frame: compose the ones that have frames
+            live.abort()
+        if done:
+            compose_comparison(cfg, done, [frames[v] for v in done], topology, out_dir, statuses)
     interrupted = interrupted or (stop is not None and stop.is_set())
     summary = {
         "name": cfg.name,

@@ -219,78 +219,22 @@ def test_encoder_without_an_executable_is_one_sentence(tmp_path, monkeypatch):
         writer.write(np.zeros((8, 8, 3), dtype=np.uint8))
 
 
-def _inset_case():
-    """A 32 × 24 run whose latched interface sits at the camera target (so every panel gets an inset from
-    frame 2), three variants, the middle one stopped early."""
+def test_comparison_insets_appear_from_the_latch_frame(tmp_path):
+    """With a latched interface at the camera target, every comparison frame from the latch frame on
+    carries the insets (it differs from the same run composed without a topology) and the frames before
+    it do not."""
     from types import SimpleNamespace
 
+    from fracture_gs.comparison import compose_comparison
     from fracture_gs.config import SceneConfig
 
-    cfg = SceneConfig(name="t", frame_dt=0.01, frames=12)
+    cfg = SceneConfig(name="t", frame_dt=0.01, frames=8)
     cfg.render.width, cfg.render.height = 32, 24
-    topology = SimpleNamespace(point=list(cfg.render.camera.target), normal=[1.0, 0.0, 0.0], latch_frame=2)
+    topology = SimpleNamespace(point=list(cfg.render.camera.target), normal=[1.0, 0.0, 0.0], latch_frame=3)
     rng = np.random.default_rng(1)
-    sizes = (("a", 12), ("b", 7))
-    frames = {v: [rng.integers(0, 256, (24, 32, 3), dtype=np.uint8) for _ in range(n)] for v, n in sizes}
-    last = [rng.integers(0, 256, (24, 32, 3), dtype=np.uint8) for _ in range(12)]
-    return cfg, topology, frames, last, ["ok", "diverged at frame 7: CFL", "ok"]
-
-
-def test_comparison_in_its_own_process_equals_composed_here(tmp_path):
-    """The comparison video composed by the spawned worker (CUDA runs), fed the finished variants' panels
-    and then the last variant's as they appear, writes the same PNGs, insets included, and as many video
-    frames as composing them in this process after the run."""
-    import threading
-    import time
-
-    from fracture_gs.comparison import ComparisonProcess, compose_comparison
-
-    cfg, topology, frames, last, statuses = _inset_case()
-    variants = ["a", "b", "c"]
-    here = tmp_path / "here"
-    compose_comparison(cfg, variants, [frames["a"], frames["b"], last], topology, here, statuses)
-    there, growing = tmp_path / "there", []
-    worker = ComparisonProcess(cfg, there)
-    worker.begin(variants, [frames["a"], frames["b"], growing], topology, statuses[:2] + ["ok"], live=2)
-    worker.start_live(growing)
-
-    def produce():
-        for img in last:
-            growing.append(img)
-            time.sleep(0.01)
-
-    t = threading.Thread(target=produce)
-    t.start()
-    t.join()
-    worker.finish(statuses)
-    assert not worker.proc.is_alive() and worker.proc.exitcode == 0
-    names = sorted(p.name for p in (here / "frames").iterdir())
-    assert len(names) == 12 and names == sorted(p.name for p in (there / "frames").iterdir())
-    for n in names:
-        assert np.array_equal(cv2.imread(str(here / "frames" / n)), cv2.imread(str(there / "frames" / n))), n
-    plain = tmp_path / "plain"  # the same without a topology: the insets are what differs, from the latch on
-    compose_comparison(cfg, variants, [frames["a"], frames["b"], last], None, plain, statuses)
-    same = [np.array_equal(cv2.imread(str(plain / "frames" / n)), cv2.imread(str(there / "frames" / n))) for n in names]
-    assert same == [True, True] + [False] * 10
-    assert read_video(there / "comparison.mp4")[0] == 12
-
-
-def test_comparison_process_errors_and_an_unused_worker(tmp_path):
-    """A worker that cannot write its output fails the run in one sentence naming the cause (OutputError),
-    not a hang or a traceback from another process; a worker never handed a run ends on close()."""
-    from fracture_gs.comparison import ComparisonProcess
-    from fracture_gs.errors import OutputError
-
-    cfg, topology, frames, last, statuses = _inset_case()
-    blocked = tmp_path / "file"
-    blocked.write_text("a file where the output folder should be")
-    worker = ComparisonProcess(cfg, blocked)
-    worker.begin(["a", "c"], [frames["a"], last], topology, ["ok", "ok"], live=1)
-    with pytest.raises(OutputError, match="the comparison video could not be written: ") as err:
-        worker.finish(["ok", "ok"])
-    assert "\n" not in str(err.value)
-    assert not worker.proc.is_alive()
-    idle = ComparisonProcess(cfg, tmp_path / "idle")
-    idle.close()
-    assert not idle.proc.is_alive() and idle.proc.exitcode == 0
-    assert not (tmp_path / "idle").exists()
+    lists = [[rng.integers(0, 256, (24, 32, 3), dtype=np.uint8) for _ in range(8)] for _ in range(2)]
+    compose_comparison(cfg, ["a", "b"], lists, topology, tmp_path / "inset")
+    compose_comparison(cfg, ["a", "b"], lists, None, tmp_path / "plain")
+    names = sorted(p.name for p in (tmp_path / "inset" / "frames").iterdir())
+    same = [np.array_equal(*(cv2.imread(str(tmp_path / d / "frames" / n)) for d in ("inset", "plain"))) for n in names]
+    assert same == [True] * 3 + [False] * 5
