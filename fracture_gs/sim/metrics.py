@@ -113,13 +113,26 @@ def kinetic_energy(P) -> torch.Tensor:  # -> []
     return 0.5 * (P.mass.double() * (P.v.double() ** 2).sum(1)).sum()
 
 
+_PLANES: dict = {}
+
+
+def plane_constants(plane, device) -> tuple[torch.Tensor, torch.Tensor]:
+    """(unit normal [3], point [3]) of a plane collider as float64 tensors on `device`, made once: a
+    tensor built from a Python list each frame is a pageable host-to-device copy that waits for the
+    stream (and cannot be recorded in a CUDA graph)."""
+    key = (tuple(float(a) for a in plane.normal), tuple(float(a) for a in plane.point), str(device))
+    if key not in _PLANES:
+        n = torch.tensor(key[0], dtype=torch.float64, device=device)
+        _PLANES[key] = (n / n.norm(), torch.tensor(key[1], dtype=torch.float64, device=device))
+    return _PLANES[key]
+
+
 def plane_state(x, v, fragment, plane, dx: float, K: int) -> dict:
     """Fragment–plane numbers of this frame for one plane collider: per fragment whether it is within
     Δx of the plane [K], deepest penetration behind it [m], max tangential speed within Δx, max
     normal speed within 2Δx."""
-    n = torch.tensor(plane.normal, dtype=torch.float64, device=x.device)
-    n = n / n.norm()
-    d = (x.double() - torch.tensor(plane.point, dtype=torch.float64, device=x.device)) @ n
+    n, point = plane_constants(plane, x.device)
+    d = (x.double() - point) @ n
     vd = v.double()
     vn = vd @ n
     vt = (vd - vn[:, None] * n).norm(dim=1)

@@ -15,6 +15,8 @@ from __future__ import annotations
 
 import torch
 
+from .metrics import plane_constants
+
 _NEIGHBOURS = ((1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0, 1), (0, 0, -1))
 
 
@@ -111,8 +113,8 @@ def collider_packed(x: torch.Tensor, planes, tolerance: float) -> torch.Tensor:
     out = torch.zeros(2, dtype=torch.float64, device=x.device)
     xd = x.double()
     for b in planes:
-        n = torch.tensor(b.normal, dtype=torch.float64, device=x.device)
-        d = (xd - torch.tensor(b.point, dtype=torch.float64, device=x.device)) @ (n / n.norm())
+        n, point = plane_constants(b, x.device)
+        d = (xd - point) @ n
         below = d < -tolerance
         out[0] += below.sum()
         out[1] = torch.maximum(out[1], torch.where(below, -d, torch.zeros_like(d)).max())
@@ -124,8 +126,8 @@ def collider_crossing(x: torch.Tensor, planes, tolerance: float) -> tuple[int, f
     count, depth = 0, 0.0
     xd = x.double()
     for b in planes:
-        n = torch.tensor(b.normal, dtype=torch.float64, device=x.device)
-        d = (xd - torch.tensor(b.point, dtype=torch.float64, device=x.device)) @ (n / n.norm())
+        n, point = plane_constants(b, x.device)
+        d = (xd - point) @ n
         below = d < -tolerance
         count += int(below.sum())
         if bool(below.any()):
