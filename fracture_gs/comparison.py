@@ -27,12 +27,14 @@ from .render import compose
 from .render.camera import frame_camera
 from .sim import Topology
 
+LIVE_WINDOW = 2  # frames composed at once beside the solver (more took the interpreter lock from it)
+
 
 class ComparisonVideo:
     """comparison.mp4 and frames/compare_NNNN.png: the variants side by side at matched frames, with
     captions and, after the latch, circular insets around the latched interface projected into each
     panel. A variant that stopped early (diverged, interrupted) holds its last frame, captioned with
-    why. Frames go out in order. `start_live` composes them one at a time on a worker thread while the
+    why. Frames go out in order. `start_live` composes them on the pool, `LIVE_WINDOW` at a time, while the
     last variant still runs (frame i once that variant has rendered it; the others are finished);
     `finish` stops it after its current frame and composes the rest with a pool of threads (numpy,
     OpenCV and the PNG encoder release the GIL), at most two per thread ahead of the encoder."""
@@ -57,11 +59,13 @@ class ComparisonVideo:
         cfg, topo = self.cfg, self.topology
         latch_frame = topo.latch_frame if topo is not None else None
         with phases.section("compose"):
-            panels = []
+            panels, region = [], None
+            if latch_frame is not None and i >= latch_frame:  # the same camera for every panel of frame i
+                region = compose.interface_region(topo.point, topo.normal, 0.04, frame_camera(cfg, i))
             for frames in self.frame_lists:
                 img = frames[min(i, len(frames) - 1)]
-                if latch_frame is not None and i >= latch_frame and i < len(frames):
-                    cx, cy, r = compose.interface_region(topo.point, topo.normal, 0.04, frame_camera(cfg, i))
+                if region is not None and i < len(frames):
+                    cx, cy, r = region
                     if 0 <= cx < img.shape[1] and 0 <= cy < img.shape[0]:
                         r = float(np.clip(r, 8, cfg.render.inset_radius))
                         img = compose.add_inset(img, (cx, cy), r, cfg.render.inset_zoom)
@@ -77,9 +81,9 @@ class ComparisonVideo:
             save_png(self.out_dir / "frames" / f"compare_{i:04d}.png", frame)
         return frame
 
-    def _pump(self, available: int) -> None:
-        """Submit frames below `available` (the window permitting), then encode the oldest in order."""
-        while self._submitted < available and len(self._pending) < 2 * self._workers:
+    def _pump(self, available: int, window: int) -> None:
+        """Submit frames below `available` while fewer than `window` are pending, then encode the oldest."""
+        while self._submitted < available and len(self._pending) < window:
             self._pending.append(self._pool.submit(self.frame, self._submitted))
             self._submitted += 1
         if self._pending:
@@ -90,14 +94,11 @@ class ComparisonVideo:
     def start_live(self, live: list) -> None:
         """Compose frame i as soon as `live` (the running variant's frame list) holds it."""
 
-        def work() -> None:  # one frame at a time: a pool here took the GIL from the solver's thread
+        def work() -> None:
             try:
                 while not self._stop.is_set():
-                    if self._submitted < len(live):
-                        frame = self.frame(self._submitted)
-                        self._submitted += 1
-                        with phases.section("encode"):
-                            self.video.write(frame)
+                    if self._submitted < len(live) or self._pending:
+                        self._pump(len(live), LIVE_WINDOW)
                     else:
                         time.sleep(0.005)
             except BaseException as exc:  # noqa: BLE001 - raised by finish()
@@ -128,7 +129,7 @@ class ComparisonVideo:
                 raise self._error
             n = max(len(f) for f in self.frame_lists)
             while self._submitted < n or self._pending:
-                self._pump(n)
+                self._pump(n, 2 * self._workers)
         finally:
             self._pool.shutdown(wait=True, cancel_futures=True)
             self.video.close()
