@@ -38,8 +38,11 @@ class FrameOutput:
         band: torch.Tensor,
         metrics: Optional[dict] = None,
         substeps: int = 0,
+        topology_version: int = -1,
     ):
         self.frame, self.time, self.substeps = frame, time, substeps
+        # fracture events so far (−1: unknown): fragment and band change only with it
+        self.topology_version = topology_version
         self.means = means  # [N, 3]
         self.F = F  # [N, 3, 3]
         self.cov0 = cov0  # [N, 3, 3] rest covariances
@@ -139,6 +142,7 @@ def frame_output(sim: Simulator, cov0: torch.Tensor, metrics: dict, substeps: in
         band=P.band.clone(),
         metrics=metrics,
         substeps=substeps,
+        topology_version=len(sim.topologies),
     )
 
 

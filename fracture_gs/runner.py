@@ -53,6 +53,8 @@ class Painter:
         self.surface_dc = (gs.sh[:, 0, :] * 0.28209479177387814 + 0.5).clamp(0, 1).to(device, torch.float32)
         self.exposed_rgb: Optional[torch.Tensor] = None
         self.exposed_count = 0
+        self._visible_version: Optional[int] = None  # the topology version `_keep` was made for
+        self._keep: Optional[torch.Tensor] = None
         self.width, self.height = int(cfg.render.width), int(cfg.render.height)
 
     def for_variant(self) -> Painter:
@@ -60,10 +62,22 @@ class Painter:
         colours its own (they follow that variant's fracture, not the previous variant's last frame)."""
         painter = copy.copy(self)
         painter.exposed_rgb, painter.exposed_count = None, 0
+        painter._visible_version, painter._keep = None, None
         return painter
 
     def camera(self, frame: int):
         return frame_camera(self.scene_cfg, frame)
+
+    def _visible(self, out: FrameOutput) -> torch.Tensor:
+        """Indices of the Gaussians drawn: the surface, and the interior a cut has exposed. Recomputed when
+        the frame's topology changed (`FrameOutput.topology_version`; −1, unknown: every frame), so a
+        frame draws without reading anything back from the device."""
+        version = out.topology_version
+        if version < 0 or version != self._visible_version:
+            exposed = self._exposed(out)
+            self._keep = torch.nonzero(~self.interior | exposed).flatten()
+            self._visible_version = version
+        return self._keep
 
     def _exposed(self, out: FrameOutput) -> torch.Tensor:
         if not self.cfg.show_exposed_interior or not bool((out.fragment >= 0).any()):
@@ -83,20 +97,22 @@ class Painter:
         """Each fragment in its own hue (golden-ratio spacing), shaded by the Gaussian's own brightness."""
         k = fragment.clamp_min(0).to(torch.float32)
         hue = torch.remainder(0.61803398875 * k + 0.08, 1.0)
-        rgb = 0.5 + 0.45 * torch.cos(2 * torch.pi * (hue[:, None] + torch.tensor([0.0, 1 / 3, 2 / 3], device=k.device)))
+        phase = torch.arange(3, device=k.device, dtype=torch.float32) / 3  # [0, 1/3, 2/3], no host copy
+        rgb = 0.5 + 0.45 * torch.cos(2 * torch.pi * (hue[:, None] + phase))
         shade = 0.55 + 0.45 * colors.mean(1, keepdim=True).clamp(0, 1)
         return torch.where((fragment >= 0)[:, None], rgb * shade, colors)
 
     def __call__(self, out: FrameOutput) -> np.ndarray:
         cam = self.camera(out.frame)
-        exposed = self._exposed(out)
+        keep = self._visible(out)  # [M] indices
         colors = sh_colors(self.sh, out.means, cam.campos.to(out.means), out.rotations)
         if self.exposed_rgb is not None:
             colors[self.exposed_idx] = self.exposed_rgb
         if self.cfg.color_by == "fragment":
             colors = self._fragment_colors(colors, out.fragment)
-        keep = ~self.interior | exposed
-        means, covars, colors, opacities = out.means[keep], out.covars[keep], colors[keep], self.opacities[keep]
+        means, covars, colors, opacities = (
+            t.index_select(0, keep) for t in (out.means, out.covars, colors, self.opacities)
+        )
         if self.background is not None:
             bm, bc, bsh, bo = self.background
             bcol = sh_colors(bsh, bm, cam.campos.to(bm))

@@ -198,3 +198,22 @@ def test_frame_sink_draws_what_the_painter_draws(device, tmp_path):
     assert len(store) == 4
     for a, b in zip(store, want):
         assert np.array_equal(a, b)
+
+
+def test_painter_draws_the_same_with_and_without_the_topology_version(device):
+    """A painter that knows each frame's topology version (and so finds the visible Gaussians only when a
+    fracture changed them) draws every frame of a run, before and after the latch and with exposed
+    interior, exactly as one that recomputes them every frame (version unknown)."""
+    from fracture_gs.pipeline import FrameOutput, make_simulator, prepare_scene, simulate
+
+    cfg = tiny()
+    scene = prepare_scene(cfg, device)
+    painter = runner.Painter(scene.gaussians, scene.cfg, device)
+    known, unknown = painter.for_variant(), painter.for_variant()
+    sim = make_simulator(scene.cfg, scene.gaussians, "full", device)
+    versions = set()
+    for out in simulate(sim, painter.cov0, cfg.frames, cfg.frame_dt):
+        blind = FrameOutput(out.frame, out.time, out.means, out.F, out.cov0, out.fragment, out.band)
+        assert np.array_equal(known(out), unknown(blind)), out.frame
+        versions.add(out.topology_version)
+    assert versions == {0, 1} and known.exposed_count > 0, (versions, known.exposed_count)
