@@ -42,31 +42,20 @@ def home(key: wp.int64, mask: int):
 
 
 @wp.func
-def insert(keys: wp.array(dtype=wp.int64), key: wp.int64, mask: int):
-    """The slot holding `key`, inserted by compare-and-swap if absent (the table is never full)."""
+def probe(keys: wp.array(dtype=wp.int64), key: wp.int64, mask: int, create: bool):
+    """The slot holding `key`; if it is absent, −1, or with `create` the slot it is inserted into by
+    compare-and-swap (the table is never full)."""
     s = home(key, mask)
     for _probe in range(mask + 1):
         k = keys[s]
         if k == key:
             return s
         if k == EMPTY:
+            if not create:
+                return -1
             prev = wp.atomic_cas(keys, s, EMPTY, key)
             if prev == EMPTY or prev == key:
                 return s
-        s = (s + 1) & mask
-    return -1
-
-
-@wp.func
-def find(keys: wp.array(dtype=wp.int64), key: wp.int64, mask: int):
-    """The slot holding `key`, or −1."""
-    s = home(key, mask)
-    for _probe in range(mask + 1):
-        k = keys[s]
-        if k == key:
-            return s
-        if k == EMPTY:
-            return -1
         s = (s + 1) & mask
     return -1
 
@@ -121,9 +110,9 @@ def bin_particles(
     cx = wp.int64(voxel_coordinate(p[0], lo[0], h))
     cy = wp.int64(voxel_coordinate(p[1], lo[1], h))
     v = cx * STEP_X + cy * STEP_Y + wp.int64(voxel_coordinate(p[2], lo[2], h))
-    s = insert(pair_keys, (v << wp.int64(FRAGMENT_BITS)) | wp.int64(f), mask)
+    s = probe(pair_keys, (v << wp.int64(FRAGMENT_BITS)) | wp.int64(f), mask, True)
     wp.atomic_add(pair_count, s, 1)
-    voxel_of[i] = insert(voxel_keys, v, mask)
+    voxel_of[i] = probe(voxel_keys, v, mask, True)
 
 
 @wp.kernel
@@ -140,7 +129,7 @@ def elect_owners(
     k = pair_keys[s]
     if k == EMPTY:
         return
-    v = find(voxel_keys, k >> wp.int64(FRAGMENT_BITS), mask)
+    v = probe(voxel_keys, k >> wp.int64(FRAGMENT_BITS), mask, False)
     f = k & FRAGMENT_MASK
     wp.atomic_max(best, v, (wp.int64(pair_count[s]) << wp.int64(FRAGMENT_BITS)) | (FRAGMENT_MASK - f))
 
@@ -176,7 +165,7 @@ def link_neighbours(
             step = STEP_Y
         if j % 2 == 1:
             step = -step
-        t = find(voxel_keys, k + step, mask)
+        t = probe(voxel_keys, k + step, mask, False)
         neighbour[s, j] = t
         if t < 0:
             ok = 0
