@@ -34,8 +34,8 @@ def test_reported_particle_numbers_equal_their_twins_every_frame(device):
         assert (row["collider_crossing"], row["collider_depth"]) == (below, depth / dx)
         checked += 1
         if device.startswith("cuda"):
-            assert tracker._graph is not None, "after the latch the numbers come from the recorded graph"
-            keys.add(tracker._graph_key[:2])
+            assert tracker.recorded.graphs, "after the latch the numbers come from the recorded graph"
+            keys.add(tracker.recorded_key[:2])
     assert checked >= 10 and len(sim.topologies) >= 2, (checked, len(sim.topologies))
     if device.startswith("cuda"):
         assert len(keys) >= 2, "a later fracture event records the graph again"

@@ -21,7 +21,6 @@ import warp as wp
 
 from ..config import PlaneBoundary
 from ..profiling import phases
-from ..runtime import warp_stream
 from . import metrics as M
 from .grid import Grid
 from .layout import (
@@ -47,6 +46,7 @@ from .layout import (
 from .metrics import SEPARATION, reapproach_ratio  # noqa: F401 (re-exported: the tracker's thresholds)
 from .overlap_kernels import VoxelOverlap
 from .penetration import collider_packed, unpack_overlap
+from .recorded import Recorded
 
 VOXEL = 0.6  # Δx: voxel edge of the fragment-aware occupied volume (`penetration.py`)
 COLLIDER_TOLERANCE = 0.5  # Δx: a node-based plane collider holds particles to within half a cell of the plane
@@ -90,10 +90,9 @@ class Diagnostics:
         self.shadow_rows = 0  # pool rows the shadow transfer used last frame
         self.shadow_stress = None
         self.voxels: VoxelOverlap | None = None  # the fragment-aware overlap's tables, made at the first latch
-        self._graph = None  # CUDA: the recorded particle numbers (`_particle_numbers`)
-        self._graph_key: tuple = ()
-        self._graph_out: torch.Tensor | None = None
-        self._graph_slices: list = []
+        self.recorded = Recorded(sim.device, keep=1)  # CUDA: the particle numbers as a graph (`_particle_numbers`)
+        self.recorded_key: tuple = ()
+        self.recorded_slices: list = []
         self.first_contact_time = None
         self.contact_max = {
             "cp_momentum_residual": 0.0,
@@ -201,34 +200,27 @@ class Diagnostics:
         """(name, device tensor) of the numbers that depend on the particles alone: momentum, kinetic
         energy, the clamped count, the interface and fragment-aware measures (after the latch), the plane
         collider's. On CUDA after the latch their ≈ 100 small launches are one recorded CUDA graph replayed
-        each frame (host time per frame 2.4 → ≈ 0.1 ms), recorded again when what it bakes in changes:
-        a latch, the fragment count, the particle buffers. The same kernels: the same numbers."""
+        each frame (`recorded.py`), recorded again when what it bakes in changes: a latch, the fragment
+        count, the particle buffers. The same kernels: the same numbers."""
         sim = self.sim
-        if not (sim.latched and sim.use_graphs and str(sim.device).startswith("cuda")):
+        if not (sim.latched and sim.use_graphs and self.recorded.records):
             return self._particle_numbers_now()
         P = sim.particles
         key = (len(sim.topologies), sim.n_fragments, sim.counts.data_ptr())
         key += tuple(getattr(P, k).data_ptr() for k in ("x", "v", "F", "mass", "fragment", "band"))
-        if self._graph is None or self._graph_key != key:
-            self._record(key)
-        self._graph.replay()
-        return [(name, self._graph_out[a:b]) for name, a, b in self._graph_slices]
+        if key != self.recorded_key:  # the sizes of the parts, known from one run of them
+            self.recorded_key = key
+            slices, a = [], 0
+            for name, t in self._particle_numbers_now():
+                slices.append((name, a, a + t.numel()))
+                a += t.numel()
+            self.recorded_slices = slices
 
-    def _record(self, key: tuple) -> None:
-        self._graph = None
-        self._particle_numbers_now()  # warm-up outside the capture: Warp modules loaded, torch's caches sized
-        stream = torch.cuda.Stream(self.sim.device)
-        with torch.cuda.stream(stream):
-            warp_stream(self.sim.device)  # the Warp wrapper of the capture stream, made before capturing
-        graph = torch.cuda.CUDAGraph()
-        with phases.capturing(), torch.cuda.graph(graph, stream=stream, capture_error_mode="thread_local"):
-            parts = self._particle_numbers_now()
-            flat = torch.cat([t.reshape(-1).double() for _, t in parts])
-        slices, a = [], 0
-        for name, t in parts:
-            slices.append((name, a, a + t.numel()))
-            a += t.numel()
-        self._graph, self._graph_out, self._graph_slices, self._graph_key = graph, flat, slices, key
+        def flat() -> torch.Tensor:
+            return torch.cat([t.reshape(-1).double() for _, t in self._particle_numbers_now()])
+
+        out = self.recorded(key, flat)
+        return [(name, out[a:b]) for name, a, b in self.recorded_slices]
 
     def _particle_numbers_now(self) -> list[tuple[str, torch.Tensor]]:
         sim = self.sim

@@ -34,18 +34,36 @@ def cell_order(x: torch.Tensor, origin, dx: float, shape, mode: str = "interleav
     return order
 
 
+def solo_radius(reach: float, dx: float) -> int | None:
+    """The neighbourhood of `solo_mask` in cells of 2Δx, or None past 6 cells (nobody is solo)."""
+    r = math.ceil(reach / (2.0 * dx))
+    return None if r > 6 else r
+
+
+_CONSTANTS: dict = {}
+
+
+def _constant(values, dtype, device) -> torch.Tensor:
+    """A small constant tensor on `device`, made once (a tensor built from a list each frame is a pageable
+    host copy that waits for the stream and cannot be recorded in a CUDA graph)."""
+    key = (tuple(values), dtype, str(device))
+    if key not in _CONSTANTS:
+        _CONSTANTS[key] = torch.tensor(key[0], dtype=dtype, device=device)
+    return _CONSTANTS[key]
+
+
 def solo_mask(x: torch.Tensor, fragment: torch.Tensor, origin, dx: float, shape, reach: float) -> torch.Tensor | None:
     """1 for particles with no particle of another fragment within `reach` metres, else 0 ([N] int32).
 
     Conservative: cells of 2Δx, fragment id min and max pooled over ⌈reach / 2Δx⌉ cells. None when
     the reach spans more than 6 such cells (fast or escaping particles: nobody is solo)."""
     h = 2.0 * dx
-    r = math.ceil(reach / h)
-    if r > 6:
+    r = solo_radius(reach, dx)
+    if r is None:
         return None
     dims = [int(math.ceil(s * dx / h)) + 1 for s in shape]
-    cell = torch.floor((x - torch.tensor(origin, device=x.device)) / h).long()  # [N, 3]
-    cell = torch.minimum(cell.clamp_min(0), torch.tensor(dims, device=x.device) - 1)
+    cell = torch.floor((x - _constant(origin, torch.float32, x.device)) / h).long()  # [N, 3]
+    cell = torch.minimum(cell.clamp_min(0), _constant(dims, torch.int64, x.device) - 1)
     lin = (cell[:, 0] * dims[1] + cell[:, 1]) * dims[2] + cell[:, 2]  # [N]
     frag = fragment.float()
     inf = torch.full((dims[0] * dims[1] * dims[2],), float("inf"), device=x.device)

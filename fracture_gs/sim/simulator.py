@@ -26,9 +26,10 @@ from .fanout_kernels import LANES, g2p_fanout, p2g_fanout
 from .frame_loop import FrameLoop
 from .grid import Grid, check_inside, fit_grid
 from .layout import COUNT_CLAMPED, MAX_SLOTS, N_COUNTS
-from .neighbourhood import cell_order, fragment_centroids, solo_mask
+from .neighbourhood import cell_order, fragment_centroids, solo_mask, solo_radius
 from .normal_kernels import pool_mass_gradients
 from .particles import Particles, SimulationError
+from .recorded import Recorded
 from .run_kernels import p2g_runs
 from .topology import Topology
 from .transfer_kernels import clear_dense, clear_pool, g2p, grid_update_dense, grid_update_pool, p2g
@@ -106,6 +107,7 @@ class Simulator(FrameLoop):
         n = len(self.particles)
         self.stress = torch.zeros(n, 3, 3, dtype=torch.float32, device=self.device)
         self.solo = torch.zeros(n, dtype=torch.int32, device=self.device)  # see `_update_solo`
+        self._queries = Recorded(self.device)  # CUDA: the per-frame solo mask as recorded graphs
         self._no_solo = torch.zeros(n, dtype=torch.int32, device=self.device)
         # The particles that are not solo (1.6 % at K = 2 on the Table 2 ficus) do 27 serial slot lookups
         # each; on a GPU their threads finished long after the dense bulk. `fanout` (CUDA default) gives
@@ -238,7 +240,12 @@ class Simulator(FrameLoop):
         same fields): no particle of another fragment within 4Δx + twice the travel (and the box slack)."""
         P, g = self.particles, self.grid
         reach = 4.0 * g.dx + 2.0 * travel + self.box_slack * g.dx
-        self.set_solo(solo_mask(P.x, P.fragment, g.origin, g.dx, g.shape, reach))
+        r = solo_radius(reach, g.dx)  # the mask depends on the reach only through r
+        if r is None or not self.use_graphs:
+            self.set_solo(solo_mask(P.x, P.fragment, g.origin, g.dx, g.shape, reach))
+            return
+        key = (r, P.x.data_ptr(), P.fragment.data_ptr())  # on CUDA one recorded graph per r (`recorded.py`)
+        self.set_solo(self._queries(key, lambda: solo_mask(P.x, P.fragment, g.origin, g.dx, g.shape, reach)))
 
     def set_solo(self, mask: Optional[torch.Tensor]) -> None:
         """Set the solo flags (None: no particle is solo) and, with `slow_first` or `fanout`, the launch order,
