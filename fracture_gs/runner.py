@@ -45,7 +45,6 @@ class Painter:
         if background is not None and len(background):  # static Gaussians outside the simulated region
             bg = background.to(device)
             self.background = (bg.means.float(), bg.covariances().float(), bg.sh.float(), bg.opacities.float())
-        self.frames = max(cfg.frames, 1)
         self.cov0 = gs.covariances().to(device, torch.float32)
         self.sh = gs.sh.to(device, torch.float32)
         self.opacities = gs.opacities.to(device, torch.float32)
@@ -55,7 +54,6 @@ class Painter:
         self.exposed_count = 0
         self._visible_version: Optional[int] = None  # the topology version `_keep` was made for
         self._keep: Optional[torch.Tensor] = None
-        self.width, self.height = int(cfg.render.width), int(cfg.render.height)
 
     def for_variant(self) -> Painter:
         """A painter for one variant's frames: the scene's tensors shared (read only), the exposed-interior

@@ -60,15 +60,31 @@ _side_streams: dict = {}
 def side_stream(device: str, purpose: str = "simulate"):
     """One non-default torch stream per CUDA device and purpose ("simulate": every simulator and
     benchmark of the process, as CUDA graphs cannot record the legacy default stream; "render": the
-    render-sim worker that draws frames beside the solver). Reusing them matters: torch caches a cuBLAS
-    workspace per stream (32 MiB on Hopper), so a fresh pool stream per run held memory that only came
-    back after torch had cycled through its 32 pooled streams (found by apps/soak.py)."""
+    render-sim worker that draws frames beside the solver; "record": the captures of `sim/recorded.py`).
+    Reusing them matters: torch caches a cuBLAS workspace per stream (32 MiB on Hopper), so a fresh pool
+    stream per run held memory that only came back after torch had cycled through its 32 pooled streams
+    (found by apps/soak.py)."""
     import torch
 
     key = (str(torch.device(device)), purpose)
     if key not in _side_streams:
         _side_streams[key] = torch.cuda.Stream(torch.device(device))
     return _side_streams[key]
+
+
+_constants: dict = {}
+
+
+def device_constant(values, dtype, device):
+    """A small constant tensor on `device`, made once per (values, dtype, device): a tensor built from a Python
+    list each frame is a pageable host-to-device copy that waits for the stream and cannot be recorded in a
+    CUDA graph (DESIGN.md "Performance rules")."""
+    import torch
+
+    key = (tuple(values), dtype, str(device))
+    if key not in _constants:
+        _constants[key] = torch.tensor(key[0], dtype=dtype, device=device)
+    return _constants[key]
 
 
 _pool = None

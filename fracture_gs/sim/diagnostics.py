@@ -13,6 +13,7 @@ contact per fragment, penetration into the plane, speeds near it, gravity-compen
 
 from __future__ import annotations
 
+import itertools
 import math
 import weakref
 
@@ -91,8 +92,7 @@ class Diagnostics:
         self.shadow_stress = None
         self.voxels: VoxelOverlap | None = None  # the fragment-aware overlap's tables, made at the first latch
         self.recorded = Recorded(sim.device, keep=1)  # CUDA: the particle numbers as a graph (`_particle_numbers`)
-        self.recorded_key: tuple = ()
-        self.recorded_slices: list = []
+        self.recorded_slices: list = []  # (name, start, end) of each part in the recorded output
         self.first_contact_time = None
         self.contact_max = {
             "cp_momentum_residual": 0.0,
@@ -208,16 +208,12 @@ class Diagnostics:
         P = sim.particles
         key = (len(sim.topologies), sim.n_fragments, sim.counts.data_ptr())
         key += tuple(getattr(P, k).data_ptr() for k in ("x", "v", "F", "mass", "fragment", "band"))
-        if key != self.recorded_key:  # the sizes of the parts, known from one run of them
-            self.recorded_key = key
-            slices, a = [], 0
-            for name, t in self._particle_numbers_now():
-                slices.append((name, a, a + t.numel()))
-                a += t.numel()
-            self.recorded_slices = slices
 
-        def flat() -> torch.Tensor:
-            return torch.cat([t.reshape(-1).double() for _, t in self._particle_numbers_now()])
+        def flat() -> torch.Tensor:  # run when recording: the parts' places in the output are noted then
+            parts = self._particle_numbers_now()
+            ends = itertools.accumulate(t.numel() for _, t in parts)
+            self.recorded_slices = [(name, end - t.numel(), end) for (name, t), end in zip(parts, ends)]
+            return torch.cat([t.reshape(-1).double() for _, t in parts])
 
         out = self.recorded(key, flat)
         return [(name, out[a:b]) for name, a, b in self.recorded_slices]

@@ -8,6 +8,7 @@ from __future__ import annotations
 import torch
 
 from ..linalg import singular_values
+from ..runtime import device_constant
 
 EPS = 1e-30
 SEPARATION = 0.1  # Δx: an interface whose opening exceeds this has separated (docs/DESIGN.md)
@@ -113,18 +114,11 @@ def kinetic_energy(P) -> torch.Tensor:  # -> []
     return 0.5 * (P.mass.double() * (P.v.double() ** 2).sum(1)).sum()
 
 
-_PLANES: dict = {}
-
-
 def plane_constants(plane, device) -> tuple[torch.Tensor, torch.Tensor]:
-    """(unit normal [3], point [3]) of a plane collider as float64 tensors on `device`, made once: a
-    tensor built from a Python list each frame is a pageable host-to-device copy that waits for the
-    stream (and cannot be recorded in a CUDA graph)."""
-    key = (tuple(float(a) for a in plane.normal), tuple(float(a) for a in plane.point), str(device))
-    if key not in _PLANES:
-        n = torch.tensor(key[0], dtype=torch.float64, device=device)
-        _PLANES[key] = (n / n.norm(), torch.tensor(key[1], dtype=torch.float64, device=device))
-    return _PLANES[key]
+    """(unit normal [3], point [3]) of a plane collider as float64 tensors on `device`, from constants made
+    once (`runtime.device_constant`)."""
+    n = device_constant([float(a) for a in plane.normal], torch.float64, device)
+    return n / n.norm(), device_constant([float(a) for a in plane.point], torch.float64, device)
 
 
 def plane_state(x, v, fragment, plane, dx: float, K: int) -> dict:

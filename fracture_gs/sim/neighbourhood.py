@@ -9,6 +9,7 @@ import math
 import torch
 
 from ..errors import SimulationError
+from ..runtime import device_constant
 
 
 def cell_order(x: torch.Tensor, origin, dx: float, shape, mode: str = "interleaved") -> torch.Tensor:
@@ -22,7 +23,7 @@ def cell_order(x: torch.Tensor, origin, dx: float, shape, mode: str = "interleav
     if mode not in ("cell", "interleaved"):
         raise SimulationError(f"sort mode '{mode}' is not 'cell' or 'interleaved'")
     shift = 0.5 if mode == "cell" else 0.0
-    cell = torch.floor((x - torch.tensor(origin, device=x.device)) / dx - shift).long()  # [N, 3]
+    cell = torch.floor((x - device_constant(origin, torch.float32, x.device)) / dx - shift).long()  # [N, 3]
     key = (cell[:, 0] * shape[1] + cell[:, 1]) * shape[2] + cell[:, 2]  # [N]
     order = torch.argsort(key, stable=True)
     if mode == "interleaved":
@@ -40,18 +41,6 @@ def solo_radius(reach: float, dx: float) -> int | None:
     return None if r > 6 else r
 
 
-_CONSTANTS: dict = {}
-
-
-def _constant(values, dtype, device) -> torch.Tensor:
-    """A small constant tensor on `device`, made once (a tensor built from a list each frame is a pageable
-    host copy that waits for the stream and cannot be recorded in a CUDA graph)."""
-    key = (tuple(values), dtype, str(device))
-    if key not in _CONSTANTS:
-        _CONSTANTS[key] = torch.tensor(key[0], dtype=dtype, device=device)
-    return _CONSTANTS[key]
-
-
 def solo_mask(x: torch.Tensor, fragment: torch.Tensor, origin, dx: float, shape, reach: float) -> torch.Tensor | None:
     """1 for particles with no particle of another fragment within `reach` metres, else 0 ([N] int32).
 
@@ -62,8 +51,8 @@ def solo_mask(x: torch.Tensor, fragment: torch.Tensor, origin, dx: float, shape,
     if r is None:
         return None
     dims = [int(math.ceil(s * dx / h)) + 1 for s in shape]
-    cell = torch.floor((x - _constant(origin, torch.float32, x.device)) / h).long()  # [N, 3]
-    cell = torch.minimum(cell.clamp_min(0), _constant(dims, torch.int64, x.device) - 1)
+    cell = torch.floor((x - device_constant(origin, torch.float32, x.device)) / h).long()  # [N, 3]
+    cell = torch.minimum(cell.clamp_min(0), device_constant(dims, torch.int64, x.device) - 1)
     lin = (cell[:, 0] * dims[1] + cell[:, 1]) * dims[2] + cell[:, 2]  # [N]
     frag = fragment.float()
     inf = torch.full((dims[0] * dims[1] * dims[2],), float("inf"), device=x.device)

@@ -16,7 +16,7 @@ from typing import Callable, Hashable
 import torch
 
 from ..profiling import phases
-from ..runtime import ensure_warp, warp_stream
+from ..runtime import ensure_warp, side_stream, warp_stream
 
 
 class Recorded:
@@ -35,7 +35,7 @@ class Recorded:
         if hit is None:
             fn()  # warm-up outside the capture: lazy module loads, the allocator's and cuBLAS's caches
             ensure_warp()
-            stream = torch.cuda.Stream(self.device)
+            stream = side_stream(self.device, "record")  # one reused stream: each stream holds a cuBLAS workspace
             with torch.cuda.stream(stream):
                 warp_stream(self.device)  # Warp's wrapper of the capture stream, made before capturing
             graph = torch.cuda.CUDAGraph()

@@ -240,12 +240,13 @@ class Simulator(FrameLoop):
         same fields): no particle of another fragment within 4Δx + twice the travel (and the box slack)."""
         P, g = self.particles, self.grid
         reach = 4.0 * g.dx + 2.0 * travel + self.box_slack * g.dx
-        r = solo_radius(reach, g.dx)  # the mask depends on the reach only through r
-        if r is None or not self.use_graphs:
-            self.set_solo(solo_mask(P.x, P.fragment, g.origin, g.dx, g.shape, reach))
-            return
+        r = solo_radius(reach, g.dx)  # the mask depends on the reach only through r; None: nobody is solo
+
+        def query():
+            return solo_mask(P.x, P.fragment, g.origin, g.dx, g.shape, reach)
+
         key = (r, P.x.data_ptr(), P.fragment.data_ptr())  # on CUDA one recorded graph per r (`recorded.py`)
-        self.set_solo(self._queries(key, lambda: solo_mask(P.x, P.fragment, g.origin, g.dx, g.shape, reach)))
+        self.set_solo(None if r is None else self._queries(key, query) if self.use_graphs else query())
 
     def set_solo(self, mask: Optional[torch.Tensor]) -> None:
         """Set the solo flags (None: no particle is solo) and, with `slow_first` or `fanout`, the launch order,
