@@ -114,3 +114,42 @@ def run_ranges(fn, ranges: list) -> None:
         _pool = ThreadPoolExecutor(max_workers=8, thread_name_prefix="fgs-cpu")
     for f in [_pool.submit(fn, a, b) for a, b in ranges]:
         f.result()
+
+
+class StreamFork:
+    """Launches that may run beside the current stream's (CUDA; a no-op on the CPU, where one thread runs
+    every launch in order). The first `with fork:` after a join makes a second stream wait for everything
+    issued so far on the current one (the fork); launches inside go to that stream; `join()` makes the
+    current stream wait for them. Under a graph capture the two become parallel paths of the graph
+    (cudaStreamWaitEvent edges), so small kernels that do not depend on each other overlap instead of
+    each paying its launch gap and tail in turn. The stream is the fork's own (`wp.Stream`): a stream being
+    captured by one thread must not receive another thread's launches."""
+
+    def __init__(self, device: str):
+        self.device = str(device)
+        self._stream = None
+        self._main = None  # the stream forked from, until the join
+        self._scope = None
+
+    def __enter__(self) -> StreamFork:
+        if not self.device.startswith("cuda"):
+            return self
+        if self._stream is None:
+            self._stream = wp.Stream(self.device)
+        if self._main is None:
+            self._main = wp.get_stream(self.device)
+            self._stream.wait_stream(self._main)
+        self._scope = wp.ScopedStream(self._stream, sync_enter=False)
+        self._scope.__enter__()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if self._scope is not None:
+            self._scope.__exit__(*exc)
+            self._scope = None
+
+    def join(self) -> None:
+        """The current stream waits for every launch made inside the fork since it was opened."""
+        if self._main is not None:
+            self._main.wait_stream(self._stream)
+            self._main = None

@@ -62,6 +62,7 @@ class FrameLoop:
             self.clock.capacity,
             self._fan_cap,
             self._run_length(int(self.multifield)),
+            self.concurrent,
         )
 
     def _frame_substeps_run(self, n: int, dt: float, start: float) -> None:

@@ -9,6 +9,7 @@ event provider) are `frame_loop.FrameLoop`, mixed in.
 
 from __future__ import annotations
 
+import contextlib
 import math
 from typing import Optional
 
@@ -16,7 +17,7 @@ import torch
 import warp as wp
 
 from ..config import MATERIALS, SimConfig
-from ..runtime import cpu_ranges, ensure_warp, run_ranges, torch_stream
+from ..runtime import StreamFork, cpu_ranges, ensure_warp, run_ranges, torch_stream
 from ..variants import VARIANTS, variant_spec
 from .boundary import Boundaries
 from .clock import FrameClock
@@ -107,6 +108,8 @@ class Simulator(FrameLoop):
         n = len(self.particles)
         self.stress = torch.zeros(n, 3, 3, dtype=torch.float32, device=self.device)
         self.solo = torch.zeros(n, dtype=torch.int32, device=self.device)  # see `_update_solo`
+        self.concurrent = True  # CUDA: independent launches of a substep on two streams (`_beside`)
+        self._fork = StreamFork(self.device)
         self._queries = Recorded(self.device)  # CUDA: the per-frame solo mask as recorded graphs
         self._no_solo = torch.zeros(n, dtype=torch.int32, device=self.device)
         # The particles that are not solo (1.6 % at K = 2 on the Table 2 ficus) do 27 serial slot lookups
@@ -387,6 +390,8 @@ class Simulator(FrameLoop):
     def _p2g(self, only_fragment: int = -1, target=None, multifield=None, stress=None, counts=None) -> None:
         g, w = target or self.grid, self.wp
         multi = int(self.multifield if multifield is None else multifield)
+        fan = target is None and self._fans_out(multi, only_fragment)
+        side = self._beside(fan)  # the pool's reset and the fan-out beside the dense deposits
         if target is None:
             b = self.box
             wp.launch(
@@ -396,12 +401,12 @@ class Simulator(FrameLoop):
                 inputs=[g.view, self._box_lo],
             )
             if multi:
-                wp.launch(clear_pool, dim=g.capacity, device=self.device, inputs=[g.view])
+                with side:
+                    wp.launch(clear_pool, dim=g.capacity, device=self.device, inputs=[g.view])
             lo, hi = self._box_lo, self._box_hi
         else:
             g.clear()
             lo, hi = wp.vec3i(0, 0, 0), wp.vec3i(*g.shape)
-        fan = target is None and self._fans_out(multi, only_fragment)
         run = self._run_length(multi) if target is None and only_fragment < 0 and (fan or not multi) else 0
         counts = w["counts"] if counts is None else counts
         particle_arrays = [w[k] for k in ("x", "v", "C", "mass", "volume")]  # what P2G reads of each particle
@@ -416,11 +421,16 @@ class Simulator(FrameLoop):
             wp.launch(p2g, dim=len(self.particles), device=self.device, inputs=particle_arrays + extra)
         if fan:
             extra = [w["order"], w["first"], w["slot_cache"], self.clock.view, g.view, counts]
-            wp.launch(p2g_fanout, dim=27 * self._fan_cap, device=self.device, inputs=particle_arrays + extra)
+            with side:
+                wp.launch(p2g_fanout, dim=27 * self._fan_cap, device=self.device, inputs=particle_arrays + extra)
+            self._fork.join()
 
     def _update_grid(self) -> None:
         g, multi = self.grid, int(self.multifield)
         self.boundaries.colliders.wall_cells = int(self.cfg.wall_cells)  # the config may change between calls
+        if multi:  # the nodes with a pool row, beside the dense pass (they write disjoint nodes)
+            with self._beside(True):
+                self._update_pool()
         b = self.box
         wp.launch(
             grid_update_dense,
@@ -428,42 +438,31 @@ class Simulator(FrameLoop):
             device=self.device,
             inputs=[g.view, self._box_lo, multi, self.eps_m, self.clock.view, self._gravity, self.boundaries.colliders],
         )
-        if multi:
-            c = self.cfg.contact
-            grad0 = self._pool_gradient_buffer()
-            if self.normal_mode == NORMAL_MASS_GRADIENT:
-                wp.launch(
-                    pool_mass_gradients,
-                    dim=g.capacity * g.slots,
-                    device=self.device,
-                    inputs=[g.view, self.eps_m, grad0],
-                )
+        self._fork.join()
+
+    def _update_pool(self) -> None:
+        """Pool rows: mass-gradient normals (if used), then every field's normalization, contact, boundaries."""
+        g, multi = self.grid, int(self.multifield)
+        c = self.cfg.contact
+        grad0 = self._pool_gradient_buffer()
+        if self.normal_mode == NORMAL_MASS_GRADIENT:
             wp.launch(
-                grid_update_pool,
-                dim=g.capacity,
+                pool_mass_gradients,
+                dim=g.capacity * g.slots,
                 device=self.device,
-                inputs=[
-                    g.view,
-                    self.eps_m,
-                    self.eps_b,
-                    c.fill * self.node_mass,
-                    multi,
-                    int(self.spec.contact),
-                    self.normal_mode,
-                    self._normal,
-                    self.wp["centroids"],
-                    float(self.cfg.restitution),
-                    float(c.friction),
-                    self.clock.view,
-                    self._gravity,
-                    self.boundaries.colliders,
-                    int(self.record_contact),
-                    g.wp["stats"],
-                    g.wp["pair_stats"],
-                    g.max_fragments,
-                    grad0,
-                ],
+                inputs=[g.view, self.eps_m, grad0],
             )
+        gate = [multi, int(self.spec.contact), self.normal_mode, self._normal, self.wp["centroids"]]
+        law = [
+            float(self.cfg.restitution),
+            float(c.friction),
+            self.clock.view,
+            self._gravity,
+            self.boundaries.colliders,
+        ]
+        record = [int(self.record_contact), g.wp["stats"], g.wp["pair_stats"], g.max_fragments, grad0]
+        inputs = [g.view, self.eps_m, self.eps_b, c.fill * self.node_mass] + gate + law + record
+        wp.launch(grid_update_pool, dim=g.capacity, device=self.device, inputs=inputs)
 
     def _pool_gradient_buffer(self):
         """[capacity] vec3 for ∇m of each pool row's slot-0 field (`normal_kernels`), sized with the pool:
@@ -494,18 +493,20 @@ class Simulator(FrameLoop):
             )
 
         if fan:
-            wp.launch(
-                g2p_fanout,
-                dim=LANES * self._fan_cap,
-                device=self.device,
-                inputs=arrays[:5]
-                + [w["order"], w["first"], w["slot_cache"], cached, int(self.device.startswith("cuda"))]
-                + [self.clock.view, g.view]
-                + [self._lower, self._upper, w["counts"]],
-            )
+            with self._beside(True):  # the listed particles beside the dense gather (disjoint particles)
+                wp.launch(
+                    g2p_fanout,
+                    dim=LANES * self._fan_cap,
+                    device=self.device,
+                    inputs=arrays[:5]
+                    + [w["order"], w["first"], w["slot_cache"], cached, int(self.device.startswith("cuda"))]
+                    + [self.clock.view, g.view]
+                    + [self._lower, self._upper, w["counts"]],
+                )
         ranges = [(0, len(self.particles))] if split or not self._ranges else self._ranges
         if len(ranges) == 1:
             launch(*ranges[0], w["counts"])
+            self._fork.join()
             return
         if self._range_counts is None:
             self._range_counts = torch.zeros(len(ranges), N_COUNTS, dtype=torch.int32, device=self.device)
@@ -513,6 +514,12 @@ class Simulator(FrameLoop):
         self._range_counts.zero_()
         run_ranges(lambda a, b: launch(a, b, self._range_counts_wp[ranges.index((a, b))]), ranges)
         self.counts += self._range_counts.sum(0, dtype=torch.int32)
+        self._fork.join()
+
+    def _beside(self, independent: bool):
+        """Context for launches that need nothing issued after the last join and that nothing reads before
+        the next one: on a GPU with `concurrent` they go to the fork's stream (`runtime.StreamFork`)."""
+        return self._fork if independent and self.concurrent else contextlib.nullcontext()
 
     # ---- frames -------------------------------------------------------------------------------
     # ---- topology -----------------------------------------------------------------------------

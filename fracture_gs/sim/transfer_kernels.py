@@ -341,17 +341,18 @@ def grid_update_dense(
     gravity: wp.vec3,
     colliders: Colliders,
 ):
-    """Slot 0 of every node: v = p/m + Δt g where m > ε_m, else 0; then the boundaries, except at
-    nodes with a pool row, whose fields finish in `grid_update_pool` (contact before boundaries)."""
+    """Slot 0 of every node without a pool row: v = p/m + Δt g where m > ε_m, else 0, then the
+    boundaries. A node with a row is left to `grid_update_pool` whole (its slot 0 too: contact comes
+    before the boundaries), so the two passes write disjoint nodes and may run at once."""
     ti, tj, tl = wp.tid()
     node = wp.vec3i(ti + box_origin[0], tj + box_origin[1], tl + box_origin[2])
     n = flat(node, wp.vec3i(0, 0, 0), g.shape)
+    if multifield != 0:
+        if (g.owner[n] & ROW_FLAG) != 0:
+            return
     q = g.mp[n]
     v = normalized(q, eps_m, clock_dt(clock), gravity)
-    deferred = False
-    if multifield != 0:
-        deferred = (g.owner[n] & ROW_FLAG) != 0
-    if q[3] > eps_m and not deferred:
+    if q[3] > eps_m:
         xi = g.origin + wp.vec3(float(node[0]), float(node[1]), float(node[2])) * g.dx
         v = apply_boundaries(v, node, xi, clock_time(clock), colliders)
     g.vel[n] = v
@@ -397,8 +398,9 @@ def grid_update_pool(
     b = vec_s(0.0)
     frag = vec_si(-1)
     frag[0] = (g.owner[n] & OWNER_MASK) - 1
-    m[0] = g.mp[n][3]
-    V[0] = g.vel[n]
+    q0 = g.mp[n]
+    m[0] = q0[3]
+    V[0] = normalized(q0, eps_m, dt, gravity)  # slot 0 too: `grid_update_dense` skips nodes with a row
     for s in range(g.slots):
         b[s] = g.band[r * g.slots + s]
         if s > 0:
