@@ -134,10 +134,10 @@ def test_particles_that_are_not_solo_fan_out_one_thread_per_node(device, seed, f
 
 @pytest.mark.parametrize("fragments", [2, 6])
 def test_independent_launches_beside_each_other_change_nothing(device, seed, fragments):
-    """On a GPU the pool's reset, the pool pass and the fan-out kernels run on a second stream beside the
-    dense kernels (`Simulator.concurrent`: a fork and a join per phase, parallel paths of the recorded
-    substep). The dense grid pass leaves every node with a pool row to the pool pass, and the fan-out
-    kernels take other particles than the dense ones, so nothing either side writes is read by the other:
+    """On a GPU the pool's reset, the P2G fan-out and the pool pass run on a second stream beside the dense
+    kernels (`Simulator.concurrent`: a fork and a join per phase, parallel paths of the recorded substep).
+    The dense grid pass leaves every node with a pool row to the pool pass, and the fan-out deposits other
+    particles than the dense ones, so nothing either side writes is read by the other before the join:
     frames advance the same as with every launch in one stream, up to the order of P2G's float32 atomic
     sums (bitwise on the CPU, where the fork is a no-op)."""
     sims = []

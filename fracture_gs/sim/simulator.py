@@ -108,7 +108,7 @@ class Simulator(FrameLoop):
         n = len(self.particles)
         self.stress = torch.zeros(n, 3, 3, dtype=torch.float32, device=self.device)
         self.solo = torch.zeros(n, dtype=torch.int32, device=self.device)  # see `_update_solo`
-        self.concurrent = True  # CUDA: independent launches of a substep on two streams (`_beside`)
+        self.concurrent = True  # CUDA: P2G's and the grid update's independent launches on two streams (`_beside`)
         self._fork = StreamFork(self.device)
         self._queries = Recorded(self.device)  # CUDA: the per-frame solo mask as recorded graphs
         self._no_solo = torch.zeros(n, dtype=torch.int32, device=self.device)
@@ -492,21 +492,19 @@ class Simulator(FrameLoop):
                 + [multi, only_fragment, self.clock.view, g.view, self._lower, self._upper, counts],
             )
 
-        if fan:
-            with self._beside(True):  # the listed particles beside the dense gather (disjoint particles)
-                wp.launch(
-                    g2p_fanout,
-                    dim=LANES * self._fan_cap,
-                    device=self.device,
-                    inputs=arrays[:5]
-                    + [w["order"], w["first"], w["slot_cache"], cached, int(self.device.startswith("cuda"))]
-                    + [self.clock.view, g.view]
-                    + [self._lower, self._upper, w["counts"]],
-                )
+        if fan:  # in one stream with the dense gather: beside it, the plane cut's G2P took 8 % longer (H200)
+            wp.launch(
+                g2p_fanout,
+                dim=LANES * self._fan_cap,
+                device=self.device,
+                inputs=arrays[:5]
+                + [w["order"], w["first"], w["slot_cache"], cached, int(self.device.startswith("cuda"))]
+                + [self.clock.view, g.view]
+                + [self._lower, self._upper, w["counts"]],
+            )
         ranges = [(0, len(self.particles))] if split or not self._ranges else self._ranges
         if len(ranges) == 1:
             launch(*ranges[0], w["counts"])
-            self._fork.join()
             return
         if self._range_counts is None:
             self._range_counts = torch.zeros(len(ranges), N_COUNTS, dtype=torch.int32, device=self.device)
@@ -514,7 +512,6 @@ class Simulator(FrameLoop):
         self._range_counts.zero_()
         run_ranges(lambda a, b: launch(a, b, self._range_counts_wp[ranges.index((a, b))]), ranges)
         self.counts += self._range_counts.sum(0, dtype=torch.int32)
-        self._fork.join()
 
     def _beside(self, independent: bool):
         """Context for launches that need nothing issued after the last join and that nothing reads before
