@@ -114,11 +114,15 @@ def test_particles_that_are_not_solo_fan_out_one_thread_per_node(device, seed, f
     fanned.set_clock(1e-3)
     fanned._update_grid()
     start = {name: getattr(fanned.particles, name).clone() for name in ("x", "v", "C", "F")}
-    gathered = []  # slots looked up; a warp per particle, slots from P2G's cache; listed first, from the cache
-    for fanout, most, slow_first in ((False, 0.0, False), (True, 1.0, False), (True, 0.0, True)):
+    # slots looked up; a warp per listed particle, slots from P2G's cache, the solo ones in the same launch or
+    # in their own; listed first, from the cache
+    gathered = []
+    arms = ((False, 0.0, False, False), (True, 1.0, False, True), (True, 1.0, False, False), (True, 0.0, True, False))
+    for fanout, most, slow_first, one_gather in arms:
         for name, value in start.items():
             getattr(fanned.particles, name).copy_(value)
         fanned.fanout, fanned.g2p_fanout_max, fanned.slow_first = fanout, most, slow_first
+        fanned.one_gather = one_gather
         fanned._g2p()
         gathered.append({name: getattr(fanned.particles, name).cpu().clone() for name in start})
     assert not torch.equal(gathered[1]["x"], start["x"].cpu()), "G2P moved the particles"

@@ -26,9 +26,11 @@ from .transfer_kernels import (
     deposit,
     deposit_index,
     finish_g2p,
+    gather_slot0,
     node_index,
     node_terms_q,
     routed_field,
+    stencil,
     stencil_offset,
 )
 
@@ -120,9 +122,22 @@ def g2p_fanout(
     lower: wp.vec3,  # particles are clamped into [lower, upper] and counted
     upper: wp.vec3,
     counts: wp.array(dtype=wp.int32),
+    solo: wp.array(dtype=wp.int32),  # [N] (with `listed` > 0)
+    listed: int,  # > 0: threads from `listed` on gather the solo particle t − listed from slot 0 (0: none)
 ):
-    """Gather the (t div 32)-th listed particle from its own field, lane t mod 32 taking node lane < 27."""
+    """Gather the (t div 32)-th listed particle from its own field, lane t mod 32 taking node lane < 27;
+    with `listed` (= 32 × capacity) the same launch then gathers the solo particles, one thread each, so
+    the listed particles' warps start first and the dense bulk fills the GPU behind them (one launch,
+    no second kernel's gap and tail)."""
     t = wp.tid()
+    if listed > 0 and t >= listed:
+        p = t - listed
+        if solo[p] == 0:
+            return
+        base, f, w, dw = stencil(x[p], g.origin, g.inv_dx, g.shape)
+        vp, B, gradv = gather_slot0(g, base, f, w, dw)
+        finish_g2p(p, vp, B, gradv, clock_dt(clock), g.inv_dx, x, v, C, F, lower, upper, counts)
+        return
     i = t // LANES
     lane = t - LANES * i
     if i >= first[0]:

@@ -110,6 +110,7 @@ class Simulator(FrameLoop):
         self.solo = torch.zeros(n, dtype=torch.int32, device=self.device)  # see `_update_solo`
         self.concurrent = True  # CUDA: P2G's and the grid update's independent launches on two streams (`_beside`)
         self._fork = StreamFork(self.device)
+        self.one_gather = True  # G2P fan-out: the solo particles in the fan-out's launch (`g2p_fanout`)
         self._queries = Recorded(self.device)  # CUDA: the per-frame solo mask as recorded graphs
         self._no_solo = torch.zeros(n, dtype=torch.int32, device=self.device)
         # The particles that are not solo (1.6 % at K = 2 on the Table 2 ficus) do 27 serial slot lookups
@@ -492,16 +493,19 @@ class Simulator(FrameLoop):
                 + [multi, only_fragment, self.clock.view, g.view, self._lower, self._upper, counts],
             )
 
-        if fan:  # in one stream with the dense gather: beside it, the plane cut's G2P took 8 % longer (H200)
+        if fan:  # with `one_gather` the solo particles too, in the same launch behind the listed ones
+            listed = LANES * self._fan_cap if self.one_gather else 0
             wp.launch(
                 g2p_fanout,
-                dim=LANES * self._fan_cap,
+                dim=LANES * self._fan_cap + (len(self.particles) if listed else 0),
                 device=self.device,
                 inputs=arrays[:5]
                 + [w["order"], w["first"], w["slot_cache"], cached, int(self.device.startswith("cuda"))]
                 + [self.clock.view, g.view]
-                + [self._lower, self._upper, w["counts"]],
+                + [self._lower, self._upper, w["counts"], w["solo"], listed],
             )
+            if listed:
+                return
         ranges = [(0, len(self.particles))] if split or not self._ranges else self._ranges
         if len(ranges) == 1:
             launch(*ranges[0], w["counts"])

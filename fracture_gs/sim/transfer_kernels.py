@@ -479,6 +479,23 @@ def finish_g2p(
     x[p] = xc
 
 
+@wp.func
+def gather_slot0(g: GridView, base: wp.vec3i, f: wp.vec3, w: wp.mat33, dw: wp.mat33):
+    """(v, B, ∇v) = Σ over the 27 stencil nodes' slot 0 of (w v_i, w v_i (x_i − x_p)ᵀ, v_i ∇wᵀ), unrolled."""
+    vp = wp.vec3(0.0)
+    B = wp.mat33(0.0)
+    gradv = wp.mat33(0.0)
+    for i in range(3):
+        for j in range(3):
+            for l in range(3):  # noqa: E741
+                weight, grad, dpos = node_terms(i, j, l, f, w, dw, g.dx, g.inv_dx)
+                vi = g.vel[flat(wp.vec3i(base[0] + i, base[1] + j, base[2] + l), wp.vec3i(0, 0, 0), g.shape)]
+                vp = vp + weight * vi
+                B = B + weight * wp.outer(vi, dpos)
+                gradv = gradv + wp.outer(vi, grad)
+    return vp, B, gradv
+
+
 @wp.kernel
 def g2p(
     x: wp.array(dtype=wp.vec3),
@@ -522,14 +539,7 @@ def g2p(
     if not dense and not use_cache:
         dense = slot0_readable(g, base, k)
     if dense:  # every node's field of the particle in slot 0: the stencil unrolled
-        for i in range(3):
-            for j in range(3):
-                for l in range(3):  # noqa: E741
-                    weight, grad, dpos = node_terms(i, j, l, f, w, dw, g.dx, g.inv_dx)
-                    vi = g.vel[flat(wp.vec3i(base[0] + i, base[1] + j, base[2] + l), wp.vec3i(0, 0, 0), g.shape)]
-                    vp = vp + weight * vi
-                    B = B + weight * wp.outer(vi, dpos)
-                    gradv = gradv + wp.outer(vi, grad)
+        vp, B, gradv = gather_slot0(g, base, f, w, dw)
     else:
         for q in range(27):  # kept as a loop: the slot lookup inlines once, not 27 times
             weight, grad, dpos, o = node_terms_q(q, f, g.dx, g.inv_dx)
