@@ -313,6 +313,18 @@ def baseline_rows(cfg, P, topo, device, steps, warmup, trials, graph) -> list[di
         if not use_graph:
             row["phases"] = phase_times(sim, dt, min(steps, 100), warmup)
         rows.append(row)
+    # Issue 13's comparison: FractureFields' whole substep (stress + transfer) after the cut, against the last row
+    sim = make_sim(cfg, P, topo, "full", device, "cell")
+
+    def step_ff(sim=sim):
+        sim.compute_stress(sim.stress, commit=True)
+        sim.transfer()
+
+    ms = time_fn(sim, step_ff, steps, warmup, trials, graph)
+    ratio = statistics.median(ms) / rows[-1]["median_ms"]
+    graphed = " + CUDA graph" if graph and device.startswith("cuda") else ""
+    label = f"FractureFields after the cut: cell order + active box{graphed} ({ratio:.2f}× the row above)"
+    rows.append({"setting": label, "median_ms": statistics.median(ms), "trials_ms": ms, "relative": ratio})
     return rows
 
 
