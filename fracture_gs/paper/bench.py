@@ -141,17 +141,18 @@ def phase_times(sim: Simulator, dt: float, steps: int, warmup: int) -> dict:
 
 
 KERNEL_PHASES = {
-    "clear_fields": "reset",
+    "clear_dense": "reset",
+    "clear_pool": "reset",
     "p2g": "p2g",
     "p2g_fanout": "p2g",
     "p2g_runs": "p2g",
-    "grid_update": "grid",
+    "grid_update_dense": "grid",
+    "grid_update_pool": "grid",
     "pool_mass_gradients": "grid",
     "g2p": "g2p",
     "g2p_fanout": "g2p",
 }
-"""Warp kernel name -> Table 2 phase (the transfer kernels of sim/transfer_kernels.py, grid_kernels.py,
-run_kernels.py, fanout_kernels.py and normal_kernels.py)."""
+"""Warp kernel name -> Table 2 phase (the transfer kernels of sim/transfer_kernels.py)."""
 
 
 def kernel_times(sim: Simulator, dt: float, steps: int = 50) -> dict | None:

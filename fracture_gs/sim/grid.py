@@ -187,7 +187,7 @@ class Grid:
             self.key.fill_(EMPTY_KEY)
             self.pool_owner.fill_(-1)
             self.band.zero_()
-            self._mp[self.n_nodes :].zero_()  # a row claimed anew must start empty (`clear_fields` skips free rows)
+            self._mp[self.n_nodes :].zero_()  # a row claimed anew must start empty (clear_pool skips free rows)
 
     def clear(self) -> None:
         """Reset every accumulator (dense slot 0, owners, the pool)."""

@@ -26,7 +26,6 @@ from .contact import NORMAL_LATCHED, NORMAL_MASS_GRADIENT
 from .fanout_kernels import LANES, g2p_fanout, p2g_fanout
 from .frame_loop import FrameLoop
 from .grid import Grid, check_inside, fit_grid
-from .grid_kernels import clear_fields, grid_update
 from .layout import COUNT_CLAMPED, MAX_SLOTS, N_COUNTS
 from .neighbourhood import cell_order, fragment_centroids, solo_mask, solo_radius
 from .normal_kernels import pool_mass_gradients
@@ -34,7 +33,7 @@ from .particles import Particles, SimulationError
 from .recorded import Recorded
 from .run_kernels import p2g_runs
 from .topology import Topology
-from .transfer_kernels import g2p, p2g
+from .transfer_kernels import clear_dense, clear_pool, g2p, grid_update_dense, grid_update_pool, p2g
 
 P2G_RUN = 8  # particles per P2G thread in cell order on a GPU (H100, Table 2 ficus: runs of 2 / 4 / 8 → P2G 40 / 34 /
 # 30 µs against 67 one per thread); not while most particles take the slot path (K = 16: 4 % slower; BENCHMARKS.md)
@@ -109,7 +108,7 @@ class Simulator(FrameLoop):
         n = len(self.particles)
         self.stress = torch.zeros(n, 3, 3, dtype=torch.float32, device=self.device)
         self.solo = torch.zeros(n, dtype=torch.int32, device=self.device)  # see `_update_solo`
-        self.concurrent = True  # CUDA: P2G's fan-out on a second stream beside the dense deposits (`_beside`)
+        self.concurrent = True  # CUDA: P2G's and the grid update's independent launches on two streams (`_beside`)
         self._fork = StreamFork(self.device)
         self.one_gather = True  # G2P fan-out: the solo particles in the fan-out's launch (`g2p_fanout`)
         self._queries = Recorded(self.device)  # CUDA: the per-frame solo mask as recorded graphs
@@ -206,8 +205,6 @@ class Simulator(FrameLoop):
         self.box = tuple(box)  # active node box (lo, hi): where grid work happens
         self.grid.box = self.box
         self._box_lo, self._box_hi = wp.vec3i(*box[:3]), wp.vec3i(*box[3:])
-        dims = [box[3 + a] - box[a] for a in range(3)]
-        self._box_dims, self._box_nodes = wp.vec3i(*dims), dims[0] * dims[1] * dims[2]
 
     def fit_active_box(self, horizon: float) -> float:
         """Restrict per-substep grid work to where particles can be during the next `horizon`
@@ -395,12 +392,18 @@ class Simulator(FrameLoop):
         g, w = target or self.grid, self.wp
         multi = int(self.multifield if multifield is None else multifield)
         fan = target is None and self._fans_out(multi, only_fragment)
-        if target is None:  # slot 0 over the active box and (multi-field) the pool rows, one launch
-            rows = g.capacity if multi else 0
-            dims = [self._box_dims, rows]
+        side = self._beside(fan)  # the pool's reset and the fan-out beside the dense deposits
+        if target is None:
+            b = self.box
             wp.launch(
-                clear_fields, dim=rows + self._box_nodes, device=self.device, inputs=[g.view, self._box_lo] + dims
+                clear_dense,
+                dim=(b[3] - b[0], b[4] - b[1], b[5] - b[2]),
+                device=self.device,
+                inputs=[g.view, self._box_lo],
             )
+            if multi:
+                with side:
+                    wp.launch(clear_pool, dim=g.capacity, device=self.device, inputs=[g.view])
             lo, hi = self._box_lo, self._box_hi
         else:
             g.clear()
@@ -419,21 +422,37 @@ class Simulator(FrameLoop):
             wp.launch(p2g, dim=len(self.particles), device=self.device, inputs=particle_arrays + extra)
         if fan:
             extra = [w["order"], w["first"], w["slot_cache"], self.clock.view, g.view, counts]
-            with self._beside(True):  # beside the dense deposits, which never claim a slot
+            with side:
                 wp.launch(p2g_fanout, dim=27 * self._fan_cap, device=self.device, inputs=particle_arrays + extra)
             self._fork.join()
 
     def _update_grid(self) -> None:
-        """One launch over the pool rows and the box's other nodes (`grid_kernels.grid_update`), after the
-        mass-gradient normals of the pool's fields where the contact uses them."""
-        g, multi, c = self.grid, int(self.multifield), self.cfg.contact
+        g, multi = self.grid, int(self.multifield)
         self.boundaries.colliders.wall_cells = int(self.cfg.wall_cells)  # the config may change between calls
+        if multi:  # the nodes with a pool row, beside the dense pass (they write disjoint nodes)
+            with self._beside(True):
+                self._update_pool()
+        b = self.box
+        wp.launch(
+            grid_update_dense,
+            dim=(b[3] - b[0], b[4] - b[1], b[5] - b[2]),
+            device=self.device,
+            inputs=[g.view, self._box_lo, multi, self.eps_m, self.clock.view, self._gravity, self.boundaries.colliders],
+        )
+        self._fork.join()
+
+    def _update_pool(self) -> None:
+        """Pool rows: mass-gradient normals (if used), then every field's normalization, contact, boundaries."""
+        g, multi = self.grid, int(self.multifield)
+        c = self.cfg.contact
         grad0 = self._pool_gradient_buffer()
-        if multi and self.normal_mode == NORMAL_MASS_GRADIENT:
+        if self.normal_mode == NORMAL_MASS_GRADIENT:
             wp.launch(
-                pool_mass_gradients, dim=g.capacity * g.slots, device=self.device, inputs=[g.view, self.eps_m, grad0]
+                pool_mass_gradients,
+                dim=g.capacity * g.slots,
+                device=self.device,
+                inputs=[g.view, self.eps_m, grad0],
             )
-        rows = g.capacity if multi else 0
         gate = [multi, int(self.spec.contact), self.normal_mode, self._normal, self.wp["centroids"]]
         law = [
             float(self.cfg.restitution),
@@ -443,8 +462,8 @@ class Simulator(FrameLoop):
             self.boundaries.colliders,
         ]
         record = [int(self.record_contact), g.wp["stats"], g.wp["pair_stats"], g.max_fragments, grad0]
-        inputs = [g.view, self._box_lo, self._box_dims, rows, multi, self.eps_m, self.eps_b, c.fill * self.node_mass]
-        wp.launch(grid_update, dim=rows + self._box_nodes, device=self.device, inputs=inputs + gate + law + record)
+        inputs = [g.view, self.eps_m, self.eps_b, c.fill * self.node_mass] + gate + law + record
+        wp.launch(grid_update_pool, dim=g.capacity, device=self.device, inputs=inputs)
 
     def _pool_gradient_buffer(self):
         """[capacity] vec3 for ∇m of each pool row's slot-0 field (`normal_kernels`), sized with the pool:

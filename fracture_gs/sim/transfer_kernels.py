@@ -1,5 +1,5 @@
-"""Particle–grid transfer kernels: P2G and G2P — shared, fragment-conditioned (FractureFields, any number
-of fragments) and per-fragment passes (the grid's reset and update are in `grid_kernels.py`).
+"""Particle–grid transfer kernels: P2G, grid update (normalize, gravity, contact, boundaries) and G2P
+— shared, fragment-conditioned (FractureFields, any number of fragments) and per-fragment passes.
 
 Quadratic B-spline weights with ξ = (x − origin)/Δx, base = ⌊ξ − 0.5⌋, f = ξ − base:
 w = (½(1.5−f)², 0.75−(f−1)², ½(f−0.5)²), ∇w from dw = (f−1.5, −2(f−1), f−0.5)/Δx.
@@ -13,12 +13,16 @@ from __future__ import annotations
 
 import warp as wp
 
-from .clock import Clock, clock_dt
+from .boundary import Colliders, apply_boundaries
+from .clock import Clock, clock_dt, clock_time
+from .contact import NORMAL_MASS_GRADIENT, contact_normal, contact_projection, record_contact
 from .layout import (
     COUNT_CLAMPED,
     COUNT_ESCAPED,
     COUNT_POOL_OVERFLOW,
     COUNT_SLOT_OVERFLOW,
+    EMPTY_KEY,
+    MAX_SLOTS,
     OWNER_MASK,
     ROW_FLAG,
     GridView,
@@ -30,10 +34,14 @@ from .layout import (
     find_row,
     flat,
     inside,
+    unflat,
 )
 
 wp.set_module_options({"enable_backward": False})  # forward-only kernels compile in half the time
 
+mat_s3 = wp.types.matrix(shape=(MAX_SLOTS, 3), dtype=float)  # one vec3 per slot (registers of the pool pass)
+vec_s = wp.types.vector(length=MAX_SLOTS, dtype=float)
+vec_si = wp.types.vector(length=MAX_SLOTS, dtype=int)
 
 _RED_V4 = r"""
 #if defined(__CUDA_ARCH__) && (__CUDA_ARCH__ >= 900)
@@ -293,6 +301,153 @@ def p2g(
         if in_band != 0 and row >= 0:
             wp.atomic_add(g.band, row * g.slots + s, weight * m)
         atomic_add_vec4(g.mp, idx, deposit(weight, grad, dpos, m, vp, Cp, force))
+
+
+@wp.kernel
+def clear_dense(g: GridView, box_origin: wp.vec3i):
+    """Reset slot 0's accumulators over the active box (its owner stays claimed for the frame)."""
+    ti, tj, tl = wp.tid()
+    n = flat(wp.vec3i(ti + box_origin[0], tj + box_origin[1], tl + box_origin[2]), wp.vec3i(0, 0, 0), g.shape)
+    g.mp[n] = wp.vec4(0.0)
+
+
+@wp.kernel
+def clear_pool(g: GridView):
+    """Reset the pool slots' accumulators (rows and slot owners stay claimed for the frame)."""
+    r = wp.tid()
+    if g.key[r] == EMPTY_KEY:
+        return
+    for s in range(g.slots):
+        g.band[r * g.slots + s] = 0.0
+        if s > 0:
+            g.mp[g.n_nodes + r * (g.slots - 1) + s - 1] = wp.vec4(0.0)
+
+
+@wp.func
+def normalized(q: wp.vec4, eps_m: float, dt: float, gravity: wp.vec3):
+    """v = p/m + Δt g for an active field (m > ε_m), else 0."""
+    if q[3] > eps_m:
+        return wp.vec3(q[0], q[1], q[2]) / q[3] + dt * gravity
+    return wp.vec3(0.0)
+
+
+@wp.kernel
+def grid_update_dense(
+    g: GridView,
+    box_origin: wp.vec3i,  # the launch covers the active box starting at this node
+    multifield: int,
+    eps_m: float,  # absolute ε_m
+    clock: Clock,  # Δt and t
+    gravity: wp.vec3,
+    colliders: Colliders,
+):
+    """Slot 0 of every node without a pool row: v = p/m + Δt g where m > ε_m, else 0, then the
+    boundaries. A node with a row is left to `grid_update_pool` whole (its slot 0 too: contact comes
+    before the boundaries), so the two passes write disjoint nodes and may run at once."""
+    ti, tj, tl = wp.tid()
+    node = wp.vec3i(ti + box_origin[0], tj + box_origin[1], tl + box_origin[2])
+    n = flat(node, wp.vec3i(0, 0, 0), g.shape)
+    if multifield != 0:
+        if (g.owner[n] & ROW_FLAG) != 0:
+            return
+    q = g.mp[n]
+    v = normalized(q, eps_m, clock_dt(clock), gravity)
+    if q[3] > eps_m:
+        xi = g.origin + wp.vec3(float(node[0]), float(node[1]), float(node[2])) * g.dx
+        v = apply_boundaries(v, node, xi, clock_time(clock), colliders)
+    g.vel[n] = v
+
+
+@wp.kernel
+def grid_update_pool(
+    g: GridView,
+    eps_m: float,
+    eps_b: float,  # absolute ε_band
+    fill_mass: float,  # mass-gradient mode: two fields touch where m_a + m_b ≥ this [kg]
+    gate: int,  # evaluate the contact gate (multi-field after a latch)
+    project: int,  # apply the contact projection (FractureFields)
+    normal_mode: int,  # contact.NORMAL_LATCHED or NORMAL_MASS_GRADIENT
+    latched: wp.vec3,  # n_Π of the first event
+    centroids: wp.array(dtype=wp.vec3),  # [K] fragment centroids (normal fallback)
+    restitution: float,
+    friction: float,  # Coulomb μ between fragments
+    clock: Clock,  # Δt and t
+    gravity: wp.vec3,
+    colliders: Colliders,
+    record: int,  # accumulate contact statistics (off when timing the transfer)
+    stats: wp.array(dtype=float),  # [N_STATS]
+    pair_stats: wp.array(dtype=float),  # [K·K·N_PAIR_STATS]
+    n_fragments: int,  # K (pair rows of pair_stats)
+    grad0: wp.array(dtype=wp.vec3),  # [capacity] ∇m of slot 0's field (mass-gradient normals)
+):
+    """Nodes with a pool row: every field normalized, the contact projection between every pair of
+    active, approaching fields in contact (ordered by fragment id), then the boundaries. In contact:
+    both band-supported (latched normal, the paper's gate), or together filling the node
+    (m_a + m_b ≥ fill_mass, mass-gradient normals from the fields' nodal masses)."""
+    r = wp.tid()
+    n = g.key[r]
+    if n == EMPTY_KEY:
+        return
+    dt = clock_dt(clock)
+    t = clock_time(clock)
+    node = unflat(n, g.shape)
+    xi = g.origin + wp.vec3(float(node[0]), float(node[1]), float(node[2])) * g.dx
+    V = mat_s3(0.0)
+    G = mat_s3(0.0)
+    m = vec_s(0.0)
+    b = vec_s(0.0)
+    frag = vec_si(-1)
+    frag[0] = (g.owner[n] & OWNER_MASK) - 1
+    q0 = g.mp[n]
+    m[0] = q0[3]
+    V[0] = normalized(q0, eps_m, dt, gravity)  # slot 0 too: `grid_update_dense` skips nodes with a row
+    for s in range(g.slots):
+        b[s] = g.band[r * g.slots + s]
+        if s > 0:
+            i = g.n_nodes + r * (g.slots - 1) + s - 1
+            frag[s] = g.pool_owner[r * (g.slots - 1) + s - 1]
+            q = g.mp[i]
+            m[s] = q[3]
+            V[s] = normalized(q, eps_m, dt, gravity)
+    if gate != 0 and normal_mode == NORMAL_MASS_GRADIENT:  # ∇m of each field, from `pool_mass_gradients`
+        G[0] = grad0[r]
+        for s in range(1, g.slots):
+            G[s] = g.vel[g.n_nodes + r * (g.slots - 1) + s - 1]
+    if gate != 0:
+        for a in range(g.slots):
+            for c in range(a + 1, g.slots):
+                touching = b[a] > eps_b and b[c] > eps_b
+                if normal_mode == NORMAL_MASS_GRADIENT:
+                    touching = m[a] + m[c] >= fill_mass
+                if frag[a] >= 0 and frag[c] >= 0 and m[a] > eps_m and m[c] > eps_m and touching:
+                    lo = a
+                    hi = c
+                    if frag[c] < frag[a]:
+                        lo = c
+                        hi = a
+                    nrm = contact_normal(normal_mode, latched, G[lo], G[hi], centroids[frag[lo]], centroids[frag[hi]])
+                    v0 = V[lo]
+                    v1 = V[hi]
+                    if wp.dot(v1 - v0, nrm) < 0.0:
+                        w0 = v0
+                        w1 = v1
+                        if project != 0:
+                            w0, w1 = contact_projection(v0, v1, m[lo], m[hi], nrm, restitution, friction)
+                        if record != 0:
+                            pair = -1
+                            if frag[hi] < n_fragments:
+                                pair = frag[lo] * n_fragments + frag[hi]
+                            record_contact(stats, pair_stats, pair, t, v0, v1, w0, w1, m[lo], m[hi], nrm, project)
+                        V[lo] = w0
+                        V[hi] = w1
+    for s in range(g.slots):
+        v = V[s]
+        if m[s] > eps_m:
+            v = apply_boundaries(v, node, xi, t, colliders)
+        if s == 0:
+            g.vel[n] = v
+        else:
+            g.vel[g.n_nodes + r * (g.slots - 1) + s - 1] = v
 
 
 @wp.func
