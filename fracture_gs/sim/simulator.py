@@ -112,7 +112,7 @@ class Simulator(FrameLoop):
         self._fork = StreamFork(self.device)
         self.one_gather = True  # G2P fan-out: the solo particles in the fan-out's launch (`g2p_fanout`)
         self._queries = Recorded(self.device)  # CUDA: the per-frame solo mask as recorded graphs
-        self._no_solo = torch.zeros(n, dtype=torch.int32, device=self.device)
+        self._zeros = torch.zeros(n, dtype=torch.int32, device=self.device)  # a per-particle flag that reads 0
         # The particles that are not solo (1.6 % at K = 2 on the Table 2 ficus) do 27 serial slot lookups
         # each; on a GPU their threads finished long after the dense bulk. `fanout` (CUDA default) gives
         # each of them one thread per stencil node in P2G, and a warp in G2P while they are at most
@@ -185,7 +185,7 @@ class Simulator(FrameLoop):
         self.wp["stress"] = wp.from_torch(self.stress, dtype=wp.mat33)
         self.wp["counts"] = wp.from_torch(self.counts)
         self.wp["solo"] = wp.from_torch(self.solo)
-        self.wp["no_solo"] = wp.from_torch(self._no_solo)
+        self.wp["zeros"] = wp.from_torch(self._zeros)
         self.wp["order"] = wp.from_torch(self._order)
         self.wp["first"] = wp.from_torch(self._first)
         self.wp["slot_cache"] = wp.from_torch(self._slot_cache)
@@ -411,13 +411,16 @@ class Simulator(FrameLoop):
         run = self._run_length(multi) if target is None and only_fragment < 0 and (fan or not multi) else 0
         counts = w["counts"] if counts is None else counts
         particle_arrays = [w[k] for k in ("x", "v", "C", "mass", "volume")]  # what P2G reads of each particle
-        particle_arrays += [w["stress"] if stress is None else stress, w["fragment"], w["band"]]
+        # band particles give every node they reach a pool row holding their band mass, which only the contact
+        # gate of latched normals reads: with mass-gradient normals (K > 2) their flags read 0 in P2G
+        band = w["band"] if target is not None or self.normal_mode == NORMAL_LATCHED else w["zeros"]
+        particle_arrays += [w["stress"] if stress is None else stress, w["fragment"], band]
         if run > 0:  # `run_kernels.p2g_runs` takes only the first six: its particles are on the dense path
             extra = [w["solo"], multi, run, self.clock.view, g.view, lo, hi, counts]
             dim = -(-len(self.particles) // run)
             wp.launch(p2g_runs, dim=dim, device=self.device, inputs=particle_arrays[:6] + extra)
         else:
-            extra = [w["solo"] if target is None else w["no_solo"], multi, only_fragment, int(fan), self.clock.view]
+            extra = [w["solo"] if target is None else w["zeros"], multi, only_fragment, int(fan), self.clock.view]
             extra += [g.view, lo, hi, counts]
             wp.launch(p2g, dim=len(self.particles), device=self.device, inputs=particle_arrays + extra)
         if fan:
