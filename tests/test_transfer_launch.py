@@ -32,20 +32,26 @@ def slab(seed, device, fragments=2, slots=8, n=3000, sort=None):
     return sim, topo
 
 
+def advanced_pair(setting: str, frames: int, seed, device, *slab_args):
+    """The same slab latched and advanced `frames` frames of 5 ms twice: with the simulator's `setting` off,
+    then on."""
+    sims = []
+    for on in (False, True):
+        sim, topo = slab(seed, device, *slab_args)
+        setattr(sim, setting, on)
+        sim.latch(topo)
+        for _ in range(frames):
+            sim.advance(5e-3)
+        sims.append(sim)
+    return sims
+
+
 def test_particles_that_are_not_solo_launch_first(device, seed):
     """G2P may launch the particles that are not solo first (`Simulator.slow_first`, on by default on a
     GPU, where their slot lookups then run under the dense bulk): every particle is still gathered
     exactly once, so two pieces advance bitwise as with the plain launch (G2P is per particle), and the
     next P2G still deposits every particle's mass (Σ of every slot's mass = Σ m_p)."""
-    sims = []
-    for slow_first in (False, True):
-        sim, topo = slab(seed, device)
-        sim.slow_first = slow_first
-        sim.latch(topo)
-        for _ in range(3):
-            sim.advance(5e-3)
-        sims.append(sim)
-    plain, split = sims
+    plain, split = advanced_pair("slow_first", 3, seed, device)
     solo = split.solo.bool()
     assert 0.05 < float(solo.float().mean()) < 0.95, "both launch parts are exercised"
     assert int(split._first) == int((~solo).sum())
@@ -144,15 +150,7 @@ def test_independent_launches_beside_each_other_change_nothing(device, seed, fra
     particles than the dense ones, so nothing either side writes is read by the other before the join:
     frames advance the same as with every launch in one stream, up to the order of P2G's float32 atomic
     sums (bitwise on the CPU, where the fork is a no-op)."""
-    sims = []
-    for concurrent in (False, True):
-        sim, topo = slab(seed, device, fragments, 8)
-        sim.concurrent = concurrent
-        sim.latch(topo)
-        for _ in range(4):
-            sim.advance(5e-3)
-        sims.append(sim)
-    one, two = sims
+    one, two = advanced_pair("concurrent", 4, seed, device, fragments, 8)
     assert int(two.grid.rows_used()) > 0, "the pool pass ran"
     if device.startswith("cuda"):
         assert two._fan_cap > 0 and two._fork._stream is not None, "the fan-out ran on the fork's stream"

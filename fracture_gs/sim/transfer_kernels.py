@@ -480,20 +480,38 @@ def finish_g2p(
 
 
 @wp.func
-def gather_slot0(g: GridView, base: wp.vec3i, f: wp.vec3, w: wp.mat33, dw: wp.mat33):
-    """(v, B, ∇v) = Σ over the 27 stencil nodes' slot 0 of (w v_i, w v_i (x_i − x_p)ᵀ, v_i ∇wᵀ), unrolled."""
+def gather(
+    vel: wp.array(dtype=wp.vec3),
+    off: int,
+    shape: wp.vec3i,
+    base: wp.vec3i,
+    f: wp.vec3,
+    w: wp.mat33,
+    dw: wp.mat33,
+    dx: float,
+    inv_dx: float,
+):
+    """(v, B, ∇v) = Σ over the 27 stencil nodes of (w v_i, w v_i (x_i − x_p)ᵀ, v_i ∇wᵀ), unrolled, from the
+    dense field of `shape` nodes that starts at vel[off] (slot 0 of a `GridView`; one field of the
+    differentiable solver's K dense fields)."""
     vp = wp.vec3(0.0)
     B = wp.mat33(0.0)
     gradv = wp.mat33(0.0)
     for i in range(3):
         for j in range(3):
             for l in range(3):  # noqa: E741
-                weight, grad, dpos = node_terms(i, j, l, f, w, dw, g.dx, g.inv_dx)
-                vi = g.vel[flat(wp.vec3i(base[0] + i, base[1] + j, base[2] + l), wp.vec3i(0, 0, 0), g.shape)]
+                weight, grad, dpos = node_terms(i, j, l, f, w, dw, dx, inv_dx)
+                vi = vel[off + flat(wp.vec3i(base[0] + i, base[1] + j, base[2] + l), wp.vec3i(0, 0, 0), shape)]
                 vp = vp + weight * vi
                 B = B + weight * wp.outer(vi, dpos)
                 gradv = gradv + wp.outer(vi, grad)
     return vp, B, gradv
+
+
+@wp.func
+def gather_slot0(g: GridView, base: wp.vec3i, f: wp.vec3, w: wp.mat33, dw: wp.mat33):
+    """`gather` from slot 0 of the grid's fields."""
+    return gather(g.vel, 0, g.shape, base, f, w, dw, g.dx, g.inv_dx)
 
 
 @wp.kernel

@@ -14,7 +14,7 @@ from __future__ import annotations
 import warp as wp
 
 from ..boundary import Colliders, apply_boundaries
-from ..transfer_kernels import node_terms, stencil
+from ..transfer_kernels import gather, node_terms, stencil
 
 wp.set_module_options({"enable_backward": True})
 
@@ -255,18 +255,7 @@ def g2p(
     """v = Σ w v_i; C = 4/Δx² Σ w v_i (x_i − x_p)ᵀ; F ← (I + Δt Σ v_i ∇wᵀ) F; x ← x + Δt v (own field)."""
     p = wp.tid()
     base, f, w, dw = stencil(x[p], origin, inv_dx, shape)
-    off = field[p] * shape[0] * shape[1] * shape[2]
-    vp = wp.vec3(0.0)
-    B = wp.mat33(0.0)
-    gradv = wp.mat33(0.0)
-    for i in range(3):
-        for j in range(3):
-            for l in range(3):  # noqa: E741
-                weight, grad, dpos = node_terms(i, j, l, f, w, dw, dx, inv_dx)
-                vi = grid_v[off + ((base[0] + i) * shape[1] + base[1] + j) * shape[2] + base[2] + l]
-                vp = vp + weight * vi
-                B = B + weight * wp.outer(vi, dpos)
-                gradv = gradv + wp.outer(vi, grad)
+    vp, B, gradv = gather(grid_v, field[p] * shape[0] * shape[1] * shape[2], shape, base, f, w, dw, dx, inv_dx)
     v_out[p] = vp
     C_out[p] = B * (4.0 * inv_dx * inv_dx)
     F_out[p] = (wp.identity(n=3, dtype=float) + dt * gradv) * F[p]
