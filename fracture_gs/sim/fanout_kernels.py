@@ -79,9 +79,7 @@ def p2g_fanout(
     band: wp.array(dtype=wp.int32),  # [N]
     order: wp.array(dtype=wp.int32),  # [N] the particles that are not solo first
     first: wp.array(dtype=wp.int32),  # [1] how many are not solo
-    cache: wp.array(
-        dtype=wp.int32
-    ),  # [27 × capacity] out: each deposit's buffer index, node q of rank i at q·capacity + i
+    cache: wp.array(dtype=wp.int32),  # [27 × capacity] out: the buffer index each thread deposited into
     clock: Clock,  # Δt
     g: GridView,
     counts: wp.array(dtype=wp.int32),  # [N_COUNTS] (`p2g` counted the escapes)
@@ -101,7 +99,7 @@ def p2g_fanout(
     force = -clock_dt(clock) * volume[p] * stress[p]
     in_band = band[p]
     idx, row, s = deposit_index(g, n, k, in_band, counts)
-    cache[(t - 27 * i) * (cache.shape[0] // 27) + i] = idx  # node-major, for G2P's coalesced reads
+    cache[t] = idx
     if in_band != 0 and row >= 0:
         wp.atomic_add(g.band, row * g.slots + s, weight * m)
     atomic_add_vec4(g.mp, idx, deposit(weight, grad, dpos, m, v[p], C[p], force))
@@ -116,7 +114,7 @@ def g2p_fanout(
     fragment: wp.array(dtype=wp.int32),  # [N]
     order: wp.array(dtype=wp.int32),  # [N] the particles that are not solo first
     first: wp.array(dtype=wp.int32),  # [1] how many are not solo
-    cache: wp.array(dtype=wp.int32),  # [27 × capacity] P2G's buffer indices, node-major (with `cached`)
+    cache: wp.array(dtype=wp.int32),  # [27 × capacity] P2G's buffer indices (with `cached`)
     cached: int,  # 1: this substep's P2G fanned out and filled `cache`
     coop: int,  # 1 (CUDA): the 32 lanes share the stencil; 0 (CPU): lane 0 gathers it alone
     clock: Clock,  # Δt
@@ -155,7 +153,7 @@ def g2p_fanout(
     if coop != 0:
         if lane < 27:
             weight, grad, dpos, o = node_terms_q(lane, f, g.dx, g.inv_dx)
-            vi = g.vel[node_index(g, base + o, k, cache, lane * (cache.shape[0] // 27) + i, cached)]
+            vi = g.vel[node_index(g, base + o, k, cache, 27 * i + lane, cached)]
             vp = weight * vi
             B = weight * wp.outer(vi, dpos)
             gradv = wp.outer(vi, grad)
@@ -167,7 +165,7 @@ def g2p_fanout(
     else:
         for q in range(27):
             weight, grad, dpos, o = node_terms_q(q, f, g.dx, g.inv_dx)
-            vi = g.vel[node_index(g, base + o, k, cache, q * (cache.shape[0] // 27) + i, cached)]
+            vi = g.vel[node_index(g, base + o, k, cache, 27 * i + q, cached)]
             vp = vp + weight * vi
             B = B + weight * wp.outer(vi, dpos)
             gradv = gradv + wp.outer(vi, grad)

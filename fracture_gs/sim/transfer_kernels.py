@@ -526,7 +526,7 @@ def g2p(
     first: wp.array(dtype=wp.int32),  # [1] how many are not solo
     split: int,  # 1: 2N threads, the particles that are not solo first (`launch_particle`)
     fanout: int,  # 1: the particles that are not solo are left to `fanout_kernels.g2p_fanout`
-    cache: wp.array(dtype=wp.int32),  # [27 × capacity] P2G fan-out's buffer indices: node q of rank i at q·capacity + i
+    cache: wp.array(dtype=wp.int32),  # [27 × capacity] P2G fan-out's buffer indices, by listed rank
     cached: int,  # 1 (with split): listed particles read their slots from `cache`, no lookups
     multifield: int,
     only_fragment: int,
@@ -561,8 +561,7 @@ def g2p(
     else:
         for q in range(27):  # kept as a loop: the slot lookup inlines once, not 27 times
             weight, grad, dpos, o = node_terms_q(q, f, g.dx, g.inv_dx)
-            c = q * (cache.shape[0] // 27) + t  # node-major: a warp's threads read consecutive entries
-            vi = g.vel[node_index(g, base + o, k, cache, c, wp.where(use_cache, 1, 0))]
+            vi = g.vel[node_index(g, base + o, k, cache, 27 * t + q, wp.where(use_cache, 1, 0))]
             vp = vp + weight * vi
             B = B + weight * wp.outer(vi, dpos)
             gradv = gradv + wp.outer(vi, grad)
