@@ -190,7 +190,8 @@ def build_parser() -> argparse.ArgumentParser:
         help="time the transfer branches (paper Table 2), or speed against error",
         formatter_class=fmt,
         description="Benchmark the transfer branches of the paper's Table 2: speed "
-        "and grid memory; with --accuracy, error against wall time on cases with known answers.",
+        "and grid memory, then the whole substep (stress + transfer) of the baseline and of FractureFields "
+        "after the cut; with --accuracy, error against wall time on cases with known answers.",
         epilog=_BENCH_EPILOG,
     )
     p.add_argument(

@@ -10,7 +10,9 @@ probing, diagnostics and rendering excluded. All branches run on the same latche
 trial is a median of CUDA-event intervals over ≥ 200 substeps after warm-up; each branch is built
 on fresh device memory several times (`--placements`) and trials run round-robin over all builds,
 so neither where the allocator put a branch's grid nor clock drift decides the comparison. A
-per-kernel breakdown (CUDA profiler) comes with it. On the CPU: wall-clock medians (marked as CPU).
+per-kernel breakdown (CUDA profiler) comes with it. Last, the whole substep (stress + transfer) of the
+baseline and of FractureFields after the cut, built and timed the same way, and their ratio (issue 13's
+"FractureFields ≤ 1.05× the baseline substep"). On the CPU: wall-clock medians (marked as CPU).
 """
 
 from __future__ import annotations
