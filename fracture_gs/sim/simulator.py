@@ -392,7 +392,7 @@ class Simulator(FrameLoop):
         g, w = target or self.grid, self.wp
         multi = int(self.multifield if multifield is None else multifield)
         fan = target is None and self._fans_out(multi, only_fragment)
-        side = self._beside(fan)  # the pool's reset and the fan-out beside the dense deposits
+        side = self._beside(on=fan)  # the pool's reset and the fan-out beside the dense deposits
         if target is None:
             b = self.box
             wp.launch(
@@ -433,7 +433,7 @@ class Simulator(FrameLoop):
         g, multi = self.grid, int(self.multifield)
         self.boundaries.colliders.wall_cells = int(self.cfg.wall_cells)  # the config may change between calls
         if multi:  # the nodes with a pool row, beside the dense pass (they write disjoint nodes)
-            with self._beside(True):
+            with self._beside():
                 self._update_pool()
         b = self.box
         wp.launch(
@@ -520,10 +520,10 @@ class Simulator(FrameLoop):
         run_ranges(lambda a, b: launch(a, b, self._range_counts_wp[ranges.index((a, b))]), ranges)
         self.counts += self._range_counts.sum(0, dtype=torch.int32)
 
-    def _beside(self, independent: bool):
+    def _beside(self, on: bool = True):
         """Context for launches that need nothing issued after the last join and that nothing reads before
-        the next one: on a GPU with `concurrent` they go to the fork's stream (`runtime.StreamFork`)."""
-        return self._fork if independent and self.concurrent else contextlib.nullcontext()
+        the next one: on a GPU with `concurrent` (and `on`) they go to the fork's stream (`runtime.StreamFork`)."""
+        return self._fork if on and self.concurrent else contextlib.nullcontext()
 
     # ---- frames -------------------------------------------------------------------------------
     # ---- topology -----------------------------------------------------------------------------
