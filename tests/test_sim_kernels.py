@@ -48,6 +48,29 @@ def test_stress_matches_reference(device, seed):
         assert rel_err(P.F.cpu()[sel], F_new[sel]) <= 1e-5, f"model {m} plastic F (seed {seed})"
 
 
+def test_released_band_carries_no_stress_and_keeps_its_plastic_return(device, seed):
+    """Eq. stress_release: a particle banded by an event ≤ `release` carries τ = 0 under every model, one banded
+    by a later event keeps its stress, and the plastic models still commit their return mapping into F (the
+    hyperelastic models skip τ's polar iterations there; the result is the same)."""
+    from fracture_gs.sim.constitutive import compute_stress
+
+    sim = random_state(seed, device)
+    P = sim.particles
+    band = torch.randint(0, 3, (N,), generator=torch.Generator().manual_seed(seed), dtype=torch.int32)
+    P.band.copy_(band.to(P.band.device))  # 0: not banded; 1, 2: banded by event 1 or 2
+    F0, out = P.F.clone().cpu(), torch.full_like(sim.stress, float("nan"))
+    w = sim.wp
+    arrays = [w["F"], w["material"], w["E"], w["nu"], w["yield_stress"], w["hardening"], w["alpha"], w["band"]]
+    wp.launch(compute_stress, dim=N, device=sim.device, inputs=arrays + [1, 1, wp.from_torch(out, dtype=wp.mat33)])
+    released = band == 1
+    tau, F_new, _ = ref.stress(
+        F0, P.material.cpu(), P.E.cpu(), P.nu.cpu(), P.yield_stress.cpu(), P.alpha.cpu(), band=released, release=True
+    )
+    assert torch.equal(out.cpu()[released], torch.zeros(int(released.sum()), 3, 3)), f"seed {seed}"
+    assert rel_err(out.cpu()[~released], tau[~released]) <= 1e-5, f"unreleased stress (seed {seed})"
+    assert rel_err(P.F.cpu(), F_new) <= 1e-5, f"plastic F, released ones included (seed {seed})"
+
+
 def test_p2g_grid_g2p_match_reference(device, seed):
     sim = random_state(seed, device)
     P, g, dt = sim.particles, sim.grid, 1e-3
