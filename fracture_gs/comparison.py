@@ -1,6 +1,7 @@
 """The comparison video of a render-sim run: comparison.mp4 and frames/compare_NNNN.png, the variants
 side by side at matched frames with captions and fracture insets (`ComparisonVideo`), composed on a
-thread beside the solver while the last variant runs, the rest with a pool after it.
+thread beside the solver while the last variant runs (or, side by side, once every variant has drawn
+the frame), the rest with a pool after it.
 
 Tried and dropped (2026-11-26, H200, bread paper preset): composing in a spawned process fed the panels
 through a queue. Composing is not starved of the interpreter lock (it is PNG and OpenCV work that
@@ -34,8 +35,8 @@ class ComparisonVideo:
     """comparison.mp4 and frames/compare_NNNN.png: the variants side by side at matched frames, with
     captions and, after the latch, circular insets around the latched interface projected into each
     panel. A variant that stopped early (diverged, interrupted) holds its last frame, captioned with
-    why. Frames go out in order. `start_live` composes them on the pool, `LIVE_WINDOW` at a time, while the
-    last variant still runs (frame i once that variant has rendered it; the others are finished);
+    why. Frames go out in order. `start_live` composes them on the pool, `LIVE_WINDOW` at a time, while
+    variants still run (frame i once every running variant has rendered it);
     `finish` stops it after its current frame and composes the rest with a pool of threads (numpy,
     OpenCV and the PNG encoder release the GIL), at most two per thread ahead of the encoder."""
 
@@ -91,14 +92,16 @@ class ComparisonVideo:
             with phases.section("encode"):
                 self.video.write(frame)
 
-    def start_live(self, live: list) -> None:
-        """Compose frame i as soon as `live` (the running variant's frame list) holds it."""
+    def start_live(self, *growing: list) -> None:
+        """Compose frame i as soon as every list in `growing` (the frame lists of the variants still running:
+        the last one when they run in turn, all of them side by side) holds it."""
 
         def work() -> None:
             try:
                 while not self._stop.is_set():
-                    if self._submitted < len(live) or self._pending:
-                        self._pump(len(live), LIVE_WINDOW)
+                    available = min(len(f) for f in growing)
+                    if self._submitted < available or self._pending:
+                        self._pump(available, LIVE_WINDOW)
                     else:
                         time.sleep(0.005)
             except BaseException as exc:  # noqa: BLE001 - raised by finish()

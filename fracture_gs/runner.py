@@ -31,7 +31,8 @@ from .profiling import phases
 from .render.camera import frame_camera
 from .render.gaussians import exposed_interior_colors, sh_colors
 from .render.splat import gsplat_needs_compile, render
-from .runtime import side_stream
+from .runtime import current_lane, side_stream, stream_lane
+from .side_by_side import run_side_by_side
 from .sim import SimulationDiverged
 from .sim.topology import save_history
 
@@ -228,10 +229,15 @@ class FrameSink:
         self.video = VideoWriter(video_path, fps=fps)
         self.error: Optional[BaseException] = None
         self.queue: queue.Queue = queue.Queue(maxsize=2)
+        self.lane = current_lane()  # the producer's stream lane: variants side by side draw on their own streams
         self.thread = threading.Thread(target=self._work, name="fgs-render", daemon=True)
         self.thread.start()
 
     def _work(self) -> None:
+        with stream_lane(self.lane):
+            self._drain()
+
+    def _drain(self) -> None:
         while True:
             out = self.queue.get()
             if out is None:
@@ -403,6 +409,30 @@ def _run_in_turn(cfg, gs, order, device, out_dir, painter, metrics_file, export,
     return frames, summaries, topology, interrupted, live
 
 
+def _run_side_by_side(cfg, gs, order, device, out_dir, painter, metrics_file, export, variants, stop=None):
+    """The variants at once on one device, one thread each (`fracture_gs.side_by_side`); the comparison video
+    is composed beside them from the leader's first latch. Returns what `_run_in_turn` returns."""
+    live = None
+
+    def first_latch(topology, frames) -> None:
+        nonlocal live
+        panels = [frames[v] for v in variants]
+        live = ComparisonVideo(cfg, variants, panels, topology, out_dir, ["ok"] * len(variants))
+        live.start_live(*panels)
+
+    try:
+        frames, summaries, topology, interrupted = run_side_by_side(
+            run_variant, painter, cfg, gs, order, device, out_dir, metrics_file, export, stop, first_latch
+        )
+    except BaseException:
+        if live is not None:
+            live.abort()
+        raise
+    if topology is not None:
+        save_history(out_dir / "topology.npz", topology)
+    return frames, summaries, topology, interrupted, live
+
+
 def run_render_sim(
     cfg: SceneConfig,
     variants,
@@ -413,12 +443,15 @@ def run_render_sim(
     export_ply: Optional[int] = None,
     devices: Optional[list] = None,
     stop=None,
+    side_by_side: bool = True,
 ) -> dict:
     """The main job. Returns the summary dict (also written to summary.json / summary.md); with
     `profile`, the time per phase is in summary["profile"] and profile.md; with `export_ply` = N, every
     N-th frame of every variant also goes to ply/<variant>/frame_NNNN.ply (3DGS, the scene's frame).
     A captured PLY scene is resolved first (capture.resolve): config.toml is the resolved config. With
-    `devices` (several), the variants run side by side, one per device (`fracture_gs.parallel`).
+    `devices` (several), the variants run side by side, one per device (`fracture_gs.parallel`); on one device
+    they run side by side in threads (`fracture_gs.side_by_side`), or one after the other with `side_by_side`
+    False.
     `stop`: a threading Event that interrupts the run at the next frame, like Ctrl-C (the CLI sets it
     from its SIGINT handler, so an interrupt Python drops inside a finalizer still stops the run; with
     `devices` the worker processes stop on Ctrl-C themselves and the event only marks the summary)."""
@@ -448,6 +481,10 @@ def run_render_sim(
             live = None
             if topology is not None:
                 save_history(out_dir / "topology.npz", topology)
+        elif side_by_side and len(order) > 1:
+            frames, summaries, topology, interrupted, live = _run_side_by_side(
+                cfg, gs, order, device, out_dir, painter, metrics_file, export, list(variants), stop
+            )
         else:
             frames, summaries, topology, interrupted, live = _run_in_turn(
                 cfg, gs, order, device, out_dir, painter, metrics_file, export, list(variants), stop

@@ -13,6 +13,7 @@ the differentiable path of this package, keeps Warp's defaults.
 from __future__ import annotations
 
 import contextlib
+import threading
 
 import warp as wp
 
@@ -55,18 +56,43 @@ def torch_stream(device: str):
 
 
 _side_streams: dict = {}
+_lane = threading.local()
+
+capture_lock = threading.RLock()
+"""Held while a thread records a CUDA graph (Warp's or torch's capture): captures are thread-local, but
+torch's `torch.cuda.graph` synchronizes the device before it starts, which would break a capture that
+another thread has open. Every recording in the package takes it, so two never overlap."""
+
+
+@contextlib.contextmanager
+def stream_lane(lane: int):
+    """`side_stream` calls of this thread inside the block use lane `lane`'s streams: variants simulated
+    side by side on one device, one thread each (`fracture_gs.side_by_side`), each get their own streams,
+    so one's launches and captures never land on another's stream. Lane 0 is every thread's default."""
+    before = getattr(_lane, "index", 0)
+    _lane.index = int(lane)
+    try:
+        yield
+    finally:
+        _lane.index = before
+
+
+def current_lane() -> int:
+    """This thread's stream lane (`stream_lane`); 0 unless set."""
+    return getattr(_lane, "index", 0)
 
 
 def side_stream(device: str, purpose: str = "simulate"):
-    """One non-default torch stream per CUDA device and purpose ("simulate": every simulator and
-    benchmark of the process, as CUDA graphs cannot record the legacy default stream; "render": the
-    render-sim worker that draws frames beside the solver; "record": the captures of `sim/recorded.py`).
-    Reusing them matters: torch caches a cuBLAS workspace per stream (32 MiB on Hopper), so a fresh pool
-    stream per run held memory that only came back after torch had cycled through its 32 pooled streams
-    (found by apps/soak.py)."""
+    """One non-default torch stream per CUDA device, purpose and lane ("simulate": the simulators and
+    benchmarks of the lane, as CUDA graphs cannot record the legacy default stream; "render": the
+    render-sim worker that draws frames beside the solver; "record": the captures of `sim/recorded.py`;
+    "main": a side-by-side variant's own thread). Lanes (`stream_lane`) keep variants that run side by
+    side apart. Reusing them matters: torch caches a cuBLAS workspace per stream (32 MiB on Hopper), so a
+    fresh pool stream per run held memory that only came back after torch had cycled through its 32
+    pooled streams (found by apps/soak.py)."""
     import torch
 
-    key = (str(torch.device(device)), purpose)
+    key = (str(torch.device(device)), purpose, current_lane())
     if key not in _side_streams:
         _side_streams[key] = torch.cuda.Stream(torch.device(device))
     return _side_streams[key]

@@ -172,6 +172,12 @@ def build_parser() -> argparse.ArgumentParser:
         "the first variant's fracture topology reaches the others as it latches",
     )
     p.add_argument(
+        "--in-turn",
+        action="store_true",
+        help="simulate the variants one after another (default: side by side on the one device, a thread each, "
+        "which overlaps one variant's host work with another's kernels; the results are the same)",
+    )
+    p.add_argument(
         "--export-ply",
         metavar="N",
         type=_positive_int,

@@ -31,7 +31,7 @@ import warp as wp
 
 from .. import assets
 from ..config import SceneConfig, SimConfig
-from ..runtime import ensure_warp, side_stream
+from ..runtime import capture_lock, ensure_warp, side_stream
 from ..sim import Particles, Simulator, Topology
 
 WHOLE = [  # issue 13: FractureFields' whole substep after the cut against the baseline's, the same builds
@@ -106,7 +106,7 @@ class Timer:
 
 def capture(sim: Simulator, fn):
     """A CUDA graph of `fn` (Warp launches and torch zero_ on the current, non-default stream)."""
-    with sim._stream_scope():
+    with sim._stream_scope(), capture_lock:
         with wp.ScopedCapture(device=sim.device, force_module_load=False) as cap:
             fn()
     return cap.graph

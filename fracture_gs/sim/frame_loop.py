@@ -16,7 +16,7 @@ import warp as wp
 
 from ..errors import SimulationDiverged
 from ..profiling import phases
-from ..runtime import side_stream
+from ..runtime import capture_lock, side_stream
 from .clock import tick
 from .layout import COUNT_ESCAPED, COUNT_POOL_OVERFLOW, COUNT_SLOT_OVERFLOW
 from .particles import SimulationError
@@ -76,7 +76,7 @@ class FrameLoop:
         self.grid.reset_claims()  # claims last one frame
         graphs = self.use_graphs and self.device.startswith("cuda") and self.frame > 0
         if graphs and (self._graph is None or self._graph_key() != self._graph_key_value):
-            with self._stream_scope(), phases.capturing():
+            with self._stream_scope(), capture_lock, phases.capturing():
                 with wp.ScopedCapture(
                     device=self.device, stream=wp.get_stream(self.device), force_module_load=False
                 ) as capture:

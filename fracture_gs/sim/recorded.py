@@ -6,7 +6,8 @@ tens of small launches whose host cost, not their GPU time, is what the run pays
 is seen (the most recent `keep` keys are kept), on the CPU by calling fn. The key must name everything
 the recording bakes in: buffer addresses, shapes, values chosen on the host. Inside fn nothing may read
 back to the host or copy from host memory (build constants once per device). The capture is
-thread-local (the render worker keeps allocating meanwhile) and holds off the profiler's syncs.
+thread-local (the render worker keeps allocating meanwhile), holds off the profiler's syncs and takes
+`runtime.capture_lock` (torch's capture begins with a device-wide sync).
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ from typing import Callable, Hashable
 import torch
 
 from ..profiling import phases
-from ..runtime import ensure_warp, side_stream, warp_stream
+from ..runtime import capture_lock, ensure_warp, side_stream, warp_stream
 
 
 class Recorded:
@@ -39,8 +40,9 @@ class Recorded:
             with torch.cuda.stream(stream):
                 warp_stream(self.device)  # Warp's wrapper of the capture stream, made before capturing
             graph = torch.cuda.CUDAGraph()
-            with phases.capturing(), torch.cuda.graph(graph, stream=stream, capture_error_mode="thread_local"):
-                out = fn()
+            with capture_lock, phases.capturing():
+                with torch.cuda.graph(graph, stream=stream, capture_error_mode="thread_local"):
+                    out = fn()
             hit = (graph, out)
             while len(self.graphs) >= self.keep:
                 self.graphs.pop(next(iter(self.graphs)))

@@ -1,4 +1,5 @@
-"""Topologies shared between variants that run at the same time on different devices.
+"""Topologies shared between variants that run at the same time: on different devices (`FileChannel`,
+worker processes) or side by side on one device (`MemoryChannel`, threads).
 
 The leader variant runs the event provider; after each of its frames it publishes what latched
 (`FileChannel.publish`: a file per frame, so followers in other processes see it). A follower, at
@@ -11,6 +12,7 @@ in the same state.
 from __future__ import annotations
 
 import os
+import threading
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -59,10 +61,49 @@ class FileChannel:
         return [t for f, t in sorted(self.seen.items()) if t is not None and f <= frame and t.latch_frame <= frame]
 
 
+class MemoryChannel:
+    """`FileChannel`'s contract for followers in threads of the leader's process: the frame's latched
+    Topology (on the CPU, so a follower copies it onto its own stream) kept in memory, a condition variable
+    instead of polling."""
+
+    def __init__(self, timeout: float = 3600.0):
+        self.timeout = timeout
+        self.frames: dict[int, Optional[Topology]] = {}
+        self.closed = False
+        self._changed = threading.Condition()
+
+    def publish(self, frame: int, topology: Optional[Topology]) -> None:
+        if topology is not None:
+            topology = replace(topology, fragment=topology.fragment.cpu(), band=topology.band.cpu())
+        with self._changed:
+            self.frames[frame] = topology
+            self._changed.notify_all()
+
+    def close(self) -> None:
+        with self._changed:
+            self.closed = True
+            self._changed.notify_all()
+
+    def first(self) -> Optional[Topology]:
+        """The first topology the leader latched so far (None before its first latch)."""
+        with self._changed:
+            latched = [t for _, t in sorted(self.frames.items()) if t is not None]
+        return latched[0] if latched else None
+
+    def up_to(self, frame: int) -> list[Topology]:
+        """Everything the leader latched at frames ≤ `frame`, once it has finished that frame."""
+        with self._changed:
+            if not self._changed.wait_for(lambda: frame in self.frames or self.closed, timeout=self.timeout):
+                raise TimeoutError(f"the leading variant did not reach frame {frame} within {self.timeout:.0f} s")
+            return [
+                t for f, t in sorted(self.frames.items()) if t is not None and f <= frame and t.latch_frame <= frame
+            ]
+
+
 class LeaderProvider:
     """Wraps the leader's event provider and publishes every frame's outcome."""
 
-    def __init__(self, provider, channel: FileChannel):
+    def __init__(self, provider, channel):
         self.provider, self.channel = provider, channel
 
     def __call__(self, sim) -> Optional[Topology]:
@@ -74,7 +115,7 @@ class LeaderProvider:
 class BroadcastProvider(ReplayProvider):
     """A follower: replays the leader's topologies as the leader latches them."""
 
-    def __init__(self, channel: FileChannel):
+    def __init__(self, channel):
         super().__init__([])
         self.channel = channel
 
