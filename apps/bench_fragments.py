@@ -27,6 +27,7 @@ import warp as wp
 
 from fracture_gs import assets
 from fracture_gs.config import SceneConfig, SimConfig
+from fracture_gs.runtime import warp_stream
 from fracture_gs.sim import Particles, Simulator, Topology
 from fracture_gs.sim.layout import COUNT_SLOT_OVERFLOW
 from fracture_gs.sim.providers.cuts import voronoi_labels
@@ -77,7 +78,7 @@ def time_builds(sims: list, steps: int, warmup: int, trials: int) -> list[float]
         if cuda:
             with sim._stream_scope():
                 with wp.ScopedCapture(
-                    device=sim.device, stream=wp.get_stream(sim.device), force_module_load=False
+                    device=sim.device, stream=warp_stream(sim.device), force_module_load=False
                 ) as cap:
                     sim.transfer()
             graphs.append(cap.graph)
@@ -94,7 +95,7 @@ def time_builds(sims: list, steps: int, warmup: int, trials: int) -> list[float]
                         a, b = torch.cuda.Event(enable_timing=True), torch.cuda.Event(enable_timing=True)
                         with sim._stream_scope():
                             a.record()
-                            wp.capture_launch(graph)
+                            wp.capture_launch(graph, stream=warp_stream(sim.device))
                             b.record()
                         b.synchronize()
                         ms.append(a.elapsed_time(b))

@@ -6,8 +6,12 @@ initialised and no file descriptor is touched. The first object that launches a 
 (forward-only kernels, `enable_backward=False`), so another Warp user in the same process, or
 the differentiable path of this package, keeps Warp's defaults.
 
-`torch_stream(device)` launches Warp kernels on torch's current CUDA stream (DESIGN.md,
-"Performance rules"): a kernel must never read a tensor before torch has finished writing it.
+Every launch of the package names its stream: `warp_stream(device)`, the Warp wrapper of torch's current
+CUDA stream (DESIGN.md, "Performance rules"): a kernel must never read a tensor before torch has finished
+writing it. Torch's current stream is per thread; Warp's current stream is per device, shared by every
+thread, so a launch that leaves its stream to Warp can land on another thread's stream (variants side by
+side did: a graph launched into a stream another thread was capturing). `torch_stream(device)` also sets
+Warp's current stream, for single-threaded code that leaves it implicit (the differentiable solver).
 """
 
 from __future__ import annotations
@@ -34,8 +38,8 @@ def _initialised() -> bool:
 
 
 def warp_stream(device: str):
-    """The Warp stream wrapping torch's current stream on `device` (None on the CPU), for `wp.launch(stream=)`:
-    safe from any thread (a `wp.ScopedStream` restores a per-thread stream that a worker thread lacks)."""
+    """The Warp stream wrapping torch's current stream on `device` (None on the CPU), for `wp.launch(stream=)`
+    and `wp.capture_launch(stream=)`: this thread's stream, whatever other threads launch meanwhile."""
     if not str(device).startswith("cuda"):
         return None
     import torch
@@ -144,28 +148,30 @@ def run_ranges(fn, ranges: list) -> None:
 
 class StreamFork:
     """Launches that may run beside the current stream's (CUDA; a no-op on the CPU, where one thread runs
-    every launch in order). The first `with fork:` after a join makes a second stream wait for everything
-    issued so far on the current one (the fork); launches inside go to that stream; `join()` makes the
-    current stream wait for them. Under a graph capture the two become parallel paths of the graph
-    (cudaStreamWaitEvent edges), so small kernels that do not depend on each other overlap instead of
-    each paying its launch gap and tail in turn. The stream is the fork's own (`wp.Stream`): a stream being
-    captured by one thread must not receive another thread's launches."""
+    every launch in order). The first `with fork:` after a join makes the fork's stream wait for everything
+    issued so far on the current one (the fork); inside, torch's current stream is the fork's, so launches
+    that name `warp_stream(device)` go there; `join()` makes the stream forked from wait for them. Under a
+    graph capture the two become parallel paths of the graph (event edges), so small kernels that do not
+    depend on each other overlap instead of each paying its launch gap and tail in turn. The fork's stream
+    is its thread's lane's (`side_stream(device, "fork")`): a stream being captured by one thread must not
+    receive another thread's launches."""
 
     def __init__(self, device: str):
         self.device = str(device)
-        self._stream = None
+        self._fork = None  # the fork's stream, from the first `with` after a join to the join
         self._main = None  # the stream forked from, until the join
         self._scope = None
 
     def __enter__(self) -> StreamFork:
         if not self.device.startswith("cuda"):
             return self
-        if self._stream is None:
-            self._stream = wp.Stream(self.device)
+        import torch
+
         if self._main is None:
-            self._main = wp.get_stream(self.device)
-            self._stream.wait_stream(self._main)
-        self._scope = wp.ScopedStream(self._stream, sync_enter=False)
+            self._main = torch.cuda.current_stream(self.device)
+            self._fork = side_stream(self.device, "fork")
+            self._fork.wait_stream(self._main)
+        self._scope = torch.cuda.stream(self._fork)
         self._scope.__enter__()
         return self
 
@@ -175,7 +181,7 @@ class StreamFork:
             self._scope = None
 
     def join(self) -> None:
-        """The current stream waits for every launch made inside the fork since it was opened."""
+        """The stream forked from waits for every launch made inside the fork since it was opened."""
         if self._main is not None:
-            self._main.wait_stream(self._stream)
-            self._main = None
+            self._main.wait_stream(self._fork)
+            self._main = self._fork = None

@@ -3,9 +3,12 @@ the join makes later launches wait for them, eagerly and as the parallel paths o
 kernels before the fork and beside it spin, so on a GPU a missing edge shows as a wrong sum. On the CPU the
 fork is a no-op and the same launches run in order."""
 
+import contextlib
+
+import torch
 import warp as wp
 
-from fracture_gs.runtime import StreamFork, ensure_warp
+from fracture_gs.runtime import StreamFork, ensure_warp, side_stream, warp_stream
 
 SPINS = 20000
 
@@ -34,26 +37,35 @@ def add(a: wp.array(dtype=float), b: wp.array(dtype=float), out: wp.array(dtype=
 def test_a_fork_waits_for_what_came_before_and_the_join_for_the_fork(device):
     ensure_warp()
     n = 4096
-    a, b, c, d = (wp.zeros(n, dtype=float, device=device) for _ in range(4))
+    tensors = [torch.zeros(n, device=device) for _ in range(4)]
+    a, b, c, d = (wp.from_torch(t) for t in tensors)
     fork = StreamFork(device)
+    streams = {}
+
+    def launch(kernel, inputs):
+        wp.launch(kernel, dim=n, inputs=inputs, device=device, stream=warp_stream(device))
 
     def launches():
-        wp.launch(slow_fill, dim=n, inputs=[a, 1.0, SPINS], device=device)
+        launch(slow_fill, [a, 1.0, SPINS])
         with fork:
-            wp.launch(plus_one, dim=n, inputs=[a, b], device=device)  # needs a: the fork's edge
-        wp.launch(slow_fill, dim=n, inputs=[c, 2.0, SPINS], device=device)  # beside it
+            streams["fork"] = warp_stream(device)
+            launch(plus_one, [a, b])  # needs a: the fork's edge
+        streams["main"] = warp_stream(device)
+        launch(slow_fill, [c, 2.0, SPINS])  # beside it
         fork.join()
-        wp.launch(add, dim=n, inputs=[b, c, d], device=device)  # needs b: the join's edge
+        launch(add, [b, c, d])  # needs b: the join's edge
 
-    launches()
-    assert (d.numpy() == 4.0).all()
-    if device.startswith("cuda"):
-        assert fork._stream is not None, "the launches went to the fork's own stream"
-        wp.load_module(device=device)
-        with wp.ScopedCapture(device=device, force_module_load=False) as capture:
-            launches()
-        for _ in range(3):
-            for t in (a, b, c, d):
-                t.zero_()
-            wp.capture_launch(capture.graph)
-            assert (d.numpy() == 4.0).all(), "the recorded graph keeps both edges"
+    scope = torch.cuda.stream(side_stream(device)) if device.startswith("cuda") else contextlib.nullcontext()
+    with scope:  # graphs record a non-default stream
+        launches()
+        assert (tensors[3].cpu() == 4.0).all()
+        if device.startswith("cuda"):
+            assert streams["fork"] is not streams["main"], "the launches inside went to the fork's own stream"
+            wp.load_module(device=device)
+            with wp.ScopedCapture(device=device, stream=warp_stream(device), force_module_load=False) as capture:
+                launches()
+            for _ in range(3):
+                for t in tensors:
+                    t.zero_()
+                wp.capture_launch(capture.graph, stream=warp_stream(device))
+                assert (tensors[3].cpu() == 4.0).all(), "the recorded graph keeps both edges"

@@ -31,7 +31,7 @@ import warp as wp
 
 from .. import assets
 from ..config import SceneConfig, SimConfig
-from ..runtime import capture_lock, ensure_warp, side_stream
+from ..runtime import capture_lock, ensure_warp, side_stream, warp_stream
 from ..sim import Particles, Simulator, Topology
 
 WHOLE = [  # issue 13: FractureFields' whole substep after the cut against the baseline's, the same builds
@@ -107,7 +107,7 @@ class Timer:
 def capture(sim: Simulator, fn):
     """A CUDA graph of `fn` (Warp launches and torch zero_ on the current, non-default stream)."""
     with sim._stream_scope(), capture_lock:
-        with wp.ScopedCapture(device=sim.device, force_module_load=False) as cap:
+        with wp.ScopedCapture(device=sim.device, stream=warp_stream(sim.device), force_module_load=False) as cap:
             fn()
     return cap.graph
 
@@ -282,7 +282,7 @@ def _median_step(sim: Simulator, fn, graph, steps: int) -> float:
         marks = [timer.mark()]
         for _ in range(steps):
             with sim._stream_scope():
-                wp.capture_launch(graph) if graph is not None else fn()
+                wp.capture_launch(graph, stream=warp_stream(sim.device)) if graph is not None else fn()
             marks.append(timer.mark())
         timer.sync()
     finally:

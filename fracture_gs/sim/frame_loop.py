@@ -16,7 +16,7 @@ import warp as wp
 
 from ..errors import SimulationDiverged
 from ..profiling import phases
-from ..runtime import capture_lock, side_stream
+from ..runtime import capture_lock, side_stream, warp_stream
 from .clock import tick
 from .layout import COUNT_ESCAPED, COUNT_POOL_OVERFLOW, COUNT_SLOT_OVERFLOW
 from .particles import SimulationError
@@ -43,7 +43,7 @@ class FrameLoop:
         )
         self.compute_stress(self.stress, commit=True)
         self.transfer()
-        wp.launch(tick, dim=1, device=self.device, inputs=[self.clock.view])
+        wp.launch(tick, dim=1, device=self.device, stream=warp_stream(self.device), inputs=[self.clock.view])
 
     def _graph_key(self) -> tuple:
         """Everything a recorded substep bakes in besides the clock: a change means recording again."""
@@ -78,14 +78,14 @@ class FrameLoop:
         if graphs and (self._graph is None or self._graph_key() != self._graph_key_value):
             with self._stream_scope(), capture_lock, phases.capturing():
                 with wp.ScopedCapture(
-                    device=self.device, stream=wp.get_stream(self.device), force_module_load=False
+                    device=self.device, stream=warp_stream(self.device), force_module_load=False
                 ) as capture:
                     self._substep_launches(None)
             self._graph, self._graph_key_value = capture.graph, self._graph_key()
         with self._stream_scope():
             for i in range(n):
                 if graphs:
-                    wp.capture_launch(self._graph)
+                    wp.capture_launch(self._graph, stream=warp_stream(self.device))
                 else:
                     self._substep_launches(on, i)
         for _ in range(n):

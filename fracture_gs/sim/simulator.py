@@ -17,7 +17,7 @@ import torch
 import warp as wp
 
 from ..config import MATERIALS, SimConfig
-from ..runtime import StreamFork, cpu_ranges, ensure_warp, run_ranges, torch_stream
+from ..runtime import StreamFork, cpu_ranges, ensure_warp, run_ranges, torch_stream, warp_stream
 from ..variants import VARIANTS, variant_spec
 from .boundary import Boundaries
 from .clock import FrameClock
@@ -354,6 +354,7 @@ class Simulator(FrameLoop):
                 compute_stress,
                 dim=b - a,
                 device=self.device,
+                stream=warp_stream(self.device),
                 inputs=[t[a:b] for t in arrays] + [release, int(commit), out_wp[a:b]],
             )
 
@@ -399,11 +400,14 @@ class Simulator(FrameLoop):
                 clear_dense,
                 dim=(b[3] - b[0], b[4] - b[1], b[5] - b[2]),
                 device=self.device,
+                stream=warp_stream(self.device),
                 inputs=[g.view, self._box_lo],
             )
             if multi:
                 with side:
-                    wp.launch(clear_pool, dim=g.capacity, device=self.device, inputs=[g.view])
+                    wp.launch(
+                        clear_pool, dim=g.capacity, device=self.device, stream=warp_stream(self.device), inputs=[g.view]
+                    )
             lo, hi = self._box_lo, self._box_hi
         else:
             g.clear()
@@ -418,15 +422,33 @@ class Simulator(FrameLoop):
         if run > 0:  # `run_kernels.p2g_runs` takes only the first six: its particles are on the dense path
             extra = [w["solo"], multi, run, self.clock.view, g.view, lo, hi, counts]
             dim = -(-len(self.particles) // run)
-            wp.launch(p2g_runs, dim=dim, device=self.device, inputs=particle_arrays[:6] + extra)
+            wp.launch(
+                p2g_runs,
+                dim=dim,
+                device=self.device,
+                stream=warp_stream(self.device),
+                inputs=particle_arrays[:6] + extra,
+            )
         else:
             extra = [w["solo"] if target is None else w["zeros"], multi, only_fragment, int(fan), self.clock.view]
             extra += [g.view, lo, hi, counts]
-            wp.launch(p2g, dim=len(self.particles), device=self.device, inputs=particle_arrays + extra)
+            wp.launch(
+                p2g,
+                dim=len(self.particles),
+                device=self.device,
+                stream=warp_stream(self.device),
+                inputs=particle_arrays + extra,
+            )
         if fan:
             extra = [w["order"], w["first"], w["slot_cache"], self.clock.view, g.view, counts]
             with side:
-                wp.launch(p2g_fanout, dim=27 * self._fan_cap, device=self.device, inputs=particle_arrays + extra)
+                wp.launch(
+                    p2g_fanout,
+                    dim=27 * self._fan_cap,
+                    device=self.device,
+                    stream=warp_stream(self.device),
+                    inputs=particle_arrays + extra,
+                )
             self._fork.join()
 
     def _update_grid(self) -> None:
@@ -440,6 +462,7 @@ class Simulator(FrameLoop):
             grid_update_dense,
             dim=(b[3] - b[0], b[4] - b[1], b[5] - b[2]),
             device=self.device,
+            stream=warp_stream(self.device),
             inputs=[g.view, self._box_lo, multi, self.eps_m, self.clock.view, self._gravity, self.boundaries.colliders],
         )
         self._fork.join()
@@ -454,6 +477,7 @@ class Simulator(FrameLoop):
                 pool_mass_gradients,
                 dim=g.capacity * g.slots,
                 device=self.device,
+                stream=warp_stream(self.device),
                 inputs=[g.view, self.eps_m, grad0],
             )
         gate = [multi, int(self.spec.contact), self.normal_mode, self._normal, self.wp["centroids"]]
@@ -466,7 +490,7 @@ class Simulator(FrameLoop):
         ]
         record = [int(self.record_contact), g.wp["stats"], g.wp["pair_stats"], g.max_fragments, grad0]
         inputs = [g.view, self.eps_m, self.eps_b, c.fill * self.node_mass] + gate + law + record
-        wp.launch(grid_update_pool, dim=g.capacity, device=self.device, inputs=inputs)
+        wp.launch(grid_update_pool, dim=g.capacity, device=self.device, stream=warp_stream(self.device), inputs=inputs)
 
     def _pool_gradient_buffer(self):
         """[capacity] vec3 for ∇m of each pool row's slot-0 field (`normal_kernels`), sized with the pool:
@@ -491,6 +515,7 @@ class Simulator(FrameLoop):
                 g2p,
                 dim=(b - a) * (2 if split else 1),
                 device=self.device,
+                stream=warp_stream(self.device),
                 inputs=[t[a:b] for t in arrays]
                 + [w["order"], w["first"], int(split), int(fan), w["slot_cache"], cached]
                 + [multi, only_fragment, self.clock.view, g.view, self._lower, self._upper, counts],
@@ -502,6 +527,7 @@ class Simulator(FrameLoop):
                 g2p_fanout,
                 dim=LANES * self._fan_cap + (len(self.particles) if listed else 0),
                 device=self.device,
+                stream=warp_stream(self.device),
                 inputs=arrays[:5]
                 + [w["order"], w["first"], w["slot_cache"], cached, int(self.device.startswith("cuda"))]
                 + [self.clock.view, g.view]
