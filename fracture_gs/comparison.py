@@ -1,6 +1,6 @@
 """The comparison video of a render-sim run: comparison.mp4 and frames/compare_NNNN.png, the variants
 side by side at matched frames with captions and fracture insets (`ComparisonVideo`), composed on a
-thread beside the solver while the last variant runs (or, side by side, once every variant has drawn
+thread beside the solver while the last variant runs (or, variants in threads, once every one has drawn
 the frame), the rest with a pool after it.
 
 Tried and dropped (2026-11-26, H200, bread paper preset): composing in a spawned process fed the panels
@@ -94,7 +94,7 @@ class ComparisonVideo:
 
     def start_live(self, *growing: list) -> None:
         """Compose frame i as soon as every list in `growing` (the frame lists of the variants still running:
-        the last one when they run in turn, all of them side by side) holds it."""
+        the last one when they run in turn, all of them in threads) holds it."""
 
         def work() -> None:
             try:

@@ -15,7 +15,7 @@ import sys
 import threading
 import time
 from pathlib import Path
-from typing import Optional
+from typing import Literal, Optional
 
 import numpy as np
 import torch
@@ -32,9 +32,9 @@ from .render.camera import frame_camera
 from .render.gaussians import exposed_interior_colors, sh_colors
 from .render.splat import gsplat_needs_compile, render
 from .runtime import current_lane, side_stream, stream_lane
-from .side_by_side import run_side_by_side
 from .sim import SimulationDiverged
 from .sim.topology import save_history
+from .variant_threads import run_in_threads
 
 
 class Painter:
@@ -229,7 +229,7 @@ class FrameSink:
         self.video = VideoWriter(video_path, fps=fps)
         self.error: Optional[BaseException] = None
         self.queue: queue.Queue = queue.Queue(maxsize=2)
-        self.lane = current_lane()  # the producer's stream lane: variants side by side draw on their own streams
+        self.lane = current_lane()  # the producer's stream lane: variant threads draw on their own streams
         self.thread = threading.Thread(target=self._work, name="fgs-render", daemon=True)
         self.thread.start()
 
@@ -409,8 +409,8 @@ def _run_in_turn(cfg, gs, order, device, out_dir, painter, metrics_file, export,
     return frames, summaries, topology, interrupted, live
 
 
-def _run_side_by_side(cfg, gs, order, device, out_dir, painter, metrics_file, export, variants, stop=None):
-    """The variants at once on one device, one thread each (`fracture_gs.side_by_side`); the comparison video
+def _run_in_threads(cfg, gs, order, device, out_dir, painter, metrics_file, export, variants, stop=None):
+    """The variants at once on one device, a thread each (`fracture_gs.variant_threads`); the comparison video
     is composed beside them from the leader's first latch. Returns what `_run_in_turn` returns."""
     live = None
 
@@ -421,7 +421,7 @@ def _run_side_by_side(cfg, gs, order, device, out_dir, painter, metrics_file, ex
         live.start_live(*panels)
 
     try:
-        frames, summaries, topology, interrupted = run_side_by_side(
+        frames, summaries, topology, interrupted = run_in_threads(
             run_variant, painter, cfg, gs, order, device, out_dir, metrics_file, export, stop, first_latch
         )
     except BaseException:
@@ -431,6 +431,12 @@ def _run_side_by_side(cfg, gs, order, device, out_dir, painter, metrics_file, ex
     if topology is not None:
         save_history(out_dir / "topology.npz", topology)
     return frames, summaries, topology, interrupted, live
+
+
+def _threads(schedule: str, device: str) -> bool:
+    if schedule not in ("auto", "in_turn", "threads"):
+        raise ValueError(f"schedule must be 'auto', 'in_turn' or 'threads', got {schedule!r}")
+    return schedule == "threads" or (schedule == "auto" and not device.startswith("cuda"))
 
 
 def run_render_sim(
@@ -443,15 +449,16 @@ def run_render_sim(
     export_ply: Optional[int] = None,
     devices: Optional[list] = None,
     stop=None,
-    side_by_side: bool = True,
+    schedule: Literal["auto", "in_turn", "threads"] = "auto",
 ) -> dict:
     """The main job. Returns the summary dict (also written to summary.json / summary.md); with
     `profile`, the time per phase is in summary["profile"] and profile.md; with `export_ply` = N, every
     N-th frame of every variant also goes to ply/<variant>/frame_NNNN.ply (3DGS, the scene's frame).
     A captured PLY scene is resolved first (capture.resolve): config.toml is the resolved config. With
-    `devices` (several), the variants run side by side, one per device (`fracture_gs.parallel`); on one device
-    they run side by side in threads (`fracture_gs.side_by_side`), or one after the other with `side_by_side`
-    False.
+    `devices` (several), the variants run side by side, one per device (`fracture_gs.parallel`). On one device
+    `schedule` says how: "in_turn", one after the other; "threads", at once, a thread each
+    (`fracture_gs.variant_threads`); "auto", threads on the CPU and in turn on CUDA (where threads were
+    not faster). The outputs are the same either way.
     `stop`: a threading Event that interrupts the run at the next frame, like Ctrl-C (the CLI sets it
     from its SIGINT handler, so an interrupt Python drops inside a finalizer still stops the run; with
     `devices` the worker processes stop on Ctrl-C themselves and the event only marks the summary)."""
@@ -481,8 +488,8 @@ def run_render_sim(
             live = None
             if topology is not None:
                 save_history(out_dir / "topology.npz", topology)
-        elif side_by_side and len(order) > 1:
-            frames, summaries, topology, interrupted, live = _run_side_by_side(
+        elif _threads(schedule, device) and len(order) > 1:
+            frames, summaries, topology, interrupted, live = _run_in_threads(
                 cfg, gs, order, device, out_dir, painter, metrics_file, export, list(variants), stop
             )
         else:

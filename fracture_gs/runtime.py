@@ -71,7 +71,7 @@ another thread has open. Every recording in the package takes it, so two never o
 @contextlib.contextmanager
 def stream_lane(lane: int):
     """`side_stream` calls of this thread inside the block use lane `lane`'s streams: variants simulated
-    side by side on one device, one thread each (`fracture_gs.side_by_side`), each get their own streams,
+    at once on one device, a thread each (`fracture_gs.variant_threads`), each get their own streams,
     so one's launches and captures never land on another's stream. Lane 0 is every thread's default."""
     before = getattr(_lane, "index", 0)
     _lane.index = int(lane)
@@ -90,8 +90,8 @@ def side_stream(device: str, purpose: str = "simulate"):
     """One non-default torch stream per CUDA device, purpose and lane ("simulate": the simulators and
     benchmarks of the lane, as CUDA graphs cannot record the legacy default stream; "render": the
     render-sim worker that draws frames beside the solver; "record": the captures of `sim/recorded.py`;
-    "main": a side-by-side variant's own thread). Lanes (`stream_lane`) keep variants that run side by
-    side apart. Reusing them matters: torch caches a cuBLAS workspace per stream (32 MiB on Hopper), so a
+    "main": a variant thread's own; "fork": `StreamFork`). Lanes (`stream_lane`) keep variants that run at
+    once apart. Reusing them matters: torch caches a cuBLAS workspace per stream (32 MiB on Hopper), so a
     fresh pool stream per run held memory that only came back after torch had cycled through its 32
     pooled streams (found by apps/soak.py)."""
     import torch
@@ -161,6 +161,7 @@ class StreamFork:
         self._fork = None  # the fork's stream, from the first `with` after a join to the join
         self._main = None  # the stream forked from, until the join
         self._scope = None
+        self.forks = 0  # forks opened so far (CUDA): tests check that launches went beside
 
     def __enter__(self) -> StreamFork:
         if not self.device.startswith("cuda"):
@@ -171,6 +172,7 @@ class StreamFork:
             self._main = torch.cuda.current_stream(self.device)
             self._fork = side_stream(self.device, "fork")
             self._fork.wait_stream(self._main)
+            self.forks += 1
         self._scope = torch.cuda.stream(self._fork)
         self._scope.__enter__()
         return self

@@ -1,7 +1,7 @@
 """No output lost (issue 18, item 9): a variant that is interrupted or diverges gets a status row in
 summary.json and summary.md ("interrupted at frame N", "diverged at frame N: cause"), holds its last
 frame in comparison.mp4 with a caption saying why, and the CLI's last line states the cause. The variants
-run in turn here (a later variant is "not run"); tests/test_side_by_side.py interrupts them side by side."""
+run in turn here (a later variant is "not run"); tests/test_variant_threads.py interrupts them in threads."""
 
 import json
 import os
@@ -38,7 +38,7 @@ def test_interrupt_keeps_a_row_per_variant_and_the_held_frame(tmp_path, monkeypa
 
     monkeypatch.setattr(runner, "simulate", interrupted_second_variant)
     with pytest.raises(KeyboardInterrupt):
-        runner.run_render_sim(cfg, ["full", "local_multifield"], "cpu", tmp_path, side_by_side=False)
+        runner.run_render_sim(cfg, ["full", "local_multifield"], "cpu", tmp_path, schedule="in_turn")
     summary = json.loads((tmp_path / "summary.json").read_text())
     status = {v["variant"]: v["status"] for v in summary["variants"]}
     assert status == {"full": "ok", "local_multifield": "interrupted at frame 1"}
@@ -63,7 +63,7 @@ def test_three_variants_interrupted_in_the_second(tmp_path, monkeypatch):
 
     monkeypatch.setattr(runner, "simulate", stop)
     with pytest.raises(KeyboardInterrupt):
-        runner.run_render_sim(cfg, ["full", "local_multifield", "stress_zero"], "cpu", tmp_path, side_by_side=False)
+        runner.run_render_sim(cfg, ["full", "local_multifield", "stress_zero"], "cpu", tmp_path, schedule="in_turn")
     rows = json.loads((tmp_path / "summary.json").read_text())["variants"]
     assert [r["status"] for r in rows] == ["ok", "interrupted at frame 0", "not run (interrupted before it)"]
 

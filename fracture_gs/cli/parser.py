@@ -172,10 +172,12 @@ def build_parser() -> argparse.ArgumentParser:
         "the first variant's fracture topology reaches the others as it latches",
     )
     p.add_argument(
-        "--in-turn",
-        action="store_true",
-        help="simulate the variants one after another (default: side by side on the one device, a thread each, "
-        "which overlaps one variant's host work with another's kernels; the results are the same)",
+        "--schedule",
+        choices=("auto", "in-turn", "threads"),
+        default="auto",
+        help="on one device: simulate the variants one after another (in-turn) or at once, a thread each (threads: "
+        "one's host work overlaps another's kernels; 4%% faster on 2 CPU cores, not faster on a GPU, whose frames "
+        "are Python-bound); auto: threads on the CPU, in turn on CUDA. The outputs are the same",
     )
     p.add_argument(
         "--export-ply",

@@ -1,5 +1,5 @@
 """Topologies shared between variants that run at the same time: on different devices (`FileChannel`,
-worker processes) or side by side on one device (`MemoryChannel`, threads).
+worker processes) or at once on one device (`MemoryChannel`, threads).
 
 The leader variant runs the event provider; after each of its frames it publishes what latched
 (`FileChannel.publish`: a file per frame, so followers in other processes see it). A follower, at

@@ -1,16 +1,20 @@
-"""The variants of one render-sim run side by side on one device: one thread per variant.
+"""The variants of one render-sim run at once on one device, a thread each (`--schedule threads`).
 
 A variant's frame is mostly waiting: for its recorded substeps on the GPU, for the frame's one host
 read, for the renderer. Run in turn, the device idles while the host prepares a frame and the host
-idles while the device simulates it. Side by side, one variant's host work overlaps another's kernels
+idles while the device simulates it. In threads, one variant's host work can overlap another's kernels
 (Warp's launches and graph replays, torch's kernels and every device read release the interpreter
-lock; on the CPU Warp's kernels do too, one core each).
+lock; on the CPU Warp's kernels do too, one core each) — as long as the interpreter lock is not the
+bottleneck itself. Measured (BENCHMARKS.md, 2026-11-26): the README's CPU main job 23.0 → 22.0 s on 2
+cores; the bread paper preset on an H200 4.18–4.69 s in turn against 4.27–4.86 s in threads (its frames
+are Python-bound: the threads only contend for the lock). Hence `--schedule auto`: threads on the CPU,
+in turn on CUDA.
 
 The contract of the sequential run holds: the first variant with an event provider leads, and what it
 latches reaches the others as it happens through a `MemoryChannel` (a follower at the end of its frame
 f waits for the leader's frame f, as with `--devices`), so every variant uses the leader's topology at
 the same frames as a replay of its saved history. On the CPU the per-frame metrics are bitwise those
-of the run in turn (tests/test_side_by_side.py).
+of the run in turn (tests/test_variant_threads.py).
 
 Each thread has its own stream lane (`runtime.stream_lane`): its own simulate, render, record and main
 streams, so two variants never share a stream or record into one another's graph; recordings take
@@ -50,7 +54,7 @@ class _Lines:
 
 
 def _variant_scope(device: str, lane: int):
-    """This thread's lane, and on CUDA its own non-default stream (no thread of a side-by-side run touches
+    """This thread's lane, and on CUDA its own non-default stream (no variant thread touches
     the legacy default stream, which would wait on, and break, another thread's graph capture)."""
     stack = contextlib.ExitStack()
     stack.enter_context(stream_lane(lane))
@@ -60,7 +64,7 @@ def _variant_scope(device: str, lane: int):
     return stack
 
 
-def run_side_by_side(
+def run_in_threads(
     run_variant: Callable,
     painter,
     cfg,
