@@ -132,12 +132,8 @@ def compute_stress(
     """Plastic return (models 2, 3), then τ; band particles get (1 − γ_p)τ after the latch (γ_p = the
     1-based index of the event that banded the particle; released up to event `release`)."""
     p = wp.tid()
-    model = material[p]
-    released = band[p] != 0 and band[p] <= release
-    if released and model < 2:  # no plastic state to update: skip the stretched F's polar iterations
-        stress[p] = wp.mat33(0.0)
-        return
     Fp = F[p]
+    model = material[p]
     mu = E[p] / (2.0 * (1.0 + nu[p]))
     lam = E[p] * nu[p] / ((1.0 + nu[p]) * (1.0 - 2.0 * nu[p]))
     tau = wp.mat33(0.0)
@@ -156,6 +152,6 @@ def compute_stress(
         tau = hencky_kirchhoff(U, eps, mu, lam)
     else:
         tau = kirchhoff_stress(Fp, model, mu, lam)
-    if released:  # the plastic models still commit their return mapping above
+    if band[p] != 0 and band[p] <= release:
         tau = wp.mat33(0.0)
     stress[p] = tau
