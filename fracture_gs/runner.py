@@ -433,10 +433,10 @@ def _run_in_threads(cfg, gs, order, device, out_dir, painter, metrics_file, expo
     return frames, summaries, topology, interrupted, live
 
 
-def _threads(schedule: str, device: str) -> bool:
-    if schedule not in ("auto", "in_turn", "threads"):
-        raise ValueError(f"schedule must be 'auto', 'in_turn' or 'threads', got {schedule!r}")
-    return schedule == "threads" or (schedule == "auto" and not device.startswith("cuda"))
+def _threads(schedule: str) -> bool:
+    if schedule not in ("in_turn", "threads"):
+        raise ValueError(f"schedule must be 'in_turn' or 'threads', got {schedule!r}")
+    return schedule == "threads"
 
 
 def run_render_sim(
@@ -449,7 +449,7 @@ def run_render_sim(
     export_ply: Optional[int] = None,
     devices: Optional[list] = None,
     stop=None,
-    schedule: Literal["auto", "in_turn", "threads"] = "auto",
+    schedule: Literal["in_turn", "threads"] = "in_turn",
 ) -> dict:
     """The main job. Returns the summary dict (also written to summary.json / summary.md); with
     `profile`, the time per phase is in summary["profile"] and profile.md; with `export_ply` = N, every
@@ -457,8 +457,7 @@ def run_render_sim(
     A captured PLY scene is resolved first (capture.resolve): config.toml is the resolved config. With
     `devices` (several), the variants run side by side, one per device (`fracture_gs.parallel`). On one device
     `schedule` says how: "in_turn", one after the other; "threads", at once, a thread each
-    (`fracture_gs.variant_threads`); "auto", threads on the CPU and in turn on CUDA (where threads were
-    not faster). The outputs are the same either way.
+    (`fracture_gs.variant_threads`: the same outputs, metrics.jsonl's rows interleaved).
     `stop`: a threading Event that interrupts the run at the next frame, like Ctrl-C (the CLI sets it
     from its SIGINT handler, so an interrupt Python drops inside a finalizer still stops the run; with
     `devices` the worker processes stop on Ctrl-C themselves and the event only marks the summary)."""
@@ -488,7 +487,7 @@ def run_render_sim(
             live = None
             if topology is not None:
                 save_history(out_dir / "topology.npz", topology)
-        elif _threads(schedule, device) and len(order) > 1:
+        elif _threads(schedule) and len(order) > 1:
             frames, summaries, topology, interrupted, live = _run_in_threads(
                 cfg, gs, order, device, out_dir, painter, metrics_file, export, list(variants), stop
             )

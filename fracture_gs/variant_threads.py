@@ -7,8 +7,7 @@ idles while the device simulates it. In threads, one variant's host work can ove
 lock; on the CPU Warp's kernels do too, one core each) — as long as the interpreter lock is not the
 bottleneck itself. Measured (BENCHMARKS.md, 2026-11-26): the README's CPU main job 23.0 → 22.0 s on 2
 cores; the bread paper preset on an H200 4.18–4.69 s in turn against 4.27–4.86 s in threads (its frames
-are Python-bound: the threads only contend for the lock). Hence `--schedule auto`: threads on the CPU,
-in turn on CUDA.
+are Python-bound: the threads only contend for the lock). Hence in turn stays the default.
 
 The contract of the sequential run holds: the first variant with an event provider leads, and what it
 latches reaches the others as it happens through a `MemoryChannel` (a follower at the end of its frame

@@ -173,11 +173,11 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--schedule",
-        choices=("auto", "in-turn", "threads"),
-        default="auto",
+        choices=("in-turn", "threads"),
+        default="in-turn",
         help="on one device: simulate the variants one after another (in-turn) or at once, a thread each (threads: "
-        "one's host work overlaps another's kernels; 4%% faster on 2 CPU cores, not faster on a GPU, whose frames "
-        "are Python-bound); auto: threads on the CPU, in turn on CUDA. The outputs are the same",
+        "one's host work overlaps another's kernels: 4%% faster on 2 CPU cores, not faster on a GPU, whose frames "
+        "are Python-bound). The outputs are the same; with threads metrics.jsonl's rows interleave",
     )
     p.add_argument(
         "--export-ply",

@@ -86,7 +86,7 @@ def cmd_render_sim(args: argparse.Namespace) -> int:
     extra = {"export_ply": args.export_ply} if getattr(args, "export_ply", None) else {}
     if devices and len(devices) > 1:
         extra["devices"] = devices
-    if getattr(args, "schedule", "auto") != "auto":
+    if getattr(args, "schedule", "in-turn") != "in-turn":
         extra["schedule"] = args.schedule.replace("-", "_")
     with sigint_event() as stop:
         summary = run(cfg, list(cfg.variants), device, out_dir, profile=args.profile, stop=stop, **extra) or {}

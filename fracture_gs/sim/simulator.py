@@ -350,13 +350,7 @@ class Simulator(FrameLoop):
         release = self.topology.release_events if self.release else 0
 
         def launch(a: int, b: int) -> None:
-            wp.launch(
-                compute_stress,
-                dim=b - a,
-                device=self.device,
-                stream=warp_stream(self.device),
-                inputs=[t[a:b] for t in arrays] + [release, int(commit), out_wp[a:b]],
-            )
+            self._launch(compute_stress, b - a, [t[a:b] for t in arrays] + [release, int(commit), out_wp[a:b]])
 
         n = len(self.particles)
         if self.device == "cpu":
@@ -396,18 +390,10 @@ class Simulator(FrameLoop):
         side = self._beside(on=fan)  # the pool's reset and the fan-out beside the dense deposits
         if target is None:
             b = self.box
-            wp.launch(
-                clear_dense,
-                dim=(b[3] - b[0], b[4] - b[1], b[5] - b[2]),
-                device=self.device,
-                stream=warp_stream(self.device),
-                inputs=[g.view, self._box_lo],
-            )
+            self._launch(clear_dense, (b[3] - b[0], b[4] - b[1], b[5] - b[2]), [g.view, self._box_lo])
             if multi:
                 with side:
-                    wp.launch(
-                        clear_pool, dim=g.capacity, device=self.device, stream=warp_stream(self.device), inputs=[g.view]
-                    )
+                    self._launch(clear_pool, g.capacity, [g.view])
             lo, hi = self._box_lo, self._box_hi
         else:
             g.clear()
@@ -422,33 +408,15 @@ class Simulator(FrameLoop):
         if run > 0:  # `run_kernels.p2g_runs` takes only the first six: its particles are on the dense path
             extra = [w["solo"], multi, run, self.clock.view, g.view, lo, hi, counts]
             dim = -(-len(self.particles) // run)
-            wp.launch(
-                p2g_runs,
-                dim=dim,
-                device=self.device,
-                stream=warp_stream(self.device),
-                inputs=particle_arrays[:6] + extra,
-            )
+            self._launch(p2g_runs, dim, particle_arrays[:6] + extra)
         else:
             extra = [w["solo"] if target is None else w["zeros"], multi, only_fragment, int(fan), self.clock.view]
             extra += [g.view, lo, hi, counts]
-            wp.launch(
-                p2g,
-                dim=len(self.particles),
-                device=self.device,
-                stream=warp_stream(self.device),
-                inputs=particle_arrays + extra,
-            )
+            self._launch(p2g, len(self.particles), particle_arrays + extra)
         if fan:
             extra = [w["order"], w["first"], w["slot_cache"], self.clock.view, g.view, counts]
             with side:
-                wp.launch(
-                    p2g_fanout,
-                    dim=27 * self._fan_cap,
-                    device=self.device,
-                    stream=warp_stream(self.device),
-                    inputs=particle_arrays + extra,
-                )
+                self._launch(p2g_fanout, 27 * self._fan_cap, particle_arrays + extra)
             self._fork.join()
 
     def _update_grid(self) -> None:
@@ -458,13 +426,8 @@ class Simulator(FrameLoop):
             with self._beside():
                 self._update_pool()
         b = self.box
-        wp.launch(
-            grid_update_dense,
-            dim=(b[3] - b[0], b[4] - b[1], b[5] - b[2]),
-            device=self.device,
-            stream=warp_stream(self.device),
-            inputs=[g.view, self._box_lo, multi, self.eps_m, self.clock.view, self._gravity, self.boundaries.colliders],
-        )
+        dense = [g.view, self._box_lo, multi, self.eps_m, self.clock.view, self._gravity, self.boundaries.colliders]
+        self._launch(grid_update_dense, (b[3] - b[0], b[4] - b[1], b[5] - b[2]), dense)
         self._fork.join()
 
     def _update_pool(self) -> None:
@@ -473,13 +436,7 @@ class Simulator(FrameLoop):
         c = self.cfg.contact
         grad0 = self._pool_gradient_buffer()
         if self.normal_mode == NORMAL_MASS_GRADIENT:
-            wp.launch(
-                pool_mass_gradients,
-                dim=g.capacity * g.slots,
-                device=self.device,
-                stream=warp_stream(self.device),
-                inputs=[g.view, self.eps_m, grad0],
-            )
+            self._launch(pool_mass_gradients, g.capacity * g.slots, [g.view, self.eps_m, grad0])
         gate = [multi, int(self.spec.contact), self.normal_mode, self._normal, self.wp["centroids"]]
         law = [
             float(self.cfg.restitution),
@@ -490,7 +447,7 @@ class Simulator(FrameLoop):
         ]
         record = [int(self.record_contact), g.wp["stats"], g.wp["pair_stats"], g.max_fragments, grad0]
         inputs = [g.view, self.eps_m, self.eps_b, c.fill * self.node_mass] + gate + law + record
-        wp.launch(grid_update_pool, dim=g.capacity, device=self.device, stream=warp_stream(self.device), inputs=inputs)
+        self._launch(grid_update_pool, g.capacity, inputs)
 
     def _pool_gradient_buffer(self):
         """[capacity] vec3 for ∇m of each pool row's slot-0 field (`normal_kernels`), sized with the pool:
@@ -511,24 +468,20 @@ class Simulator(FrameLoop):
         cached = int(self._fans_out(multi, only_fragment))  # this substep's P2G filled the slot cache
 
         def launch(a: int, b: int, counts) -> None:
-            wp.launch(
+            self._launch(
                 g2p,
-                dim=(b - a) * (2 if split else 1),
-                device=self.device,
-                stream=warp_stream(self.device),
-                inputs=[t[a:b] for t in arrays]
+                (b - a) * (2 if split else 1),
+                [t[a:b] for t in arrays]
                 + [w["order"], w["first"], int(split), int(fan), w["slot_cache"], cached]
                 + [multi, only_fragment, self.clock.view, g.view, self._lower, self._upper, counts],
             )
 
         if fan:  # with `one_gather` the solo particles too, in the same launch behind the listed ones
             listed = LANES * self._fan_cap if self.one_gather else 0
-            wp.launch(
+            self._launch(
                 g2p_fanout,
-                dim=LANES * self._fan_cap + (len(self.particles) if listed else 0),
-                device=self.device,
-                stream=warp_stream(self.device),
-                inputs=arrays[:5]
+                LANES * self._fan_cap + (len(self.particles) if listed else 0),
+                arrays[:5]
                 + [w["order"], w["first"], w["slot_cache"], cached, int(self.device.startswith("cuda"))]
                 + [self.clock.view, g.view]
                 + [self._lower, self._upper, w["counts"], w["solo"], listed],
@@ -545,6 +498,10 @@ class Simulator(FrameLoop):
         self._range_counts.zero_()
         run_ranges(lambda a, b: launch(a, b, self._range_counts_wp[ranges.index((a, b))]), ranges)
         self.counts += self._range_counts.sum(0, dtype=torch.int32)
+
+    def _launch(self, kernel, dim, inputs: list) -> None:
+        """A kernel on this simulator's device, on this thread's torch stream (`runtime.warp_stream`)."""
+        wp.launch(kernel, dim=dim, inputs=inputs, device=self.device, stream=warp_stream(self.device))
 
     def _beside(self, on: bool = True):
         """Context for launches that need nothing issued after the last join and that nothing reads before
