@@ -8,35 +8,20 @@ import json
 import numpy as np
 import pytest
 import torch
+from runutil import metrics_rows, tiny_bread
 
 from fracture_gs import cli, runner
-from fracture_gs.io.config import load_config
 from fracture_gs.sim.providers.broadcast import FileChannel
 from fracture_gs.sim.topology import Topology, load_history
 
 pytestmark = pytest.mark.usefixtures("one_thread")
 
 
-def tiny():
-    cfg = load_config("bread")
-    cfg.particles, cfg.frames, cfg.render.width, cfg.render.height = 2500, 14, 64, 48
-    cfg.render.backend = "torch"
-    return cfg
-
-
-def rows(path):
-    out = {}
-    for line in (path / "metrics.jsonl").read_text().splitlines():
-        r = json.loads(line)
-        out.setdefault(r.pop("variant"), []).append(r)
-    return out
-
-
 def test_two_workers_match_the_sequential_run(tmp_path):
     variants = ["stress_zero", "full", "baseline"]
-    runner.run_render_sim(tiny(), variants, "cpu", tmp_path / "seq")
-    runner.run_render_sim(tiny(), variants, "cpu", tmp_path / "par", devices=["cpu", "cpu"])
-    a, b = rows(tmp_path / "seq"), rows(tmp_path / "par")
+    runner.run_render_sim(tiny_bread(), variants, "cpu", tmp_path / "seq")
+    runner.run_render_sim(tiny_bread(), variants, "cpu", tmp_path / "par", devices=["cpu", "cpu"])
+    a, b = metrics_rows(tmp_path / "seq"), metrics_rows(tmp_path / "par")
     assert set(a) == set(b) == set(variants)
     latched = [r for r in a["full"] if r.get("latched")]
     assert latched, "the stress event latched in this run"
@@ -97,7 +82,7 @@ def test_a_failing_worker_is_reported_with_its_error(tmp_path):
     from fracture_gs import assets
     from fracture_gs.parallel import WorkerFailed, run_on_devices
 
-    cfg = tiny()
+    cfg = tiny_bread()
     gs = assets.build("bread", size="small", n=300)
     with pytest.raises(WorkerFailed, match=r"the worker on cpu failed: ValueError: boom in stress_zero") as err:
         run_on_devices(
@@ -119,7 +104,7 @@ def test_a_failing_worker_is_reported_with_its_error(tmp_path):
 def test_a_run_that_never_latches_on_two_workers(tmp_path):
     """Too few frames for the stress event to latch: both workers finish, no topology.npz is written (as in
     the sequential run) and every variant is ok (an empty history once crashed the topology writer)."""
-    cfg = tiny()
+    cfg = tiny_bread()
     cfg.frames = 2
     summary = runner.run_render_sim(cfg, ["full", "baseline"], "cpu", tmp_path / "par", devices=["cpu", "cpu"])
     assert [v["status"] for v in summary["variants"]] == ["ok", "ok"]
@@ -147,7 +132,7 @@ def test_a_worker_process_that_dies_is_named(tmp_path):
     gs = assets.build("bread", size="small", n=300)
     with pytest.raises(WorkerFailed, match=r"worker process fgs-cpu-1 exited with code 3 before reporting"):
         run_on_devices(
-            crash_the_follower, runner.Painter, tiny(), gs, None, ["stress_zero", "full"], ["cpu", "cpu"],
+            crash_the_follower, runner.Painter, tiny_bread(), gs, None, ["stress_zero", "full"], ["cpu", "cpu"],
             tmp_path, io.StringIO(), None,
         )  # fmt: skip
 
@@ -157,7 +142,7 @@ def test_each_variant_paints_with_its_own_exposed_interior_colours():
     the previous variant's colours (two render threads never share them) and shares the scene's tensors."""
     from fracture_gs.pipeline import prepare_scene
 
-    scene = prepare_scene(tiny(), "cpu")
+    scene = prepare_scene(tiny_bread(), "cpu")
     painter = runner.Painter(scene.gaussians, scene.cfg, "cpu")
     painter.exposed_rgb, painter.exposed_count = torch.ones(3, 3), 3  # left by a previous variant
     fresh = painter.for_variant()
@@ -172,7 +157,7 @@ def test_frame_sink_draws_what_the_painter_draws(device, tmp_path):
     recycled memory would draw something else)."""
     from fracture_gs.pipeline import FrameOutput, prepare_scene
 
-    scene = prepare_scene(tiny(), device)
+    scene = prepare_scene(tiny_bread(), device)
     gs = scene.gaussians
     painter = runner.Painter(gs, scene.cfg, device)
     n = len(gs)
@@ -206,7 +191,7 @@ def test_painter_draws_the_same_with_and_without_the_topology_version(device):
     interior, exactly as one that recomputes them every frame (version unknown)."""
     from fracture_gs.pipeline import FrameOutput, make_simulator, prepare_scene, simulate
 
-    cfg = tiny()
+    cfg = tiny_bread()
     scene = prepare_scene(cfg, device)
     painter = runner.Painter(scene.gaussians, scene.cfg, device)
     known, unknown = painter.for_variant(), painter.for_variant()

@@ -12,9 +12,9 @@ import time
 import numpy as np
 import pytest
 import torch
+from runutil import metrics_rows, tiny_bread
 
 from fracture_gs import pipeline, runner
-from fracture_gs.io.config import load_config
 from fracture_gs.io.video import read_video
 from fracture_gs.runtime import current_lane, stream_lane
 from fracture_gs.sim.providers.broadcast import MemoryChannel
@@ -23,27 +23,11 @@ from fracture_gs.sim.topology import Topology, load_history
 pytestmark = pytest.mark.usefixtures("one_thread")
 
 
-def tiny(frames=14):
-    cfg = load_config("bread")
-    cfg.particles, cfg.frames, cfg.render.width, cfg.render.height = 2500, frames, 64, 48
-    cfg.render.backend = "torch"
-    return cfg
-
-
-def rows(path):
-    out = {}
-    for line in (path / "metrics.jsonl").read_text().splitlines():
-        r = json.loads(line)
-        r.pop("wall", None)
-        out.setdefault(r.pop("variant"), []).append(r)
-    return out
-
-
 def test_threads_equal_the_run_in_turn(tmp_path):
     variants = ["stress_zero", "full", "baseline"]
-    runner.run_render_sim(tiny(), variants, "cpu", tmp_path / "turn", schedule="in_turn")
-    runner.run_render_sim(tiny(), variants, "cpu", tmp_path / "side", schedule="threads")
-    a, b = rows(tmp_path / "turn"), rows(tmp_path / "side")
+    runner.run_render_sim(tiny_bread(), variants, "cpu", tmp_path / "turn", schedule="in_turn")
+    runner.run_render_sim(tiny_bread(), variants, "cpu", tmp_path / "side", schedule="threads")
+    a, b = metrics_rows(tmp_path / "turn"), metrics_rows(tmp_path / "side")
     assert set(a) == set(b) == set(variants)
     assert any(r.get("latched") for r in a["full"]), "the stress event latched in this run"
     for v in variants:
@@ -94,7 +78,7 @@ def test_memory_channel_waits_for_the_leader_and_stops_when_it_closes():
 def test_an_interrupted_variant_stops_the_others_at_their_next_frame(tmp_path, monkeypatch):
     """Ctrl-C inside one variant's frame: that variant and the ones beside it stop at their next frame, each
     with an "interrupted at frame N" row; the run raises KeyboardInterrupt with its outputs kept."""
-    cfg = tiny(20)
+    cfg = tiny_bread(20)
     real = pipeline.simulate
 
     def interrupt_full(sim, cov0, frames, frame_dt):
@@ -119,7 +103,7 @@ def test_an_interrupted_variant_stops_the_others_at_their_next_frame(tmp_path, m
 def test_an_error_in_one_variant_is_raised_and_stops_the_others(tmp_path, monkeypatch):
     """An exception inside one variant's thread reaches the caller as itself (type and message), after the
     other variants have stopped at their next frame."""
-    cfg = tiny(30)
+    cfg = tiny_bread(30)
     real = pipeline.simulate
     seen = {}
 
@@ -139,7 +123,7 @@ def test_an_error_in_one_variant_is_raised_and_stops_the_others(tmp_path, monkey
 def test_a_run_that_never_latches_in_threads(tmp_path):
     """Too few frames to latch: no live composing starts (it waits for the first latch), the comparison is
     composed after the run, no topology.npz is written, and every variant is ok."""
-    summary = runner.run_render_sim(tiny(2), ["full", "baseline"], "cpu", tmp_path, schedule="threads")
+    summary = runner.run_render_sim(tiny_bread(2), ["full", "baseline"], "cpu", tmp_path, schedule="threads")
     assert [v["status"] for v in summary["variants"]] == ["ok", "ok"]
     assert not (tmp_path / "topology.npz").exists()
     assert read_video(tmp_path / "comparison.mp4")[0] == 3
