@@ -21,3 +21,22 @@ def metrics_rows(out_dir) -> dict:
         r.pop("wall", None)
         out.setdefault(r.pop("variant"), []).append(r)
     return out
+
+
+def assert_same_run(a_dir, b_dir, variants) -> None:
+    """Two runs of one scene agree: every variant's per-frame metrics, and the latched topology history (frames,
+    fragment and band labels), exactly; the stress event latched in them."""
+    import torch
+
+    from fracture_gs.sim.topology import load_history
+
+    a, b = metrics_rows(a_dir), metrics_rows(b_dir)
+    assert set(a) == set(b) == set(variants)
+    assert any(r.get("latched") for r in a["full"]), "the stress event latched in this run"
+    for v in variants:
+        assert a[v] == b[v], v
+    ha, hb = load_history(a_dir / "topology.npz"), load_history(b_dir / "topology.npz")
+    assert len(ha) == len(hb) >= 1
+    for ta, tb in zip(ha, hb):
+        assert ta.latch_frame == tb.latch_frame
+        assert torch.equal(ta.fragment, tb.fragment) and torch.equal(ta.band, tb.band)

@@ -8,11 +8,11 @@ import json
 import numpy as np
 import pytest
 import torch
-from runutil import metrics_rows, tiny_bread
+from runutil import assert_same_run, tiny_bread
 
 from fracture_gs import cli, runner
 from fracture_gs.sim.providers.broadcast import FileChannel
-from fracture_gs.sim.topology import Topology, load_history
+from fracture_gs.sim.topology import Topology
 
 pytestmark = pytest.mark.usefixtures("one_thread")
 
@@ -21,19 +21,7 @@ def test_two_workers_match_the_sequential_run(tmp_path):
     variants = ["stress_zero", "full", "baseline"]
     runner.run_render_sim(tiny_bread(), variants, "cpu", tmp_path / "seq")
     runner.run_render_sim(tiny_bread(), variants, "cpu", tmp_path / "par", devices=["cpu", "cpu"])
-    a, b = metrics_rows(tmp_path / "seq"), metrics_rows(tmp_path / "par")
-    assert set(a) == set(b) == set(variants)
-    latched = [r for r in a["full"] if r.get("latched")]
-    assert latched, "the stress event latched in this run"
-    for v in variants:
-        for ra, rb in zip(a[v], b[v]):
-            ra.pop("wall", None), rb.pop("wall", None)
-        assert a[v] == b[v], v
-    ha, hb = load_history(tmp_path / "seq" / "topology.npz"), load_history(tmp_path / "par" / "topology.npz")
-    assert len(ha) == len(hb) >= 1
-    for ta, tb in zip(ha, hb):
-        assert ta.latch_frame == tb.latch_frame
-        assert torch.equal(ta.fragment, tb.fragment) and torch.equal(ta.band, tb.band)
+    assert_same_run(tmp_path / "seq", tmp_path / "par", variants)
     assert (tmp_path / "par" / "comparison.mp4").exists()
     s = json.loads((tmp_path / "par" / "summary.json").read_text())
     assert [v["status"] for v in s["variants"]] == ["ok"] * 3

@@ -12,13 +12,13 @@ import time
 import numpy as np
 import pytest
 import torch
-from runutil import metrics_rows, tiny_bread
+from runutil import assert_same_run, tiny_bread
 
 from fracture_gs import pipeline, runner
 from fracture_gs.io.video import read_video
 from fracture_gs.runtime import current_lane, stream_lane
 from fracture_gs.sim.providers.broadcast import MemoryChannel
-from fracture_gs.sim.topology import Topology, load_history
+from fracture_gs.sim.topology import Topology
 
 pytestmark = pytest.mark.usefixtures("one_thread")
 
@@ -27,16 +27,7 @@ def test_threads_equal_the_run_in_turn(tmp_path):
     variants = ["stress_zero", "full", "baseline"]
     runner.run_render_sim(tiny_bread(), variants, "cpu", tmp_path / "turn", schedule="in_turn")
     runner.run_render_sim(tiny_bread(), variants, "cpu", tmp_path / "side", schedule="threads")
-    a, b = metrics_rows(tmp_path / "turn"), metrics_rows(tmp_path / "side")
-    assert set(a) == set(b) == set(variants)
-    assert any(r.get("latched") for r in a["full"]), "the stress event latched in this run"
-    for v in variants:
-        assert a[v] == b[v], v
-    ha, hb = load_history(tmp_path / "turn" / "topology.npz"), load_history(tmp_path / "side" / "topology.npz")
-    assert len(ha) == len(hb) >= 1
-    for ta, tb in zip(ha, hb):
-        assert ta.latch_frame == tb.latch_frame
-        assert torch.equal(ta.fragment, tb.fragment) and torch.equal(ta.band, tb.band)
+    assert_same_run(tmp_path / "turn", tmp_path / "side", variants)
     names = sorted(p.name for p in (tmp_path / "turn" / "frames").glob("compare_*.png"))
     assert len(names) == 15 and names == sorted(p.name for p in (tmp_path / "side" / "frames").glob("compare_*.png"))
     for n in names:  # composed live from the leader's first latch on: the same pictures, insets included
