@@ -10,10 +10,9 @@ probing, diagnostics and rendering excluded. All branches run on the same latche
 trial is a median of CUDA-event intervals over ≥ 200 substeps after warm-up; each branch is built
 on fresh device memory several times (`--placements`) and trials run round-robin over all builds,
 so neither where the allocator put a branch's grid nor clock drift decides the comparison. A
-per-kernel breakdown (CUDA profiler) comes with it. Last, the whole substep (stress + transfer, as a frame
-runs it: the stress computed by the previous substep's G2P) of the baseline and of FractureFields after the
-cut, built and timed the same way, and their ratio (issue 13's "FractureFields ≤ 1.05× the baseline
-substep"). On the CPU: wall-clock medians (marked as CPU).
+per-kernel breakdown (CUDA profiler) comes with it. Last, the whole substep (stress + transfer) of the
+baseline and of FractureFields after the cut, built and timed the same way, and their ratio (issue 13's
+"FractureFields ≤ 1.05× the baseline substep"). On the CPU: wall-clock medians (marked as CPU).
 """
 
 from __future__ import annotations
@@ -225,7 +224,7 @@ def time_branches(
                     torch.empty(int(torch.randint(1, 64, (), generator=rng)) << 20, dtype=torch.uint8, device=device)
                 )
             sim = make_sim(cfg, P, topo, variant, device, sort)
-            fn = frame_substep(sim) if whole else sim.transfer
+            fn = (lambda s=sim: (s.compute_stress(s.stress, commit=True), s.transfer())) if whole else sim.transfer
             for _ in range(warmup):
                 with sim._stream_scope():
                     fn()
@@ -270,18 +269,6 @@ def time_branches(
     for r in rows:
         r["relative"] = r["median_ms"] / base
     return rows
-
-
-def frame_substep(sim: Simulator):
-    """One substep as a frame runs it, not the frame's last: with `Simulator.stress_in_g2p` (the default) the
-    transfer, whose G2P computes the next substep's stress, the frame's own stress pass once at its start
-    (not timed here: 1/n of a stress pass per substep for n substeps a frame); otherwise the stress pass and
-    the transfer."""
-    if not sim.stress_in_g2p:
-        return lambda: (sim.compute_stress(sim.stress, commit=True), sim.transfer())
-    sim._set_clock(sim.cfg.dt, [sim.time, sim.time + sim.cfg.dt])  # substep 0 of 2 on every replay (no tick)
-    sim._fusing = True
-    return sim.transfer
 
 
 def _median_step(sim: Simulator, fn, graph, steps: int) -> float:
@@ -398,8 +385,7 @@ def markdown(result: dict) -> str:
         base, ff = result["whole"]
         lines += [
             "",
-            "Whole substep (stress + transfer) after the cut, as a frame runs it (the stress from the previous "
-            f"substep's G2P), set up as Table 2, the same {result['placements']} "
+            f"Whole substep (stress + transfer) after the cut, set up as Table 2, the same {result['placements']} "
             f"build(s) × {result['trials']} trial(s): baseline {base['median_ms']:.4f} ms "
             f"({base['min_ms']:.4f}–{base['max_ms']:.4f}), FractureFields {ff['median_ms']:.4f} ms "
             f"({ff['min_ms']:.4f}–{ff['max_ms']:.4f}), **{ff['relative']:.2f}×** the baseline.",
