@@ -59,9 +59,9 @@ def test_released_band_carries_no_stress_and_keeps_its_plastic_return(device, se
     band = torch.randint(0, 3, (N,), generator=torch.Generator().manual_seed(seed), dtype=torch.int32)
     P.band.copy_(band.to(P.band.device))  # 0: not banded; 1, 2: banded by event 1 or 2
     F0, out = P.F.clone().cpu(), torch.full_like(sim.stress, float("nan"))
-    inputs = sim.stress_inputs(out=wp.from_torch(out, dtype=wp.mat33))
-    inputs.release = 1
-    wp.launch(compute_stress, dim=N, device=sim.device, inputs=[sim.wp["F"], inputs, 1])
+    w = sim.wp
+    arrays = [w["F"], w["material"], w["E"], w["nu"], w["yield_stress"], w["hardening"], w["alpha"], w["band"]]
+    wp.launch(compute_stress, dim=N, device=sim.device, inputs=arrays + [1, 1, wp.from_torch(out, dtype=wp.mat33)])
     released = band == 1
     tau, F_new, _ = ref.stress(
         F0, P.material.cpu(), P.E.cpu(), P.nu.cpu(), P.yield_stress.cpu(), P.alpha.cpu(), band=released, release=True

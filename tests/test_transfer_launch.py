@@ -12,21 +12,13 @@ from fracture_gs.sim.providers.cuts import voronoi_labels
 from fracture_gs.sim.providers.voronoi import voronoi_sites
 
 
-def slab(seed, device, fragments=2, slots=8, n=3000, sort=None, mixed=False):
+def slab(seed, device, fragments=2, slots=8, n=3000, sort=None):
     """A slab at rest under gravity, long in x, cut in two across it (or into Voronoi pieces): particles
     far from the cuts are solo, the rest take the slot path. `sort`: `Simulator.sort_particles`' mode,
-    applied before the cut is labelled. `mixed`: every particle a random model of the four, with a yield
-    stress low enough that the plastic ones yield and harden."""
+    applied before the cut is labelled."""
     g = torch.Generator().manual_seed(seed)
     x = torch.tensor([0.1, 0.35, 0.35]) + torch.tensor([0.8, 0.3, 0.3]) * torch.rand(n, 3, generator=g)
-    kw = {}
-    if mixed:
-        kw = {
-            "material": torch.randint(0, 4, (n,), generator=g, dtype=torch.int32),
-            "yield_stress": 2.0,
-            "hardening": 0.5,
-        }
-    P = S.Particles(x=x, mass=0.5 + torch.rand(n, generator=g), volume=torch.full((n,), 1e-5), E=1e4, nu=0.3, **kw)
+    P = S.Particles(x=x, mass=0.5 + torch.rand(n, generator=g), volume=torch.full((n,), 1e-5), E=1e4, nu=0.3)
     cfg = config(32, variant="full", gravity=(0.0, 0.0, -9.8), dt=1e-3, field_slots=slots)
     sim = S.Simulator(cfg, P, device=device)
     if sort is not None:
@@ -168,34 +160,3 @@ def test_independent_launches_beside_each_other_change_nothing(device, seed, fra
             assert torch.equal(a, b), name
         else:
             assert rel_err(b, a) <= 1e-5, f"{name} (seed {seed})"
-
-
-@pytest.mark.parametrize("fragments", [2, 6])
-def test_stress_computed_in_g2p_changes_nothing(device, seed, fragments):
-    """In a frame each substep's G2P but the last computes the next substep's stress from the F it has just
-    written (`Simulator.stress_in_g2p`), so the stress pass runs once per frame: the same function on the
-    same float32 F as the pass it replaces. Frames advance bitwise the same on the CPU, plastic returns,
-    hardening and the band's released stress included (on a GPU up to P2G's float32 atomics)."""
-    sims = []
-    for on in (False, True):
-        sim, topo = slab(seed, device, fragments, 8, mixed=True)
-        sim.stress_in_g2p = on
-        P = sim.particles
-        P.v[:, 0] = 2.0 * (P.x[:, 0] - 0.5)  # stretched along x: the plastic particles yield
-        sim.latch(topo)
-        y0 = P.yield_stress.clone()
-        for _ in range(3):
-            sim.advance(5e-3)
-        sims.append(sim)
-    off, on = sims
-    assert on.substeps >= 2 * on.frame, "several substeps a frame: G2P computed stresses"
-    assert bool((on.particles.yield_stress > y0).any()), "von Mises particles yielded and hardened"
-    assert on.topology.release_events >= 1 and bool((on.particles.band != 0).any()), "a released band"
-    for name in ("x", "v", "C", "F", "yield_stress"):
-        a, b = getattr(off.particles, name).cpu(), getattr(on.particles, name).cpu()
-        if device == "cpu":
-            assert torch.equal(a, b), name
-        elif name != "C":
-            assert rel_err(b, a) <= 1e-5, f"{name} (seed {seed})"
-    if device == "cpu":
-        assert torch.equal(off.stress.cpu(), on.stress.cpu()), "the stress the last substep used"

@@ -23,7 +23,6 @@ class Clock:
     dt: wp.array(dtype=float)  # [1] substep Δt [s]
     times: wp.array(dtype=float)  # [n] time at the start of substep i of the frame [s]
     step: wp.array(dtype=wp.int32)  # [1] index of the running substep
-    steps: wp.array(dtype=wp.int32)  # [1] substeps in the frame
     region_on: wp.array(dtype=wp.int32)  # [n · R] timed region r active in substep i
     region_value: wp.array(dtype=wp.vec3)  # [n · R] its velocity change (impulse) or velocity (override)
     regions: int  # R
@@ -37,12 +36,6 @@ def clock_dt(c: Clock):
 @wp.func
 def clock_time(c: Clock):
     return c.times[c.step[0]]
-
-
-@wp.func
-def clock_last(c: Clock):
-    """The running substep is the frame's last."""
-    return c.step[0] + 1 >= c.steps[0]
 
 
 @wp.kernel
@@ -60,7 +53,6 @@ class FrameClock:
         self.capacity = 0
         self.dt = torch.zeros(1, dtype=torch.float32, device=device)
         self.step = torch.zeros(1, dtype=torch.int32, device=device)
-        self.steps = torch.ones(1, dtype=torch.int32, device=device)
         self._grow(64)
 
     def _grow(self, n: int) -> None:
@@ -72,7 +64,6 @@ class FrameClock:
         v.dt = wp.from_torch(self.dt)
         v.times = wp.from_torch(self.times)
         v.step = wp.from_torch(self.step)
-        v.steps = wp.from_torch(self.steps)
         v.region_on = wp.from_torch(self.on)
         v.region_value = wp.from_torch(self.value, dtype=wp.vec3)
         v.regions = self.regions
@@ -87,7 +78,6 @@ class FrameClock:
             self._grow(max(n, 2 * self.capacity))
         self.dt.fill_(dt)
         self.step.zero_()
-        self.steps.fill_(n)
         self.times[:n].copy_(torch.tensor(times, dtype=torch.float32), non_blocking=True)
         if self.regions and on is not None:
             self.on[: n * self.regions].copy_(torch.tensor(on, dtype=torch.int32).reshape(-1), non_blocking=True)

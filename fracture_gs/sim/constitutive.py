@@ -115,59 +115,43 @@ def kirchhoff_stress(F: wp.mat33, model: int, mu: float, lam: float):
     return hencky_kirchhoff(U, hencky_strain(sigma), mu, lam)
 
 
-@wp.struct
-class StressInputs:
-    """Everything τ(F) reads per particle besides F, and where it goes (`Simulator.stress_inputs`)."""
-
-    material: wp.array(dtype=wp.int32)  # [N] MATERIAL_IDS
-    E: wp.array(dtype=float)  # [N]
-    nu: wp.array(dtype=float)  # [N]
-    yield_stress: wp.array(dtype=float)  # [N] von Mises τ_Y (grows with hardening)
-    hardening: wp.array(dtype=float)  # [N]
-    alpha: wp.array(dtype=float)  # [N] Drucker–Prager cone slope
-    band: wp.array(dtype=wp.int32)  # [N] γ_p
-    release: int  # band stress release (Eq. stress_release) for particles banded by events 1 … release (0: off)
-    stress: wp.array(dtype=wp.mat33)  # [N] out: Kirchhoff stress used by P2G
-
-
-@wp.func
-def particle_stress(p: int, Fp: wp.mat33, s: StressInputs, commit: int):
-    """Plastic return (models 2, 3), then τ into s.stress[p]; band particles get (1 − γ_p)τ after the latch
-    (γ_p = the 1-based index of the event that banded the particle; released up to event `release`).
-    Returns F after the return mapping (F itself for the hyperelastic models); with `commit`, hardening
-    grows τ_Y. The caller stores F (`compute_stress`, or G2P when it computes the next substep's stress)."""
-    model = s.material[p]
-    mu = s.E[p] / (2.0 * (1.0 + s.nu[p]))
-    lam = s.E[p] * s.nu[p] / ((1.0 + s.nu[p]) * (1.0 - 2.0 * s.nu[p]))
+@wp.kernel
+def compute_stress(
+    F: wp.array(dtype=wp.mat33),  # [N] deformation gradient (plastic return written back)
+    material: wp.array(dtype=wp.int32),  # [N] MATERIAL_IDS
+    E: wp.array(dtype=float),  # [N]
+    nu: wp.array(dtype=float),  # [N]
+    yield_stress: wp.array(dtype=float),  # [N] von Mises τ_Y (grows with hardening)
+    hardening: wp.array(dtype=float),  # [N]
+    alpha: wp.array(dtype=float),  # [N] Drucker–Prager cone slope
+    band: wp.array(dtype=wp.int32),  # [N] γ_p
+    release: int,  # band stress release (Eq. stress_release) for particles banded by events 1 … release (0: off)
+    commit: int,  # 1: write the plastic projection back into F (0 for shadow diagnostics)
+    stress: wp.array(dtype=wp.mat33),  # [N] out: Kirchhoff stress used by P2G
+):
+    """Plastic return (models 2, 3), then τ; band particles get (1 − γ_p)τ after the latch (γ_p = the
+    1-based index of the event that banded the particle; released up to event `release`)."""
+    p = wp.tid()
+    Fp = F[p]
+    model = material[p]
+    mu = E[p] / (2.0 * (1.0 + nu[p]))
+    lam = E[p] * nu[p] / ((1.0 + nu[p]) * (1.0 - 2.0 * nu[p]))
     tau = wp.mat33(0.0)
-    Fr = Fp
     if model >= 2:
         U, sigma, V = svd3_refined(Fp)
         eps = hencky_strain(sigma)
         if model == 2:
-            eps, dgamma = von_mises_return(eps, mu, s.yield_stress[p])
+            eps, dgamma = von_mises_return(eps, mu, yield_stress[p])
             if commit != 0 and dgamma > 0.0:
-                s.yield_stress[p] = s.yield_stress[p] + s.hardening[p] * 2.0 * mu * dgamma
+                yield_stress[p] = yield_stress[p] + hardening[p] * 2.0 * mu * dgamma
         else:
-            eps = drucker_prager_return(eps, mu, lam, s.alpha[p])
-        Fr = U * wp.diag(wp.vec3(wp.exp(eps[0]), wp.exp(eps[1]), wp.exp(eps[2]))) * wp.transpose(V)
+            eps = drucker_prager_return(eps, mu, lam, alpha[p])
+        Fp = U * wp.diag(wp.vec3(wp.exp(eps[0]), wp.exp(eps[1]), wp.exp(eps[2]))) * wp.transpose(V)
+        if commit != 0:
+            F[p] = Fp
         tau = hencky_kirchhoff(U, eps, mu, lam)
     else:
         tau = kirchhoff_stress(Fp, model, mu, lam)
-    if s.band[p] != 0 and s.band[p] <= s.release:
+    if band[p] != 0 and band[p] <= release:
         tau = wp.mat33(0.0)
-    s.stress[p] = tau
-    return Fr
-
-
-@wp.kernel
-def compute_stress(
-    F: wp.array(dtype=wp.mat33),  # [N] deformation gradient (plastic return written back with `commit`)
-    s: StressInputs,
-    commit: int,  # 1: write the plastic projection back into F (0 for shadow diagnostics)
-):
-    """τ of every particle from its F (`particle_stress`)."""
-    p = wp.tid()
-    Fr = particle_stress(p, F[p], s, commit)
-    if commit != 0 and s.material[p] >= 2:
-        F[p] = Fr
+    stress[p] = tau

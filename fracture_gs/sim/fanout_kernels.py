@@ -20,7 +20,6 @@ from __future__ import annotations
 import warp as wp
 
 from .clock import Clock, clock_dt
-from .constitutive import StressInputs
 from .layout import GridView, flat
 from .transfer_kernels import (
     atomic_add_vec4,
@@ -125,8 +124,6 @@ def g2p_fanout(
     counts: wp.array(dtype=wp.int32),
     solo: wp.array(dtype=wp.int32),  # [N] (with `listed` > 0)
     listed: int,  # > 0: threads from `listed` on gather the solo particle t − listed from slot 0 (0: none)
-    s: StressInputs,  # with `fuse`: the next substep's stress (`transfer_kernels.finish_g2p`)
-    fuse: int,
 ):
     """Gather the (t div 32)-th listed particle from its own field, lane t mod 32 taking node lane < 27;
     with `listed` (= 32 × capacity) the same launch then gathers the solo particles, one thread each, so
@@ -139,7 +136,7 @@ def g2p_fanout(
             return
         base, f, w, dw = stencil(x[p], g.origin, g.inv_dx, g.shape)
         vp, B, gradv = gather_slot0(g, base, f, w, dw)
-        finish_g2p(p, vp, B, gradv, clock_dt(clock), g.inv_dx, x, v, C, F, lower, upper, counts, s, fuse, clock)
+        finish_g2p(p, vp, B, gradv, clock_dt(clock), g.inv_dx, x, v, C, F, lower, upper, counts)
         return
     i = t // LANES
     lane = t - LANES * i
@@ -172,4 +169,4 @@ def g2p_fanout(
             vp = vp + weight * vi
             B = B + weight * wp.outer(vi, dpos)
             gradv = gradv + wp.outer(vi, grad)
-    finish_g2p(p, vp, B, gradv, clock_dt(clock), g.inv_dx, x, v, C, F, lower, upper, counts, s, fuse, clock)
+    finish_g2p(p, vp, B, gradv, clock_dt(clock), g.inv_dx, x, v, C, F, lower, upper, counts)

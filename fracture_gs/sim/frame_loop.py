@@ -35,15 +35,13 @@ class FrameLoop:
     def _substep_launches(self, on: Optional[list], step: int = 0) -> None:
         """Every launch of one substep, the clock's tick last. `on`: the frame's region flags (only the
         regions active in substep `step` are launched), or None to launch them all (graph capture:
-        each checks the clock's table itself). In a frame with `stress_in_g2p` the stress comes from the
-        frame's start or the previous substep's G2P instead of its own pass."""
+        each checks the clock's table itself)."""
         R = len(self.boundaries.regions)
         active = None if on is None else on[step * R : (step + 1) * R]
         self.boundaries.apply_regions(
             self.wp["x"], self.wp["v"], len(self.particles), self.clock.view, self.device, active
         )
-        if not self._fusing:
-            self.compute_stress(self.stress, commit=True)
+        self.compute_stress(self.stress, commit=True)
         self.transfer()
         wp.launch(tick, dim=1, device=self.device, stream=warp_stream(self.device), inputs=[self.clock.view])
 
@@ -65,13 +63,11 @@ class FrameLoop:
             self._fan_cap,
             self._run_length(int(self.multifield)),
             self.concurrent,
-            self._fusing,
         )
 
     def _frame_substeps_run(self, n: int, dt: float, start: float) -> None:
         """The frame's n substeps: on CUDA one recorded substep (a CUDA graph on the simulator's own
-        stream) replayed n times, recorded again when something it bakes in changed; else launches.
-        With `stress_in_g2p` the frame's first stress is computed here, before them."""
+        stream) replayed n times, recorded again when something it bakes in changed; else launches."""
         times, t = [], start
         for _ in range(n):
             times.append(t)
@@ -79,25 +75,19 @@ class FrameLoop:
         on = self._set_clock(dt, times)
         self.grid.reset_claims()  # claims last one frame
         graphs = self.use_graphs and self.device.startswith("cuda") and self.frame > 0
-        self._fusing = self.stress_in_g2p
-        try:
-            if graphs and (self._graph is None or self._graph_key() != self._graph_key_value):
-                with self._stream_scope(), capture_lock, phases.capturing():
-                    with wp.ScopedCapture(
-                        device=self.device, stream=warp_stream(self.device), force_module_load=False
-                    ) as capture:
-                        self._substep_launches(None)
-                self._graph, self._graph_key_value = capture.graph, self._graph_key()
-            with self._stream_scope():
-                if self._fusing:
-                    self.compute_stress(self.stress, commit=True)
-                for i in range(n):
-                    if graphs:
-                        wp.capture_launch(self._graph, stream=warp_stream(self.device))
-                    else:
-                        self._substep_launches(on, i)
-        finally:
-            self._fusing = False
+        if graphs and (self._graph is None or self._graph_key() != self._graph_key_value):
+            with self._stream_scope(), capture_lock, phases.capturing():
+                with wp.ScopedCapture(
+                    device=self.device, stream=warp_stream(self.device), force_module_load=False
+                ) as capture:
+                    self._substep_launches(None)
+            self._graph, self._graph_key_value = capture.graph, self._graph_key()
+        with self._stream_scope():
+            for i in range(n):
+                if graphs:
+                    wp.capture_launch(self._graph, stream=warp_stream(self.device))
+                else:
+                    self._substep_launches(on, i)
         for _ in range(n):
             self.time += dt
             self.substeps += 1

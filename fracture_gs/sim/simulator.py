@@ -21,7 +21,7 @@ from ..runtime import StreamFork, cpu_ranges, ensure_warp, run_ranges, torch_str
 from ..variants import VARIANTS, variant_spec
 from .boundary import Boundaries
 from .clock import FrameClock
-from .constitutive import StressInputs, compute_stress, lame
+from .constitutive import compute_stress, lame
 from .contact import NORMAL_LATCHED, NORMAL_MASS_GRADIENT
 from .fanout_kernels import LANES, g2p_fanout, p2g_fanout
 from .frame_loop import FrameLoop
@@ -111,10 +111,6 @@ class Simulator(FrameLoop):
         self.concurrent = True  # CUDA: P2G's and the grid update's independent launches on two streams (`_beside`)
         self._fork = StreamFork(self.device)
         self.one_gather = True  # G2P fan-out: the solo particles in the fan-out's launch (`g2p_fanout`)
-        # In a frame, each substep's G2P but the last computes the next substep's stress from the F it has just
-        # updated (`transfer_kernels.finish_g2p`), so the stress pass runs once per frame, at its start
-        self.stress_in_g2p = True
-        self._fusing = False  # G2P computes the next stress now (set by the frame loop)
         self._queries = Recorded(self.device)  # CUDA: the per-frame solo mask as recorded graphs
         self._zeros = torch.zeros(n, dtype=torch.int32, device=self.device)  # a per-particle flag that reads 0
         # The particles that are not solo (1.6 % at K = 2 on the Table 2 ficus) do 27 serial slot lookups
@@ -350,27 +346,17 @@ class Simulator(FrameLoop):
         kernel: on the CPU it runs as one launch per core's share of the particles (bitwise the same)."""
         w = self.wp
         out_wp = w["stress"] if out is self.stress else wp.from_torch(out, dtype=wp.mat33)
+        arrays = [w["F"], w["material"], w["E"], w["nu"], w["yield_stress"], w["hardening"], w["alpha"], w["band"]]
+        release = self.topology.release_events if self.release else 0
 
         def launch(a: int, b: int) -> None:
-            self._launch(compute_stress, b - a, [w["F"][a:b], self.stress_inputs(a, b, out_wp), int(commit)])
+            self._launch(compute_stress, b - a, [t[a:b] for t in arrays] + [release, int(commit), out_wp[a:b]])
 
         n = len(self.particles)
         if self.device == "cpu":
             run_ranges(launch, self._ranges if self._ranges is not None else [(0, n)])
         else:
             launch(0, n)
-
-    def stress_inputs(self, a: int = 0, b: Optional[int] = None, out=None) -> StressInputs:
-        """What τ(F) reads of particles a … b − 1 and where it writes (`out`, default the stress buffer), with
-        this topology's band release."""
-        w, b = self.wp, len(self.particles) if b is None else b
-        s = StressInputs()
-        s.material, s.E, s.nu = w["material"][a:b], w["E"][a:b], w["nu"][a:b]
-        s.yield_stress, s.hardening, s.alpha = w["yield_stress"][a:b], w["hardening"][a:b], w["alpha"][a:b]
-        s.band = w["band"][a:b]
-        s.release = self.topology.release_events if self.release else 0
-        s.stress = (w["stress"] if out is None else out)[a:b]
-        return s
 
     def _grid_pass(self, only_fragment: int) -> None:
         """Grid reset, P2G, grid update, G2P over all particles or one fragment's (Δt from the clock)."""
@@ -480,7 +466,6 @@ class Simulator(FrameLoop):
         fan = self._fans_out(multi, only_fragment, gather=True)
         split = self._split(multi) and not fan
         cached = int(self._fans_out(multi, only_fragment))  # this substep's P2G filled the slot cache
-        fuse = int(self._fusing)
 
         def launch(a: int, b: int, counts) -> None:
             self._launch(
@@ -488,8 +473,7 @@ class Simulator(FrameLoop):
                 (b - a) * (2 if split else 1),
                 [t[a:b] for t in arrays]
                 + [w["order"], w["first"], int(split), int(fan), w["slot_cache"], cached]
-                + [multi, only_fragment, self.clock.view, g.view, self._lower, self._upper, counts]
-                + [self.stress_inputs(a, b), fuse],
+                + [multi, only_fragment, self.clock.view, g.view, self._lower, self._upper, counts],
             )
 
         if fan:  # with `one_gather` the solo particles too, in the same launch behind the listed ones
@@ -500,8 +484,7 @@ class Simulator(FrameLoop):
                 arrays[:5]
                 + [w["order"], w["first"], w["slot_cache"], cached, int(self.device.startswith("cuda"))]
                 + [self.clock.view, g.view]
-                + [self._lower, self._upper, w["counts"], w["solo"], listed]
-                + [self.stress_inputs(), fuse],
+                + [self._lower, self._upper, w["counts"], w["solo"], listed],
             )
             if listed:
                 return

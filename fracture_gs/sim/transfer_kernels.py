@@ -14,8 +14,7 @@ from __future__ import annotations
 import warp as wp
 
 from .boundary import Colliders, apply_boundaries
-from .clock import Clock, clock_dt, clock_last, clock_time
-from .constitutive import StressInputs, particle_stress
+from .clock import Clock, clock_dt, clock_time
 from .contact import NORMAL_MASS_GRADIENT, contact_normal, contact_projection, record_contact
 from .layout import (
     COUNT_CLAMPED,
@@ -466,20 +465,11 @@ def finish_g2p(
     lower: wp.vec3,
     upper: wp.vec3,
     counts: wp.array(dtype=wp.int32),
-    s: StressInputs,
-    fuse: int,
-    clock: Clock,
 ):
-    """Write particle p's gathered v, C = 4/Δx² B, F ← (I + Δt ∇v) F and x ← x + Δt v (clamped, counted).
-    With `fuse`, unless this is the frame's last substep, also the next substep's stress τ(F) and plastic
-    return (`constitutive.particle_stress`, the same operations as `compute_stress` on the stored F):
-    the separate stress pass then runs once per frame instead of once per substep."""
+    """Write particle p's gathered v, C = 4/Δx² B, F ← (I + Δt ∇v) F and x ← x + Δt v (clamped, counted)."""
     v[p] = vp
     C[p] = B * (4.0 * inv_dx * inv_dx)
-    Fn = (wp.identity(n=3, dtype=float) + dt * gradv) * F[p]
-    if fuse != 0 and not clock_last(clock):
-        Fn = particle_stress(p, Fn, s, 1)
-    F[p] = Fn
+    F[p] = (wp.identity(n=3, dtype=float) + dt * gradv) * F[p]
     xn = x[p] + dt * vp
     xc = wp.vec3(
         wp.clamp(xn[0], lower[0], upper[0]), wp.clamp(xn[1], lower[1], upper[1]), wp.clamp(xn[2], lower[2], upper[2])
@@ -545,8 +535,6 @@ def g2p(
     lower: wp.vec3,  # particles are clamped into [lower, upper] and counted
     upper: wp.vec3,
     counts: wp.array(dtype=wp.int32),
-    s: StressInputs,  # with `fuse`: the next substep's stress (`finish_g2p`)
-    fuse: int,
 ):
     """Eqs. field_g2p, field_apic, field_deformation from the particle's own field only (no fallback):
     v = Σ w v_i; C = 4/Δx² Σ w v_i (x_i − x_p)ᵀ; F ← (I + Δt Σ v_i ∇wᵀ) F; x ← x + Δt v."""
@@ -577,4 +565,4 @@ def g2p(
             vp = vp + weight * vi
             B = B + weight * wp.outer(vi, dpos)
             gradv = gradv + wp.outer(vi, grad)
-    finish_g2p(p, vp, B, gradv, dt, g.inv_dx, x, v, C, F, lower, upper, counts, s, fuse, clock)
+    finish_g2p(p, vp, B, gradv, dt, g.inv_dx, x, v, C, F, lower, upper, counts)
