@@ -65,3 +65,33 @@ def test_forwards_reach_the_cli(script, tmp_path):
     """The thin forwards print the CLI subcommand's own --help (same flags as `fracture-gs ...`)."""
     text = _run([str(APPS / script), "--help"], tmp_path)
     assert "--device" in text or "--protocol" in text
+
+
+def test_fragment_boxes_counts_nodes_as_by_hand(tmp_path):
+    """apps/fragment_boxes.py: two particles of fragment 0 whose stencils share one node and a particle of
+    fragment 1 on the second one's stencil: boxes of 5³ and 3³ nodes, 53 and 27 nodes reached, the 27 of
+    fragment 1 all shared with fragment 0; the script's table runs on a tiny ficus."""
+    import importlib.util
+
+    import torch
+
+    spec = importlib.util.spec_from_file_location("fragment_boxes", APPS / "fragment_boxes.py")
+    boxes = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(boxes)
+    dx = 1.0 / 8
+    x = torch.tensor([[2.6, 2.6, 2.6], [4.6, 4.6, 4.6], [4.6, 4.6, 4.6]]) * dx  # stencil bases 2, 4, 4
+    got = boxes.geometry(x, torch.tensor([0, 0, 1]), dx, 8)
+    assert got == {
+        "fragments": 2,
+        "shared_box_nodes": 125,
+        "shared_reached_nodes": 53,
+        "fragment_box_nodes": 125 + 27,
+        "fragment_reached_nodes": 53 + 27,
+        "nodes_of_two_or_more": 27,
+        "grid_nodes": 512,
+    }
+    rows = json.loads(
+        _run([str(APPS / "fragment_boxes.py"), "--particles", "3000", "--n", "32", "--K", "2,8", "--json"], tmp_path)
+    )
+    assert [r["K"] for r in rows] == [2, 8] and all(r["fragment_box_nodes"] > 0 for r in rows)
+    assert rows[1]["nodes_of_two_or_more"] > rows[0]["nodes_of_two_or_more"], "more pieces, more faces"
