@@ -1,0 +1,213 @@
+"""Fields in dense boxes, one per fragment (docs/DESIGN.md "Grid storage: per-fragment boxes (plan)").
+
+Fragment k's field lives on the nodes of its own box B_k: lo_k + [0, dims_k), stored at
+offset_k + (i·dims_y + j)·dims_z + l of one buffer for all boxes. Every particle takes the dense path into
+its own fragment's box: no owner words, claims or pool, and no limit on how many fields meet at a node.
+
+- `box_p2g`: Eq. multifield_p2g, m_i^k += Σ w_ip m_p, p_i^k += Σ w_ip m_p (v_p + C_p(x_i − x_p)) − Δt V⁰ τ_p ∇w_ip,
+  for the particles of fragment k into B_k (a stencil that leaves B_k is counted, as an escape from the
+  active box is, and not deposited: the caller fits the boxes so that it cannot happen).
+- `box_normalize`: v_i^k = p_i^k / m_i^k + Δt g where m_i^k > ε_m, else 0.
+- `box_contact`: at a node where two or more fields hold mass, the thread of the lowest fragment id there
+  projects every pair in fragment order (the Gauss–Seidel of `contact.contact_projection`), with normals
+  from the fields' mass gradients (central differences inside each box, `contact.contact_normal`) and the
+  gate m_a + m_b ≥ fill_mass; the other fields' threads leave that node to it.
+- `box_g2p`: Eqs. field_g2p / field_apic / field_deformation from the particle's own box.
+Twins: `reference.p2g`, `reference.grid_update`, `reference.contact_fields`, `reference.g2p` on K dense
+fields (tests/test_fragment_boxes.py).
+"""
+
+from __future__ import annotations
+
+import warp as wp
+
+from .contact import NORMAL_MASS_GRADIENT, contact_normal, contact_projection
+from .layout import COUNT_ESCAPED, COUNT_SLOT_OVERFLOW
+from .transfer_kernels import atomic_add_vec4, deposit, finish_g2p, node_terms, normalized, stencil
+
+wp.set_module_options({"enable_backward": False})
+
+MAX_FIELDS = 8  # fields one contact thread projects at a node; more are counted as slot overflows
+vec_f = wp.types.vector(length=MAX_FIELDS, dtype=float)
+vec_fi = wp.types.vector(length=MAX_FIELDS, dtype=wp.int32)
+mat_f3 = wp.types.matrix(shape=(MAX_FIELDS, 3), dtype=float)
+
+
+@wp.struct
+class BoxView:
+    """Every fragment's box (`boxes.FragmentBoxes.view`)."""
+
+    lo: wp.array(dtype=wp.vec3i)  # [K] lowest node of box k
+    dims: wp.array(dtype=wp.vec3i)  # [K] nodes per axis
+    offset: wp.array(dtype=wp.int32)  # [K + 1] first buffer index of box k; offset[K] = all nodes
+    box_of: wp.array(dtype=wp.int32)  # [nodes] the box a buffer index belongs to
+    mp: wp.array(dtype=wp.vec4)  # [nodes] (momentum, mass)
+    vel: wp.array(dtype=wp.vec3)  # [nodes]
+    origin: wp.vec3
+    dx: float
+    inv_dx: float
+    shape: wp.vec3i  # the grid's nodes per axis (stencils are clamped into it, as on the dense grid)
+    boxes: int  # K
+
+
+@wp.func
+def box_index(b: BoxView, k: int, node: wp.vec3i):
+    """Buffer index of `node` in box k, or −1 outside it."""
+    d = b.dims[k]
+    r = node - b.lo[k]
+    if r[0] < 0 or r[1] < 0 or r[2] < 0 or r[0] >= d[0] or r[1] >= d[1] or r[2] >= d[2]:
+        return -1
+    return b.offset[k] + (r[0] * d[1] + r[1]) * d[2] + r[2]
+
+
+@wp.func
+def box_mass(b: BoxView, k: int, node: wp.vec3i):
+    i = box_index(b, k, node)
+    if i < 0:
+        return 0.0
+    return b.mp[i][3]
+
+
+@wp.func
+def stencil_inside(b: BoxView, k: int, base: wp.vec3i):
+    """All 27 nodes of the stencil at `base` lie in box k."""
+    return box_index(b, k, base) >= 0 and box_index(b, k, base + wp.vec3i(2, 2, 2)) >= 0
+
+
+@wp.kernel
+def box_p2g(
+    x: wp.array(dtype=wp.vec3),  # [N]
+    v: wp.array(dtype=wp.vec3),  # [N]
+    C: wp.array(dtype=wp.mat33),  # [N]
+    mass: wp.array(dtype=float),  # [N]
+    volume: wp.array(dtype=float),  # [N] rest volume V⁰
+    stress: wp.array(dtype=wp.mat33),  # [N] Kirchhoff τ
+    fragment: wp.array(dtype=wp.int32),  # [N] the particle's box
+    dt: float,
+    b: BoxView,
+    counts: wp.array(dtype=wp.int32),  # [N_COUNTS]
+):
+    p = wp.tid()
+    k = wp.max(fragment[p], 0)
+    base, f, w, dw = stencil(x[p], b.origin, b.inv_dx, b.shape)
+    if not stencil_inside(b, k, base):
+        wp.atomic_add(counts, COUNT_ESCAPED, 1)
+        return
+    origin = box_index(b, k, base)
+    d = b.dims[k]
+    m = mass[p]
+    vp = v[p]
+    Cp = C[p]
+    force = -dt * volume[p] * stress[p]
+    for i in range(3):
+        for j in range(3):
+            for l in range(3):  # noqa: E741
+                weight, grad, dpos = node_terms(i, j, l, f, w, dw, b.dx, b.inv_dx)
+                atomic_add_vec4(b.mp, origin + (i * d[1] + j) * d[2] + l, deposit(weight, grad, dpos, m, vp, Cp, force))
+
+
+@wp.kernel
+def box_normalize(b: BoxView, eps_m: float, dt: float, gravity: wp.vec3):
+    t = wp.tid()
+    b.vel[t] = normalized(b.mp[t], eps_m, dt, gravity)
+
+
+@wp.func
+def box_mass_gradient(b: BoxView, k: int, node: wp.vec3i):
+    """∇m^k at `node` by central differences of box k's nodal masses (0 beyond the box) [kg/m]."""
+    out = wp.vec3(0.0)
+    for a in range(3):
+        e = wp.vec3i(0, 0, 0)
+        e[a] = 1
+        out[a] = (box_mass(b, k, node + e) - box_mass(b, k, node - e)) * (0.5 * b.inv_dx)
+    return out
+
+
+@wp.kernel
+def box_contact(
+    b: BoxView,
+    eps_m: float,
+    fill_mass: float,  # two fields touch where m_a + m_b ≥ this [kg]
+    latched: wp.vec3,  # the last fallback normal
+    centroids: wp.array(dtype=wp.vec3),  # [K] fragment centroids (normal fallback)
+    restitution: float,
+    friction: float,
+    counts: wp.array(dtype=wp.int32),
+):
+    """One thread per box node; the lowest fragment with mass at a node projects its contacts."""
+    t = wp.tid()
+    k = b.box_of[t]
+    if b.mp[t][3] <= eps_m:
+        return
+    d = b.dims[k]
+    r = t - b.offset[k]
+    node = b.lo[k] + wp.vec3i(r // (d[1] * d[2]), (r // d[2]) % d[1], r % d[2])
+    for j in range(k):
+        if box_mass(b, j, node) > eps_m:
+            return  # a lower fragment has mass here: its thread leads
+    idx = vec_fi(-1)
+    frag = vec_fi(-1)
+    m = vec_f(0.0)
+    V = mat_f3(0.0)
+    n = int(0)  # noqa: UP018 (a dynamic Warp variable)
+    for j in range(k, b.boxes):
+        i = box_index(b, j, node)
+        if i >= 0:
+            mj = b.mp[i][3]
+            if mj > eps_m:
+                if n < MAX_FIELDS:
+                    idx[n] = i
+                    frag[n] = j
+                    m[n] = mj
+                    V[n] = b.vel[i]
+                    n += 1
+                else:
+                    wp.atomic_add(counts, COUNT_SLOT_OVERFLOW, 1)
+    if n < 2:
+        return
+    G = mat_f3(0.0)
+    for a in range(n):
+        G[a] = box_mass_gradient(b, frag[a], node)
+    for a in range(n):
+        for c in range(a + 1, n):
+            if m[a] + m[c] >= fill_mass:
+                nrm = contact_normal(NORMAL_MASS_GRADIENT, latched, G[a], G[c], centroids[frag[a]], centroids[frag[c]])
+                w0, w1 = contact_projection(V[a], V[c], m[a], m[c], nrm, restitution, friction)
+                V[a] = w0
+                V[c] = w1
+    for a in range(n):
+        b.vel[idx[a]] = V[a]
+
+
+@wp.kernel
+def box_g2p(
+    x: wp.array(dtype=wp.vec3),
+    v: wp.array(dtype=wp.vec3),
+    C: wp.array(dtype=wp.mat33),
+    F: wp.array(dtype=wp.mat33),
+    fragment: wp.array(dtype=wp.int32),
+    dt: float,
+    b: BoxView,
+    lower: wp.vec3,  # particles are clamped into [lower, upper] and counted
+    upper: wp.vec3,
+    counts: wp.array(dtype=wp.int32),
+):
+    p = wp.tid()
+    k = wp.max(fragment[p], 0)
+    base, f, w, dw = stencil(x[p], b.origin, b.inv_dx, b.shape)
+    if not stencil_inside(b, k, base):
+        return  # counted by P2G
+    origin = box_index(b, k, base)
+    d = b.dims[k]
+    vp = wp.vec3(0.0)
+    B = wp.mat33(0.0)
+    gradv = wp.mat33(0.0)
+    for i in range(3):
+        for j in range(3):
+            for l in range(3):  # noqa: E741
+                weight, grad, dpos = node_terms(i, j, l, f, w, dw, b.dx, b.inv_dx)
+                vi = b.vel[origin + (i * d[1] + j) * d[2] + l]
+                vp = vp + weight * vi
+                B = B + weight * wp.outer(vi, dpos)
+                gradv = gradv + wp.outer(vi, grad)
+    finish_g2p(p, vp, B, gradv, dt, b.inv_dx, x, v, C, F, lower, upper, counts)

@@ -1,0 +1,103 @@
+"""`FragmentBoxes`: the host side of `box_kernels` — a dense box per fragment, fitted to its particles.
+
+A building block of the storage planned in docs/DESIGN.md ("Grid storage: per-fragment boxes (plan)"),
+not yet what `Simulator` uses: it holds K boxes in one buffer and launches P2G, normalization, contact and
+G2P on them, so the plan's claim (every particle on a dense path, contact only where fields meet) can be
+checked against the float64 twins and timed against the slot storage (`apps/bench_fragments.py
+--boxes`) before the solver is moved onto it. Boundaries, band masses and contact statistics are not
+here yet.
+"""
+
+from __future__ import annotations
+
+import torch
+import warp as wp
+
+from ..runtime import ensure_warp, warp_stream
+from .box_kernels import BoxView, box_contact, box_g2p, box_normalize, box_p2g
+
+
+class FragmentBoxes:
+    """K dense boxes on a grid of `shape` nodes at `origin` with spacing `dx` (one buffer, box k from
+    `offset[k]`). `fit` sizes them for the particles; the transfer methods take Warp views of the
+    particle arrays (as `Simulator.wp` holds them)."""
+
+    def __init__(self, shape, origin, dx: float, device: str = "cpu"):
+        ensure_warp()
+        self.shape, self.origin, self.dx, self.device = tuple(int(s) for s in shape), tuple(origin), float(dx), device
+        self.capacity = 0
+        self.lo = self.dims = self.offset = None
+        self.nodes = 0
+
+    def fit(self, x: torch.Tensor, fragment: torch.Tensor, slack: int = 1) -> None:  # [N, 3], [N]
+        """Box k: the bounding box of fragment k's stencils plus `slack` nodes each way, inside the grid.
+        One host read (the box sizes); the buffers grow only when the boxes need more nodes."""
+        dev = x.device
+        k = fragment.long().clamp_min(0)
+        K = int(k.max()) + 1 if k.numel() else 1
+        base = torch.floor((x.double() - torch.tensor(self.origin, dtype=torch.float64, device=dev)) / self.dx - 0.5)
+        base = base.long()
+        idx = k[:, None].expand(-1, 3)
+        big = 1 << 30
+        lo = torch.full((K, 3), big, dtype=torch.long, device=dev).scatter_reduce_(0, idx, base, "amin")
+        hi = torch.full((K, 3), -big, dtype=torch.long, device=dev).scatter_reduce_(0, idx, base + 2, "amax")
+        empty = lo[:, 0] == big
+        lo[empty], hi[empty] = 0, 0
+        top = torch.tensor(self.shape, device=dev) - 1
+        lo = torch.minimum(torch.maximum(lo - slack, torch.zeros_like(lo)), top)
+        hi = torch.minimum(torch.maximum(hi + slack, lo), top)
+        dims = (hi - lo + 1).cpu()
+        sizes = dims.prod(1)
+        offset = torch.zeros(K + 1, dtype=torch.long)
+        offset[1:] = torch.cumsum(sizes, 0)
+        self.nodes = int(offset[-1])
+        if self.nodes > self.capacity:
+            self.capacity = max(self.nodes, 2 * self.capacity)
+            self.mp = torch.zeros(self.capacity, 4, dtype=torch.float32, device=self.device)
+            self.vel = torch.zeros(self.capacity, 3, dtype=torch.float32, device=self.device)
+            self.box_of = torch.zeros(self.capacity, dtype=torch.int32, device=self.device)
+        self.box_of[: self.nodes] = torch.repeat_interleave(torch.arange(K, dtype=torch.int32), sizes).to(self.device)
+        self.lo = lo.to(self.device, torch.int32).contiguous()
+        self.dims = dims.to(self.device, torch.int32).contiguous()
+        self.offset = offset.to(self.device, torch.int32)
+        self.K = K
+        v = BoxView()
+        v.lo, v.dims = wp.from_torch(self.lo, dtype=wp.vec3i), wp.from_torch(self.dims, dtype=wp.vec3i)
+        v.offset, v.box_of = wp.from_torch(self.offset), wp.from_torch(self.box_of[: self.nodes])
+        v.mp, v.vel = (
+            wp.from_torch(self.mp[: self.nodes], dtype=wp.vec4),
+            wp.from_torch(self.vel[: self.nodes], dtype=wp.vec3),
+        )
+        v.origin, v.dx, v.inv_dx = wp.vec3(*self.origin), self.dx, 1.0 / self.dx
+        v.shape, v.boxes = wp.vec3i(*self.shape), K
+        self.view = v
+
+    def _launch(self, kernel, dim: int, inputs: list) -> None:
+        wp.launch(kernel, dim=dim, inputs=inputs, device=self.device, stream=warp_stream(self.device))
+
+    def p2g(self, w: dict, dt: float, counts) -> None:
+        """Clear the boxes, then every particle's deposit into its fragment's box. `w`: Warp arrays x, v, C,
+        mass, volume, stress, fragment; `counts`: the escape counter's array."""
+        self.mp[: self.nodes].zero_()
+        n = w["x"].shape[0]
+        keys = ("x", "v", "C", "mass", "volume", "stress", "fragment")
+        self._launch(box_p2g, n, [w[k] for k in keys] + [float(dt), self.view, counts])
+
+    def update(self, dt: float, eps_m: float, gravity, fill_mass: float, centroids, counts, e=0.0, mu=0.0) -> None:
+        """Every field's v = p/m + Δt g, then contact where fields meet (mass-gradient normals, gate
+        m_a + m_b ≥ fill_mass; `centroids` [K] vec3 Warp array, the normals' fallback)."""
+        self._launch(box_normalize, self.nodes, [self.view, float(eps_m), float(dt), wp.vec3(*gravity)])
+        latched = wp.vec3(0.0, 0.0, 1.0)
+        inputs = [self.view, float(eps_m), float(fill_mass), latched, centroids, float(e), float(mu), counts]
+        self._launch(box_contact, self.nodes, inputs)
+
+    def g2p(self, w: dict, dt: float, lower, upper, counts) -> None:
+        """Every particle gathers from its own fragment's box (v, C, F, x; clamped into [lower, upper])."""
+        keys = ("x", "v", "C", "F", "fragment")
+        self._launch(box_g2p, w["x"].shape[0], [w[k] for k in keys] + [float(dt), self.view, lower, upper, counts])
+
+    def field(self, k: int) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """Box k's mass [X,Y,Z], momentum [X,Y,Z,3] and velocity [X,Y,Z,3] (its lowest node: `lo[k]`)."""
+        a, b = int(self.offset[k]), int(self.offset[k + 1])
+        d = [int(s) for s in self.dims[k]]
+        return self.mp[a:b, 3].reshape(d), self.mp[a:b, :3].reshape(*d, 3), self.vel[a:b].reshape(*d, 3)

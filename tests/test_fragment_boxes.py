@@ -1,0 +1,145 @@
+"""`sim.boxes.FragmentBoxes`: a dense box per fragment (docs/DESIGN.md "Grid storage: per-fragment boxes
+(plan)") against the float64 twins on K dense fields. P2G puts each particle's deposits into its own
+fragment's field only (mass and momentum of every field, relative error ≤ 1e-5); normalization and G2P read
+each particle back from its own field; the contact where fields meet is `reference.contact_fields` with
+mass-gradient normals, conserves each node's momentum, and only removes approach."""
+
+import pytest
+import torch
+import warp as wp
+from simutil import rel_err
+
+from fracture_gs.runtime import ensure_warp
+from fracture_gs.sim import reference as ref
+from fracture_gs.sim.boxes import FragmentBoxes
+from fracture_gs.sim.layout import COUNT_ESCAPED, N_COUNTS
+
+N, n, DT, EPS_M = 3000, 24, 1e-3, 1e-9
+GRAVITY = (0.0, 0.0, -9.8)
+
+
+def state(seed, device):
+    """Particles in the middle of a 24³ grid, four fragments by quadrant, random v, C, τ, F."""
+    ensure_warp()
+    g = torch.Generator().manual_seed(seed)
+    x = 0.3 + 0.4 * torch.rand(N, 3, generator=g)
+    fragment = ((x[:, 0] > 0.5).int() + 2 * (x[:, 1] > 0.5).int()).to(torch.int32)
+    tau = torch.randn(N, 3, 3, generator=g)
+    P = {
+        "x": x,
+        "v": torch.randn(N, 3, generator=g),
+        "C": torch.randn(N, 3, 3, generator=g),
+        "F": torch.eye(3) + 0.1 * torch.randn(N, 3, 3, generator=g),
+        "mass": 0.5 + torch.rand(N, generator=g),
+        "volume": (0.5 + torch.rand(N, generator=g)) * 1e-4,
+        "stress": tau + tau.transpose(1, 2),
+        "fragment": fragment,
+    }
+    P = {k: t.to(device).contiguous() for k, t in P.items()}
+    types = {"x": wp.vec3, "v": wp.vec3, "C": wp.mat33, "F": wp.mat33, "stress": wp.mat33}
+    w = {k: wp.from_torch(t, dtype=types.get(k)) for k, t in P.items()}
+    counts = torch.zeros(N_COUNTS, dtype=torch.int32, device=device)
+    boxes = FragmentBoxes((n, n, n), (0.0, 0.0, 0.0), 1.0 / n, device)
+    boxes.fit(P["x"], P["fragment"])
+    return P, w, counts, boxes
+
+
+def reference_fields(P):
+    cpu = {k: t.cpu().clone() for k, t in P.items()}  # copies: G2P updates the particles in place
+    gm, gp, _ = ref.p2g(
+        cpu["x"], cpu["v"], cpu["C"], cpu["mass"], cpu["volume"], cpu["stress"], cpu["fragment"], 4, (n, n, n),
+        (0.0, 0.0, 0.0), 1.0 / n, DT,
+    )  # fmt: skip
+    return gm.reshape(4, n, n, n), gp.reshape(4, n, n, n, 3), cpu
+
+
+def boxed(boxes, k, dense):  # the region of box k in a dense [n, n, n, ...] field
+    lo, d = [int(v) for v in boxes.lo[k]], [int(v) for v in boxes.dims[k]]
+    return dense[lo[0] : lo[0] + d[0], lo[1] : lo[1] + d[1], lo[2] : lo[2] + d[2]]
+
+
+def test_each_particle_deposits_into_its_own_fragments_box_only(device, seed):
+    P, w, counts, boxes = state(seed, device)
+    boxes.p2g(w, DT, wp.from_torch(counts))
+    assert int(counts[COUNT_ESCAPED]) == 0
+    gm, gp, _ = reference_fields(P)
+    assert boxes.nodes < 4 * n**3 / 8, "the boxes hug their fragments"
+    for k in range(4):
+        m, p, _ = boxes.field(k)
+        assert rel_err(m.cpu(), boxed(boxes, k, gm[k])) <= 1e-5, f"mass of field {k} (seed {seed})"
+        assert rel_err(p.cpu(), boxed(boxes, k, gp[k])) <= 1e-5, f"momentum of field {k} (seed {seed})"
+        assert float(boxed(boxes, k, gm[k]).sum()) == pytest.approx(float(gm[k].sum()), rel=1e-12), "all inside"
+
+
+def test_normalize_and_g2p_read_each_particle_back_from_its_own_field(device, seed):
+    P, w, counts, boxes = state(seed, device)
+    cw = wp.from_torch(counts)
+    boxes.p2g(w, DT, cw)
+    boxes.update(DT, EPS_M, GRAVITY, fill_mass=float("inf"), centroids=wp.zeros(4, dtype=wp.vec3, device=device),
+                 counts=cw)  # fmt: skip
+    gm, gp, cpu = reference_fields(P)
+    gv = ref.grid_update(gm, gp, torch.zeros_like(gm), EPS_M, 0.0, DT, GRAVITY)  # no contact: the gate never opens
+    for k in range(4):  # weighted by the node's mass: p/m of a node at a stencil's far edge is ill-conditioned
+        m, _, vel = (t.cpu() for t in boxes.field(k))
+        mv = boxed(boxes, k, gm[k])[..., None] * boxed(boxes, k, gv[k])
+        assert rel_err(m[..., None] * vel, mv) <= 1e-5, f"velocity {k} (seed {seed})"
+    boxes.g2p(w, DT, wp.vec3(0.0, 0.0, 0.0), wp.vec3(1.0, 1.0, 1.0), cw)
+    x1, v1, C1, F1 = ref.g2p(cpu["x"], cpu["F"], gv, cpu["fragment"], (0.0, 0.0, 0.0), 1.0 / n, DT)
+    for name, theirs in (("x", x1), ("v", v1), ("C", C1), ("F", F1)):
+        assert rel_err(P[name].cpu(), theirs) <= 1e-5, f"G2P {name} (seed {seed})"
+
+
+def mass_gradients(gm):  # [K, n, n, n] -> [K, n, n, n, 3], central differences, zero beyond the grid
+    pad = torch.nn.functional.pad(gm, (1, 1, 1, 1, 1, 1))
+    return torch.stack(
+        [
+            (pad[:, 2:, 1:-1, 1:-1] - pad[:, :-2, 1:-1, 1:-1]),
+            (pad[:, 1:-1, 2:, 1:-1] - pad[:, 1:-1, :-2, 1:-1]),
+            (pad[:, 1:-1, 1:-1, 2:] - pad[:, 1:-1, 1:-1, :-2]),
+        ],
+        -1,
+    ) * (0.5 * n)
+
+
+def test_contact_where_fields_meet_is_the_reference_and_conserves_momentum(device, seed):
+    P, w, counts, boxes = state(seed, device)
+    cw = wp.from_torch(counts)
+    boxes.p2g(w, DT, cw)
+    gm, gp, cpu = reference_fields(P)
+    fill = 0.05 * float(gm[gm > 0].mean())
+    centroids = torch.stack([cpu["x"][cpu["fragment"] == k].mean(0) for k in range(4)])
+    boxes.update(DT, EPS_M, GRAVITY, fill, wp.from_torch(centroids.to(device).contiguous(), dtype=wp.vec3), cw,
+                 e=0.0, mu=0.3)  # fmt: skip
+    gv = ref.grid_update(gm, gp, torch.zeros_like(gm), EPS_M, 0.0, DT, GRAVITY)
+    G = mass_gradients(gm)
+    # nodes with two or more fields: slots in fragment order (as the box kernel collects them)
+    present = gm > EPS_M  # [4, n, n, n]
+    nodes = torch.nonzero(present.sum(0) >= 2)  # [M, 3]
+    assert len(nodes) > 20, "the quadrants meet along their faces"
+    i, j, l = nodes.unbind(1)
+    m, v, g = gm[:, i, j, l].T, gv[:, i, j, l].transpose(0, 1), G[:, i, j, l].transpose(0, 1)  # [M, 4], [M, 4, 3]
+    frag = torch.where(m > EPS_M, torch.arange(4), torch.full_like(m, -1, dtype=torch.long))
+
+    def normals(a, b, lo, hi):
+        rows = torch.arange(len(nodes))
+        d = g[rows, hi] - g[rows, lo]
+        ok = d.norm(dim=1) > 1e-6 * (g[rows, lo].norm(dim=1) + g[rows, hi].norm(dim=1)) + 1e-30
+        c = centroids.double()[hi] - centroids.double()[lo]
+        return torch.where(
+            ok[:, None], d / d.norm(dim=1, keepdim=True).clamp_min(1e-300), c / c.norm(dim=1, keepdim=True)
+        )
+
+    after = ref.contact_fields(v, m, frag, torch.zeros_like(m), EPS_M, 0.0, normals, e=0.0, mu=0.3,
+                               touching=lambda a, b: m[:, a] + m[:, b] >= fill)  # fmt: skip
+    assert float((after - v).norm(dim=2).max()) > 1e-3, "some fields approached and were projected"
+    ours = torch.zeros_like(after)
+    for k in range(4):
+        vel = boxes.field(k)[2].cpu()
+        lo = [int(t) for t in boxes.lo[k]]
+        inside = present[k, i, j, l]
+        ours[inside, k] = vel[i[inside] - lo[0], j[inside] - lo[1], l[inside] - lo[2]].double()
+    mask = present[:, i, j, l].T
+    assert rel_err((m[..., None] * ours)[mask], (m[..., None] * after)[mask]) <= 1e-5, f"contact (seed {seed})"
+    momentum = lambda vel: (m[..., None] * vel * mask[..., None]).sum(1)  # noqa: E731
+    scale = float((m[..., None] * v.abs()).sum(1).max())
+    assert float((momentum(ours) - momentum(v)).abs().max()) <= 1e-5 * scale, "each node's momentum"
