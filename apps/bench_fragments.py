@@ -3,6 +3,7 @@ FractureFields, time per transfer substep and grid memory.
 
     python apps/bench_fragments.py --device cuda:0                     # 171,553 particles, 128³
     python apps/bench_fragments.py --device cpu --particles 3000 --n 32  # a smoke run
+    python apps/bench_fragments.py --device cuda:0 --boxes             # also the per-fragment box transfer
 
 Scope as the paper's Table 2: grid reset, P2G, grid update (normalization, contact, boundaries), G2P
 (no stress, diagnostics or rendering). Each branch runs on its own copy of one latched state; on CUDA
@@ -29,7 +30,8 @@ from fracture_gs import assets
 from fracture_gs.config import SceneConfig, SimConfig
 from fracture_gs.runtime import warp_stream
 from fracture_gs.sim import Particles, Simulator, Topology
-from fracture_gs.sim.layout import COUNT_SLOT_OVERFLOW
+from fracture_gs.sim.boxes import FragmentBoxes
+from fracture_gs.sim.layout import COUNT_ESCAPED, COUNT_SLOT_OVERFLOW
 from fracture_gs.sim.providers.cuts import voronoi_labels
 from fracture_gs.sim.providers.voronoi import voronoi_sites
 
@@ -66,6 +68,38 @@ def build(cfg, P, topo, variant, device, sort="cell"):
     sim.pool_rows = rows
     sim.fit_active_box(0.05)  # a pool sized from the state's own rows, as between frames
     return sim
+
+
+class BoxTransfer:
+    """`--boxes`: the per-fragment box transfer (`fracture_gs.sim.boxes`: clear, P2G, normalization, contact
+    where fields meet, G2P) on a built simulator's particles, timed like a simulator's `transfer`. The boxes
+    are fitted once, with 2 nodes of slack (stencils that leave them later are counted as escapes)."""
+
+    def __init__(self, sim: Simulator):
+        self.sim, self.device = sim, sim.device
+        P, g = sim.particles, sim.grid
+        self.boxes = FragmentBoxes(g.shape, g.origin, g.dx, sim.device)
+        self.boxes.fit(P.x, P.fragment, slack=2)
+        K = self.boxes.K
+        sums = torch.zeros(K, 3, device=P.x.device).index_add_(0, P.fragment.long().clamp_min(0), P.x)
+        count = torch.bincount(P.fragment.long().clamp_min(0), minlength=K).clamp_min(1)
+        self.centroids = wp.from_torch((sums / count[:, None]).contiguous(), dtype=wp.vec3)
+        self.fill = sim.cfg.contact.fill * sim.node_mass
+
+    def _stream_scope(self):
+        return self.sim._stream_scope()
+
+    @property
+    def nbytes(self) -> int:
+        return self.boxes.nodes * (16 + 12 + 4)  # (p, m), v, the box of each node
+
+    def transfer(self) -> None:
+        s, w, dt = self.sim, self.sim.wp, self.sim.cfg.dt
+        c = s.cfg.contact
+        self.boxes.p2g(w, dt, w["counts"])
+        self.boxes.update(dt, s.eps_m, s.cfg.gravity, self.fill, self.centroids, w["counts"],
+                          e=float(s.cfg.restitution), mu=float(c.friction))  # fmt: skip
+        self.boxes.g2p(w, dt, s._lower, s._upper, w["counts"])
 
 
 def time_builds(sims: list, steps: int, warmup: int, trials: int) -> list[float]:
@@ -122,6 +156,12 @@ def main(argv=None) -> int:
     p.add_argument(
         "--sort", choices=("cell", "interleaved", "built"), default="cell", help="particle order (default cell)"
     )
+    p.add_argument(
+        "--boxes",
+        action="store_true",
+        help="also time the per-fragment box transfer (fracture_gs.sim.boxes; docs/DESIGN.md's plan) on the "
+        "FractureFields state",
+    )
     a = p.parse_args(argv)
     if a.device.startswith("cuda"):  # graph capture needs a non-default stream
         torch.cuda.set_stream(torch.cuda.Stream(a.device))
@@ -144,7 +184,20 @@ def main(argv=None) -> int:
                 "pool_rows": int(sims[0].grid.rows_used()),
                 "slot_overflow": int(sims[0].counts[COUNT_SLOT_OVERFLOW]),
             }
+            if label == "FractureFields" and a.boxes:
+                boxes = [BoxTransfer(s) for s in sims]
+                ms = time_builds(boxes, a.steps, a.warmup, a.trials)
+                out["Boxes"] = {
+                    "median_ms": statistics.median(ms),
+                    "min_ms": min(ms),
+                    "max_ms": max(ms),
+                    "grid_mib": boxes[0].nbytes / 2**20,
+                    "escaped": int(sims[0].counts[COUNT_ESCAPED]),
+                }
+                del boxes
             del sims
+        if "Boxes" in out:
+            out["boxes_time_ratio"] = out["Boxes"]["median_ms"] / out["Shared"]["median_ms"]
         out["time_ratio"] = out["FractureFields"]["median_ms"] / out["Shared"]["median_ms"]
         out["memory_ratio"] = out["FractureFields"]["grid_mib"] / out["Shared"]["grid_mib"]
         ff = out["FractureFields"]
@@ -165,6 +218,15 @@ def main(argv=None) -> int:
             f"{f['grid_mib']:.1f} | {r['memory_ratio']:.3f} | {f['slot_cache_mib']:.1f} | "
             f"{r['memory_ratio_with_cache']:.3f} | {f['pool_rows']} | {f['slot_overflow']} |"
         )
+    if any("Boxes" in r for r in rows):
+        print("\n| K | per-fragment boxes ms | × Shared | box MiB | × Shared's grid | escaped stencils |")
+        print("|---|---|---|---|---|---|")
+        for r in rows:
+            b = r["Boxes"]
+            print(
+                f"| {r['K']} | {b['median_ms']:.4f} | {r['boxes_time_ratio']:.3f} | {b['grid_mib']:.1f} | "
+                f"{b['grid_mib'] / r['Shared']['grid_mib']:.3f} | {b['escaped']} |"
+            )
     return 0
 
 
