@@ -96,7 +96,7 @@ class BoxTransfer:
     def transfer(self) -> None:
         s, w, dt = self.sim, self.sim.wp, self.sim.cfg.dt
         c = s.cfg.contact
-        self.boxes.p2g(w, dt, w["counts"])
+        self.boxes.p2g(w, dt, w["counts"], run=s.p2g_run)  # runs where the simulator uses them (cell order, GPU)
         self.boxes.update(dt, s.eps_m, s.cfg.gravity, self.fill, self.centroids, w["counts"],
                           e=float(s.cfg.restitution), mu=float(c.friction))  # fmt: skip
         self.boxes.g2p(w, dt, s._lower, s._upper, w["counts"])

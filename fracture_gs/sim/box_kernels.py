@@ -23,6 +23,7 @@ import warp as wp
 
 from .contact import NORMAL_MASS_GRADIENT, contact_normal, contact_projection
 from .layout import COUNT_ESCAPED, COUNT_SLOT_OVERFLOW
+from .run_kernels import stencil_sums
 from .transfer_kernels import atomic_add_vec4, deposit, finish_g2p, node_terms, normalized, stencil
 
 wp.set_module_options({"enable_backward": False})
@@ -104,6 +105,68 @@ def box_p2g(
             for l in range(3):  # noqa: E741
                 weight, grad, dpos = node_terms(i, j, l, f, w, dw, b.dx, b.inv_dx)
                 atomic_add_vec4(b.mp, origin + (i * d[1] + j) * d[2] + l, deposit(weight, grad, dpos, m, vp, Cp, force))
+
+
+@wp.kernel
+def box_p2g_runs(
+    x: wp.array(dtype=wp.vec3),  # [N]
+    v: wp.array(dtype=wp.vec3),  # [N]
+    C: wp.array(dtype=wp.mat33),  # [N]
+    mass: wp.array(dtype=float),  # [N]
+    volume: wp.array(dtype=float),  # [N] rest volume V⁰
+    stress: wp.array(dtype=wp.mat33),  # [N] Kirchhoff τ
+    fragment: wp.array(dtype=wp.int32),  # [N] the particle's box
+    dt: float,
+    b: BoxView,
+    run: int,  # consecutive particles per thread
+    counts: wp.array(dtype=wp.int32),  # [N_COUNTS]
+):
+    """`box_p2g` for `run` consecutive particles a thread (`run_kernels.p2g_runs` on boxes): those with the
+    same fragment and stencil base are summed in registers and reach their box as one reduction per node."""
+    t = wp.tid()
+    acc = stencil_sums()
+    cur = wp.vec3i(-1, -1, -1)
+    ck = int(-1)  # noqa: UP018 (a dynamic Warp variable)
+    for p in range(t * run, wp.min(t * run + run, x.shape[0])):
+        k = wp.max(fragment[p], 0)
+        base, f, w, dw = stencil(x[p], b.origin, b.inv_dx, b.shape)
+        if not stencil_inside(b, k, base):
+            wp.atomic_add(counts, COUNT_ESCAPED, 1)
+            continue
+        if k != ck or base[0] != cur[0] or base[1] != cur[1] or base[2] != cur[2]:
+            if ck >= 0:
+                flush_box(b, ck, cur, acc)
+            acc = stencil_sums()
+            cur = base
+            ck = k
+        m = mass[p]
+        vp = v[p]
+        Cp = C[p]
+        force = -dt * volume[p] * stress[p]
+        for i in range(3):
+            for j in range(3):
+                for l in range(3):  # noqa: E741
+                    q = 9 * i + 3 * j + l
+                    weight, grad, dpos = node_terms(i, j, l, f, w, dw, b.dx, b.inv_dx)
+                    d = deposit(weight, grad, dpos, m, vp, Cp, force)
+                    for c in range(4):
+                        acc[q, c] = acc[q, c] + d[c]
+    if ck >= 0:
+        flush_box(b, ck, cur, acc)
+
+
+@wp.func
+def flush_box(b: BoxView, k: int, base: wp.vec3i, acc: stencil_sums):
+    """Add a run's 27 node sums to box k: one reduction per node."""
+    origin = box_index(b, k, base)
+    d = b.dims[k]
+    for i in range(3):
+        for j in range(3):
+            for l in range(3):  # noqa: E741
+                q = 9 * i + 3 * j + l
+                atomic_add_vec4(
+                    b.mp, origin + (i * d[1] + j) * d[2] + l, wp.vec4(acc[q, 0], acc[q, 1], acc[q, 2], acc[q, 3])
+                )
 
 
 @wp.kernel

@@ -14,7 +14,7 @@ import torch
 import warp as wp
 
 from ..runtime import ensure_warp, warp_stream
-from .box_kernels import BoxView, box_contact, box_g2p, box_normalize, box_p2g
+from .box_kernels import BoxView, box_contact, box_g2p, box_normalize, box_p2g, box_p2g_runs
 
 
 class FragmentBoxes:
@@ -75,13 +75,19 @@ class FragmentBoxes:
     def _launch(self, kernel, dim: int, inputs: list) -> None:
         wp.launch(kernel, dim=dim, inputs=inputs, device=self.device, stream=warp_stream(self.device))
 
-    def p2g(self, w: dict, dt: float, counts) -> None:
+    def p2g(self, w: dict, dt: float, counts, run: int = 0) -> None:
         """Clear the boxes, then every particle's deposit into its fragment's box. `w`: Warp arrays x, v, C,
-        mass, volume, stress, fragment; `counts`: the escape counter's array."""
+        mass, volume, stress, fragment; `counts`: the escape counter's array; `run` > 0: that many consecutive
+        particles a thread, summed in registers while they share fragment and stencil base (particles sorted by
+        cell)."""
         self.mp[: self.nodes].zero_()
         n = w["x"].shape[0]
         keys = ("x", "v", "C", "mass", "volume", "stress", "fragment")
-        self._launch(box_p2g, n, [w[k] for k in keys] + [float(dt), self.view, counts])
+        if run > 0:
+            inputs = [w[k] for k in keys] + [float(dt), self.view, int(run), counts]
+            self._launch(box_p2g_runs, -(-n // run), inputs)
+        else:
+            self._launch(box_p2g, n, [w[k] for k in keys] + [float(dt), self.view, counts])
 
     def update(self, dt: float, eps_m: float, gravity, fill_mass: float, centroids, counts, e=0.0, mu=0.0) -> None:
         """Every field's v = p/m + Δt g, then contact where fields meet (mass-gradient normals, gate
