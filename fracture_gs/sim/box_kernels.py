@@ -49,9 +49,6 @@ class BoxView:
     inv_dx: float
     shape: wp.vec3i  # the grid's nodes per axis (stencils are clamped into it, as on the dense grid)
     boxes: int  # K
-    union_lo: wp.vec3i  # the box around all boxes
-    union_dims: wp.vec3i
-    fields: wp.array(dtype=wp.int32)  # [union nodes] how many fields hold mass at the node (`box_count`)
 
 
 @wp.func
@@ -179,30 +176,6 @@ def box_normalize(b: BoxView, eps_m: float, dt: float, gravity: wp.vec3):
 
 
 @wp.func
-def union_index(b: BoxView, node: wp.vec3i):
-    r = node - b.union_lo
-    return (r[0] * b.union_dims[1] + r[1]) * b.union_dims[2] + r[2]
-
-
-@wp.func
-def box_node(b: BoxView, t: int):
-    """(fragment, grid node) of buffer index t."""
-    k = b.box_of[t]
-    d = b.dims[k]
-    r = t - b.offset[k]
-    return k, b.lo[k] + wp.vec3i(r // (d[1] * d[2]), (r // d[2]) % d[1], r % d[2])
-
-
-@wp.kernel
-def box_count(b: BoxView, eps_m: float):
-    """How many fields hold mass at each node, so that `box_contact` leaves single fields at one load."""
-    t = wp.tid()
-    if b.mp[t][3] > eps_m:
-        k, node = box_node(b, t)
-        wp.atomic_add(b.fields, union_index(b, node), 1)
-
-
-@wp.func
 def box_mass_gradient(b: BoxView, k: int, node: wp.vec3i):
     """∇m^k at `node` by central differences of box k's nodal masses (0 beyond the box) [kg/m]."""
     out = wp.vec3(0.0)
@@ -226,11 +199,12 @@ def box_contact(
 ):
     """One thread per box node; the lowest fragment with mass at a node projects its contacts."""
     t = wp.tid()
+    k = b.box_of[t]
     if b.mp[t][3] <= eps_m:
         return
-    k, node = box_node(b, t)
-    if b.fields[union_index(b, node)] < 2:
-        return  # the only field here
+    d = b.dims[k]
+    r = t - b.offset[k]
+    node = b.lo[k] + wp.vec3i(r // (d[1] * d[2]), (r // d[2]) % d[1], r % d[2])
     for j in range(k):
         if box_mass(b, j, node) > eps_m:
             return  # a lower fragment has mass here: its thread leads

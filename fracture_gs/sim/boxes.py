@@ -14,7 +14,7 @@ import torch
 import warp as wp
 
 from ..runtime import ensure_warp, warp_stream
-from .box_kernels import BoxView, box_contact, box_count, box_g2p, box_normalize, box_p2g, box_p2g_runs
+from .box_kernels import BoxView, box_contact, box_g2p, box_normalize, box_p2g, box_p2g_runs
 
 
 class FragmentBoxes:
@@ -57,9 +57,6 @@ class FragmentBoxes:
             self.vel = torch.zeros(self.capacity, 3, dtype=torch.float32, device=self.device)
             self.box_of = torch.zeros(self.capacity, dtype=torch.int32, device=self.device)
         self.box_of[: self.nodes] = torch.repeat_interleave(torch.arange(K, dtype=torch.int32), sizes).to(self.device)
-        ulo, uhi = lo.min(0).values, (lo + dims.to(dev) - 1).max(0).values
-        udims = (uhi - ulo + 1).cpu()
-        self.fields = torch.zeros(int(udims.prod()), dtype=torch.int32, device=self.device)
         self.lo = lo.to(self.device, torch.int32).contiguous()
         self.dims = dims.to(self.device, torch.int32).contiguous()
         self.offset = offset.to(self.device, torch.int32)
@@ -73,8 +70,6 @@ class FragmentBoxes:
         )
         v.origin, v.dx, v.inv_dx = wp.vec3(*self.origin), self.dx, 1.0 / self.dx
         v.shape, v.boxes = wp.vec3i(*self.shape), K
-        v.union_lo, v.union_dims = wp.vec3i(*[int(c) for c in ulo]), wp.vec3i(*[int(c) for c in udims])
-        v.fields = wp.from_torch(self.fields)
         self.view = v
 
     def _launch(self, kernel, dim: int, inputs: list) -> None:
@@ -98,8 +93,6 @@ class FragmentBoxes:
         """Every field's v = p/m + Δt g, then contact where fields meet (mass-gradient normals, gate
         m_a + m_b ≥ fill_mass; `centroids` [K] vec3 Warp array, the normals' fallback)."""
         self._launch(box_normalize, self.nodes, [self.view, float(eps_m), float(dt), wp.vec3(*gravity)])
-        self.fields.zero_()
-        self._launch(box_count, self.nodes, [self.view, float(eps_m)])
         latched = wp.vec3(0.0, 0.0, 1.0)
         inputs = [self.view, float(eps_m), float(fill_mass), latched, centroids, float(e), float(mu), counts]
         self._launch(box_contact, self.nodes, inputs)
