@@ -91,7 +91,7 @@ class BoxTransfer:
 
     @property
     def nbytes(self) -> int:
-        return self.boxes.nodes * (16 + 12 + 4)  # (p, m), v, the box of each node
+        return self.boxes.nodes * (16 + 12 + 12 + 4)  # (p, m), v, ∇m, the box of each node
 
     def transfer(self) -> None:
         s, w, dt = self.sim, self.sim.wp, self.sim.cfg.dt

@@ -14,7 +14,7 @@ import torch
 import warp as wp
 
 from ..runtime import ensure_warp, warp_stream
-from .box_kernels import BoxView, box_contact, box_g2p, box_normalize, box_p2g, box_p2g_runs
+from .box_kernels import BoxView, box_contact, box_g2p, box_gradients, box_normalize, box_p2g, box_p2g_runs
 
 
 class FragmentBoxes:
@@ -55,6 +55,7 @@ class FragmentBoxes:
             self.capacity = max(self.nodes, 2 * self.capacity)
             self.mp = torch.zeros(self.capacity, 4, dtype=torch.float32, device=self.device)
             self.vel = torch.zeros(self.capacity, 3, dtype=torch.float32, device=self.device)
+            self.grad = torch.zeros(self.capacity, 3, dtype=torch.float32, device=self.device)
             self.box_of = torch.zeros(self.capacity, dtype=torch.int32, device=self.device)
         self.box_of[: self.nodes] = torch.repeat_interleave(torch.arange(K, dtype=torch.int32), sizes).to(self.device)
         self.lo = lo.to(self.device, torch.int32).contiguous()
@@ -68,6 +69,7 @@ class FragmentBoxes:
             wp.from_torch(self.mp[: self.nodes], dtype=wp.vec4),
             wp.from_torch(self.vel[: self.nodes], dtype=wp.vec3),
         )
+        v.grad = wp.from_torch(self.grad[: self.nodes], dtype=wp.vec3)
         v.origin, v.dx, v.inv_dx = wp.vec3(*self.origin), self.dx, 1.0 / self.dx
         v.shape, v.boxes = wp.vec3i(*self.shape), K
         self.view = v
@@ -93,6 +95,7 @@ class FragmentBoxes:
         """Every field's v = p/m + Δt g, then contact where fields meet (mass-gradient normals, gate
         m_a + m_b ≥ fill_mass; `centroids` [K] vec3 Warp array, the normals' fallback)."""
         self._launch(box_normalize, self.nodes, [self.view, float(eps_m), float(dt), wp.vec3(*gravity)])
+        self._launch(box_gradients, self.nodes, [self.view, float(eps_m)])
         latched = wp.vec3(0.0, 0.0, 1.0)
         inputs = [self.view, float(eps_m), float(fill_mass), latched, centroids, float(e), float(mu), counts]
         self._launch(box_contact, self.nodes, inputs)
