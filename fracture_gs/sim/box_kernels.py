@@ -4,9 +4,10 @@ Fragment k's field lives on the nodes of its own box B_k: lo_k + [0, dims_k), st
 offset_k + (i·dims_y + j)·dims_z + l of one buffer for all boxes. Every particle takes the dense path into
 its own fragment's box: no owner words, claims or pool, and no limit on how many fields meet at a node.
 
-- `box_p2g`: Eq. multifield_p2g, m_i^k += Σ w_ip m_p, p_i^k += Σ w_ip m_p (v_p + C_p(x_i − x_p)) − Δt V⁰ τ_p ∇w_ip,
-  for the particles of fragment k into B_k (a stencil that leaves B_k is counted, as an escape from the
-  active box is, and not deposited: the caller fits the boxes so that it cannot happen).
+- `box_p2g_runs`: Eq. multifield_p2g, m_i^k += Σ w_ip m_p, p_i^k += Σ w_ip m_p (v_p + C_p(x_i − x_p)) − Δt V⁰ τ_p
+  ∇w_ip, for the particles of fragment k into B_k, `run` consecutive particles a thread (a stencil that
+  leaves B_k is counted, as an escape from the active box is, and not deposited: the caller fits the boxes
+  so that it cannot happen).
 - `box_normalize`: v_i^k = p_i^k / m_i^k + Δt g where m_i^k > ε_m, else 0.
 - `box_gradients`: ∇m of every field with mass, by central differences inside its box (0 beyond it).
 - `box_contact`: at a node where two or more fields hold mass, the thread of the lowest fragment id there
@@ -78,38 +79,6 @@ def stencil_inside(b: BoxView, k: int, base: wp.vec3i):
 
 
 @wp.kernel
-def box_p2g(
-    x: wp.array(dtype=wp.vec3),  # [N]
-    v: wp.array(dtype=wp.vec3),  # [N]
-    C: wp.array(dtype=wp.mat33),  # [N]
-    mass: wp.array(dtype=float),  # [N]
-    volume: wp.array(dtype=float),  # [N] rest volume V⁰
-    stress: wp.array(dtype=wp.mat33),  # [N] Kirchhoff τ
-    fragment: wp.array(dtype=wp.int32),  # [N] the particle's box
-    dt: float,
-    b: BoxView,
-    counts: wp.array(dtype=wp.int32),  # [N_COUNTS]
-):
-    p = wp.tid()
-    k = wp.max(fragment[p], 0)
-    base, f, w, dw = stencil(x[p], b.origin, b.inv_dx, b.shape)
-    if not stencil_inside(b, k, base):
-        wp.atomic_add(counts, COUNT_ESCAPED, 1)
-        return
-    origin = box_index(b, k, base)
-    d = b.dims[k]
-    m = mass[p]
-    vp = v[p]
-    Cp = C[p]
-    force = -dt * volume[p] * stress[p]
-    for i in range(3):
-        for j in range(3):
-            for l in range(3):  # noqa: E741
-                weight, grad, dpos = node_terms(i, j, l, f, w, dw, b.dx, b.inv_dx)
-                atomic_add_vec4(b.mp, origin + (i * d[1] + j) * d[2] + l, deposit(weight, grad, dpos, m, vp, Cp, force))
-
-
-@wp.kernel
 def box_p2g_runs(
     x: wp.array(dtype=wp.vec3),  # [N]
     v: wp.array(dtype=wp.vec3),  # [N]
@@ -123,8 +92,9 @@ def box_p2g_runs(
     run: int,  # consecutive particles per thread
     counts: wp.array(dtype=wp.int32),  # [N_COUNTS]
 ):
-    """`box_p2g` for `run` consecutive particles a thread (`run_kernels.p2g_runs` on boxes): those with the
-    same fragment and stencil base are summed in registers and reach their box as one reduction per node."""
+    """Deposits of `run` consecutive particles a thread (`run_kernels.p2g_runs` on boxes): those with the same
+    fragment and stencil base are summed in registers and reach their box as one reduction per node (run = 1:
+    one particle a thread)."""
     t = wp.tid()
     acc = stencil_sums()
     cur = wp.vec3i(-1, -1, -1)

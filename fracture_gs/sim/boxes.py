@@ -14,7 +14,7 @@ import torch
 import warp as wp
 
 from ..runtime import ensure_warp, warp_stream
-from .box_kernels import BoxView, box_contact, box_g2p, box_gradients, box_normalize, box_p2g, box_p2g_runs
+from .box_kernels import BoxView, box_contact, box_g2p, box_gradients, box_normalize, box_p2g_runs
 
 
 class FragmentBoxes:
@@ -85,11 +85,8 @@ class FragmentBoxes:
         self.mp[: self.nodes].zero_()
         n = w["x"].shape[0]
         keys = ("x", "v", "C", "mass", "volume", "stress", "fragment")
-        if run > 0:
-            inputs = [w[k] for k in keys] + [float(dt), self.view, int(run), counts]
-            self._launch(box_p2g_runs, -(-n // run), inputs)
-        else:
-            self._launch(box_p2g, n, [w[k] for k in keys] + [float(dt), self.view, counts])
+        run = max(1, int(run))
+        self._launch(box_p2g_runs, -(-n // run), [w[k] for k in keys] + [float(dt), self.view, run, counts])
 
     def update(self, dt: float, eps_m: float, gravity, fill_mass: float, centroids, counts, e=0.0, mu=0.0) -> None:
         """Every field's v = p/m + Δt g, then contact where fields meet (mass-gradient normals, gate
