@@ -150,3 +150,45 @@ def test_contact_where_fields_meet_is_the_reference_and_conserves_momentum(devic
     momentum = lambda vel: (m[..., None] * vel * mask[..., None]).sum(1)  # noqa: E731
     scale = float((m[..., None] * v.abs()).sum(1).max())
     assert float((momentum(ours) - momentum(v)).abs().max()) <= 1e-5 * scale, "each node's momentum"
+
+
+def test_one_box_is_the_shared_field_transfer_walls_included(device, seed):
+    """With every particle in fragment 0 the boxes hold one field, and a substep through them (P2G, normalization,
+    the domain walls, G2P) is the simulator's shared-field transfer: bitwise on the CPU, where both add the
+    deposits in particle order, to float32 atomics' order on a GPU. A block falls into the floor, so the walls
+    act."""
+    from simutil import block, config, particles
+
+    from fracture_gs import sim as S
+
+    x, vol = block(
+        (0.3, 0.3, 0.02), (0.6, 0.6, 0.2), 1.0 / 48, jitter=0.5, generator=torch.Generator().manual_seed(seed)
+    )
+    sims = []
+    for _ in range(2):
+        P = particles(x, vol, v=torch.tensor([0.3, 0.0, -2.0]).expand(len(x), 3).clone(), E=1e4, nu=0.3)
+        sim = S.Simulator(config(24, variant="baseline", gravity=GRAVITY, dt=1e-3), P, device=device)
+        sim.fit_active_box(0.01)
+        sim.set_clock(1e-3)
+        sim.compute_stress(sim.stress, commit=True)
+        sims.append(sim)
+    plain, boxed_sim = sims
+    plain.transfer()
+    boxes = FragmentBoxes(boxed_sim.grid.shape, boxed_sim.grid.origin, boxed_sim.grid.dx, device)
+    P = boxed_sim.particles
+    boxes.fit(P.x, torch.zeros_like(P.fragment))
+    w = dict(boxed_sim.wp, fragment=wp.from_torch(torch.zeros_like(P.fragment)))
+    cw = boxed_sim.wp["counts"]
+    boxes.p2g(w, 1e-3, cw)
+    none = wp.zeros(1, dtype=wp.vec3, device=device)
+    boxed_sim.boundaries.colliders.wall_cells = int(boxed_sim.cfg.wall_cells)
+    boxes.update(1e-3, boxed_sim.eps_m, GRAVITY, 0.0, none, cw, colliders=boxed_sim.boundaries.colliders, t=0.0)
+    boxes.g2p(w, 1e-3, boxed_sim._lower, boxed_sim._upper, cw)
+    floor = (plain.particles.v[:, 2] - (-2.0 - 9.8e-3)).abs() > 1e-3
+    assert bool(floor.any()), "the floor changed some velocities"
+    for name in ("x", "v", "C", "F"):
+        a, b = getattr(plain.particles, name).cpu(), getattr(P, name).cpu()
+        if device == "cpu":
+            assert torch.equal(a, b), name
+        else:
+            assert rel_err(b, a) <= 1e-5, f"{name} (seed {seed})"

@@ -14,6 +14,8 @@ its own fragment's box: no owner words, claims or pool, and no limit on how many
   projects every pair in fragment order (the Gauss–Seidel of `contact.contact_projection`), with normals
   from the fields' mass gradients (`contact.contact_normal`) and the gate m_a + m_b ≥ fill_mass; the other
   fields' threads leave that node to it.
+- `box_boundaries`: the grid-side boundaries on every field, after the contact (as the slot storage's
+  pool pass orders them).
 - `box_g2p`: Eqs. field_g2p / field_apic / field_deformation from the particle's own box.
 Twins: `reference.p2g`, `reference.grid_update`, `reference.contact_fields`, `reference.g2p` on K dense
 fields (tests/test_fragment_boxes.py).
@@ -23,6 +25,7 @@ from __future__ import annotations
 
 import warp as wp
 
+from .boundary import Colliders, apply_boundaries
 from .contact import NORMAL_MASS_GRADIENT, contact_normal, contact_projection
 from .layout import COUNT_ESCAPED, COUNT_SLOT_OVERFLOW
 from .run_kernels import stencil_sums
@@ -145,6 +148,19 @@ def flush_box(b: BoxView, k: int, base: wp.vec3i, acc: stencil_sums):
 def box_normalize(b: BoxView, eps_m: float, dt: float, gravity: wp.vec3):
     t = wp.tid()
     b.vel[t] = normalized(b.mp[t], eps_m, dt, gravity)
+
+
+@wp.kernel
+def box_boundaries(b: BoxView, eps_m: float, t: float, colliders: Colliders):
+    """The grid-side boundaries (`boundary.apply_boundaries`) on every field with mass, after the contact."""
+    i = wp.tid()
+    if b.mp[i][3] > eps_m:
+        k = b.box_of[i]
+        d = b.dims[k]
+        r = i - b.offset[k]
+        node = b.lo[k] + wp.vec3i(r // (d[1] * d[2]), (r // d[2]) % d[1], r % d[2])
+        xi = b.origin + wp.vec3(float(node[0]), float(node[1]), float(node[2])) * b.dx
+        b.vel[i] = apply_boundaries(b.vel[i], node, xi, t, colliders)
 
 
 @wp.func

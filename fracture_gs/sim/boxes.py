@@ -1,11 +1,11 @@
 """`FragmentBoxes`: the host side of `box_kernels` — a dense box per fragment, fitted to its particles.
 
 A building block of the storage planned in docs/DESIGN.md ("Grid storage: per-fragment boxes (plan)"),
-not yet what `Simulator` uses: it holds K boxes in one buffer and launches P2G, normalization, contact and
-G2P on them, so the plan's claim (every particle on a dense path, contact only where fields meet) can be
-checked against the float64 twins and timed against the slot storage (`apps/bench_fragments.py
---boxes`) before the solver is moved onto it. Boundaries, band masses and contact statistics are not
-here yet.
+not yet what `Simulator` uses: it holds K boxes in one buffer and launches P2G, normalization, contact,
+boundaries and G2P on them, so the plan's claim (every particle on a dense path, contact only where
+fields meet) can be checked against the float64 twins and the shared-field transfer, and timed against
+the slot storage (`apps/bench_fragments.py --boxes`), before the solver is moved onto it. Band masses
+(the latched normals' gate) and contact statistics are not here yet.
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ import torch
 import warp as wp
 
 from ..runtime import ensure_warp, warp_stream
-from .box_kernels import BoxView, box_contact, box_g2p, box_gradients, box_normalize, box_p2g_runs
+from .box_kernels import BoxView, box_boundaries, box_contact, box_g2p, box_gradients, box_normalize, box_p2g_runs
 
 
 class FragmentBoxes:
@@ -88,14 +88,29 @@ class FragmentBoxes:
         run = max(1, int(run))
         self._launch(box_p2g_runs, -(-n // run), [w[k] for k in keys] + [float(dt), self.view, run, counts])
 
-    def update(self, dt: float, eps_m: float, gravity, fill_mass: float, centroids, counts, e=0.0, mu=0.0) -> None:
+    def update(
+        self,
+        dt: float,
+        eps_m: float,
+        gravity,
+        fill_mass: float,
+        centroids,
+        counts,
+        e=0.0,
+        mu=0.0,
+        colliders=None,
+        t=0.0,
+    ) -> None:
         """Every field's v = p/m + Δt g, then contact where fields meet (mass-gradient normals, gate
-        m_a + m_b ≥ fill_mass; `centroids` [K] vec3 Warp array, the normals' fallback)."""
+        m_a + m_b ≥ fill_mass; `centroids` [K] vec3 Warp array, the normals' fallback), then with `colliders`
+        (`boundary.Colliders`) the boundaries at time t."""
         self._launch(box_normalize, self.nodes, [self.view, float(eps_m), float(dt), wp.vec3(*gravity)])
         self._launch(box_gradients, self.nodes, [self.view, float(eps_m)])
         latched = wp.vec3(0.0, 0.0, 1.0)
         inputs = [self.view, float(eps_m), float(fill_mass), latched, centroids, float(e), float(mu), counts]
         self._launch(box_contact, self.nodes, inputs)
+        if colliders is not None:
+            self._launch(box_boundaries, self.nodes, [self.view, float(eps_m), float(t), colliders])
 
     def g2p(self, w: dict, dt: float, lower, upper, counts) -> None:
         """Every particle gathers from its own fragment's box (v, C, F, x; clamped into [lower, upper])."""
