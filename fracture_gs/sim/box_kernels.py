@@ -11,9 +11,9 @@ its own fragment's box: no owner words, claims or pool, and no limit on how many
 - `box_normalize`: v_i^k = p_i^k / m_i^k + Δt g where m_i^k > ε_m, else 0.
 - `box_gradients`: ∇m of every field with mass, by central differences inside its box (0 beyond it).
 - `box_contact`: at a node where two or more fields hold mass, the thread of the lowest fragment id there
-  projects every pair in fragment order (the Gauss–Seidel of `contact.contact_projection`), with normals
-  from the fields' mass gradients (`contact.contact_normal`) and the gate m_a + m_b ≥ fill_mass; the other
-  fields' threads leave that node to it.
+  projects every pair in fragment order (the Gauss–Seidel of `contact.contact_projection`), the other
+  fields' threads leaving that node to it. Normals and gate as the slot storage's (`contact.contact_normal`):
+  the fields' mass gradients and m_a + m_b ≥ fill_mass, or the latched normal and both band masses > ε_b.
 - `box_boundaries`: the grid-side boundaries on every field, after the contact (as the slot storage's
   pool pass orders them).
 - `box_g2p`: Eqs. field_g2p / field_apic / field_deformation from the particle's own box.
@@ -50,6 +50,7 @@ class BoxView:
     mp: wp.array(dtype=wp.vec4)  # [nodes] (momentum, mass)
     vel: wp.array(dtype=wp.vec3)  # [nodes]
     grad: wp.array(dtype=wp.vec3)  # [nodes] ∇m of the node's field (`box_gradients`)
+    band: wp.array(dtype=float)  # [nodes] the field's band-particle mass (the latched normals' gate)
     origin: wp.vec3
     dx: float
     inv_dx: float
@@ -90,6 +91,7 @@ def box_p2g_runs(
     volume: wp.array(dtype=float),  # [N] rest volume V⁰
     stress: wp.array(dtype=wp.mat33),  # [N] Kirchhoff τ
     fragment: wp.array(dtype=wp.int32),  # [N] the particle's box
+    band: wp.array(dtype=wp.int32),  # [N] γ_p ≠ 0: its mass also goes to the field's band mass
     dt: float,
     b: BoxView,
     run: int,  # consecutive particles per thread
@@ -118,14 +120,19 @@ def box_p2g_runs(
         vp = v[p]
         Cp = C[p]
         force = -dt * volume[p] * stress[p]
+        in_band = band[p] != 0
+        origin = box_index(b, k, base)
+        d = b.dims[k]
         for i in range(3):
             for j in range(3):
                 for l in range(3):  # noqa: E741
                     q = 9 * i + 3 * j + l
                     weight, grad, dpos = node_terms(i, j, l, f, w, dw, b.dx, b.inv_dx)
-                    d = deposit(weight, grad, dpos, m, vp, Cp, force)
+                    dep = deposit(weight, grad, dpos, m, vp, Cp, force)
                     for c in range(4):
-                        acc[q, c] = acc[q, c] + d[c]
+                        acc[q, c] = acc[q, c] + dep[c]
+                    if in_band:  # few particles (the band around a cut): straight to the node
+                        wp.atomic_add(b.band, origin + (i * d[1] + j) * d[2] + l, weight * m)
     if ck >= 0:
         flush_box(b, ck, cur, acc)
 
@@ -192,8 +199,10 @@ def box_gradients(b: BoxView, eps_m: float):
 def box_contact(
     b: BoxView,
     eps_m: float,
-    fill_mass: float,  # two fields touch where m_a + m_b ≥ this [kg]
-    latched: wp.vec3,  # the last fallback normal
+    eps_b: float,  # latched normals: two fields touch where both band masses exceed this [kg]
+    fill_mass: float,  # mass-gradient normals: two fields touch where m_a + m_b ≥ this [kg]
+    normal_mode: int,  # contact.NORMAL_LATCHED or NORMAL_MASS_GRADIENT
+    latched: wp.vec3,  # n_Π of the first event (the mass-gradient normals' last fallback)
     centroids: wp.array(dtype=wp.vec3),  # [K] fragment centroids (normal fallback)
     restitution: float,
     friction: float,
@@ -235,8 +244,11 @@ def box_contact(
         G[a] = b.grad[idx[a]]
     for a in range(n):
         for c in range(a + 1, n):
-            if m[a] + m[c] >= fill_mass:
-                nrm = contact_normal(NORMAL_MASS_GRADIENT, latched, G[a], G[c], centroids[frag[a]], centroids[frag[c]])
+            touching = m[a] + m[c] >= fill_mass
+            if normal_mode != NORMAL_MASS_GRADIENT:
+                touching = b.band[idx[a]] > eps_b and b.band[idx[c]] > eps_b
+            if touching:
+                nrm = contact_normal(normal_mode, latched, G[a], G[c], centroids[frag[a]], centroids[frag[c]])
                 w0, w1 = contact_projection(V[a], V[c], m[a], m[c], nrm, restitution, friction)
                 V[a] = w0
                 V[c] = w1

@@ -4,8 +4,8 @@ A building block of the storage planned in docs/DESIGN.md ("Grid storage: per-fr
 not yet what `Simulator` uses: it holds K boxes in one buffer and launches P2G, normalization, contact,
 boundaries and G2P on them, so the plan's claim (every particle on a dense path, contact only where
 fields meet) can be checked against the float64 twins and the shared-field transfer, and timed against
-the slot storage (`apps/bench_fragments.py --boxes`), before the solver is moved onto it. Band masses
-(the latched normals' gate) and contact statistics are not here yet.
+the slot storage (`apps/bench_fragments.py --boxes`), before the solver is moved onto it. Contact
+statistics are not here yet.
 """
 
 from __future__ import annotations
@@ -15,6 +15,7 @@ import warp as wp
 
 from ..runtime import ensure_warp, warp_stream
 from .box_kernels import BoxView, box_boundaries, box_contact, box_g2p, box_gradients, box_normalize, box_p2g_runs
+from .contact import NORMAL_LATCHED, NORMAL_MASS_GRADIENT
 
 
 class FragmentBoxes:
@@ -56,6 +57,7 @@ class FragmentBoxes:
             self.mp = torch.zeros(self.capacity, 4, dtype=torch.float32, device=self.device)
             self.vel = torch.zeros(self.capacity, 3, dtype=torch.float32, device=self.device)
             self.grad = torch.zeros(self.capacity, 3, dtype=torch.float32, device=self.device)
+            self.band = torch.zeros(self.capacity, dtype=torch.float32, device=self.device)
             self.box_of = torch.zeros(self.capacity, dtype=torch.int32, device=self.device)
         self.box_of[: self.nodes] = torch.repeat_interleave(torch.arange(K, dtype=torch.int32), sizes).to(self.device)
         self.lo = lo.to(self.device, torch.int32).contiguous()
@@ -70,6 +72,7 @@ class FragmentBoxes:
             wp.from_torch(self.vel[: self.nodes], dtype=wp.vec3),
         )
         v.grad = wp.from_torch(self.grad[: self.nodes], dtype=wp.vec3)
+        v.band = wp.from_torch(self.band[: self.nodes])
         v.origin, v.dx, v.inv_dx = wp.vec3(*self.origin), self.dx, 1.0 / self.dx
         v.shape, v.boxes = wp.vec3i(*self.shape), K
         self.view = v
@@ -79,12 +82,13 @@ class FragmentBoxes:
 
     def p2g(self, w: dict, dt: float, counts, run: int = 0) -> None:
         """Clear the boxes, then every particle's deposit into its fragment's box. `w`: Warp arrays x, v, C,
-        mass, volume, stress, fragment; `counts`: the escape counter's array; `run` > 0: that many consecutive
-        particles a thread, summed in registers while they share fragment and stencil base (particles sorted by
-        cell)."""
+        mass, volume, stress, fragment, band; `counts`: the escape counter's array; `run` > 0: that many
+        consecutive particles a thread, summed in registers while they share fragment and stencil base
+        (particles sorted by cell)."""
         self.mp[: self.nodes].zero_()
+        self.band[: self.nodes].zero_()
         n = w["x"].shape[0]
-        keys = ("x", "v", "C", "mass", "volume", "stress", "fragment")
+        keys = ("x", "v", "C", "mass", "volume", "stress", "fragment", "band")
         run = max(1, int(run))
         self._launch(box_p2g_runs, -(-n // run), [w[k] for k in keys] + [float(dt), self.view, run, counts])
 
@@ -100,14 +104,19 @@ class FragmentBoxes:
         mu=0.0,
         colliders=None,
         t=0.0,
+        latched=None,
+        eps_b: float = 0.0,
     ) -> None:
-        """Every field's v = p/m + Δt g, then contact where fields meet (mass-gradient normals, gate
-        m_a + m_b ≥ fill_mass; `centroids` [K] vec3 Warp array, the normals' fallback), then with `colliders`
-        (`boundary.Colliders`) the boundaries at time t."""
+        """Every field's v = p/m + Δt g, then contact where fields meet, then with `colliders`
+        (`boundary.Colliders`) the boundaries at time t. Contact: with `latched` (n_Π, a 3-tuple) along it
+        where both fields' band masses exceed `eps_b` (the paper's gate); else along the fields' mass
+        gradients where m_a + m_b ≥ fill_mass (`centroids` [K] vec3 Warp array: the normals' fallback)."""
         self._launch(box_normalize, self.nodes, [self.view, float(eps_m), float(dt), wp.vec3(*gravity)])
         self._launch(box_gradients, self.nodes, [self.view, float(eps_m)])
-        latched = wp.vec3(0.0, 0.0, 1.0)
-        inputs = [self.view, float(eps_m), float(fill_mass), latched, centroids, float(e), float(mu), counts]
+        mode = NORMAL_MASS_GRADIENT if latched is None else NORMAL_LATCHED
+        n = wp.vec3(*(latched if latched is not None else (0.0, 0.0, 1.0)))
+        inputs = [self.view, float(eps_m), float(eps_b), float(fill_mass), mode, n, centroids, float(e), float(mu)]
+        inputs.append(counts)
         self._launch(box_contact, self.nodes, inputs)
         if colliders is not None:
             self._launch(box_boundaries, self.nodes, [self.view, float(eps_m), float(t), colliders])
