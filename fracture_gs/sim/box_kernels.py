@@ -157,15 +157,21 @@ def box_normalize(b: BoxView, eps_m: float, dt: float, gravity: wp.vec3):
     b.vel[t] = normalized(b.mp[t], eps_m, dt, gravity)
 
 
+@wp.func
+def box_node(b: BoxView, i: int):
+    """(fragment, grid node) of buffer index i."""
+    k = b.box_of[i]
+    d = b.dims[k]
+    r = i - b.offset[k]
+    return k, b.lo[k] + wp.vec3i(r // (d[1] * d[2]), (r // d[2]) % d[1], r % d[2])
+
+
 @wp.kernel
 def box_boundaries(b: BoxView, eps_m: float, t: float, colliders: Colliders):
     """The grid-side boundaries (`boundary.apply_boundaries`) on every field with mass, after the contact."""
     i = wp.tid()
     if b.mp[i][3] > eps_m:
-        k = b.box_of[i]
-        d = b.dims[k]
-        r = i - b.offset[k]
-        node = b.lo[k] + wp.vec3i(r // (d[1] * d[2]), (r // d[2]) % d[1], r % d[2])
+        k, node = box_node(b, i)
         xi = b.origin + wp.vec3(float(node[0]), float(node[1]), float(node[2])) * b.dx
         b.vel[i] = apply_boundaries(b.vel[i], node, xi, t, colliders)
 
@@ -188,10 +194,8 @@ def box_gradients(b: BoxView, eps_m: float):
     t = wp.tid()
     G = wp.vec3(0.0)
     if b.mp[t][3] > eps_m:
-        k = b.box_of[t]
-        d = b.dims[k]
-        r = t - b.offset[k]
-        G = box_mass_gradient(b, k, b.lo[k] + wp.vec3i(r // (d[1] * d[2]), (r // d[2]) % d[1], r % d[2]))
+        k, node = box_node(b, t)
+        G = box_mass_gradient(b, k, node)
     b.grad[t] = G
 
 
@@ -210,12 +214,9 @@ def box_contact(
 ):
     """One thread per box node; the lowest fragment with mass at a node projects its contacts."""
     t = wp.tid()
-    k = b.box_of[t]
     if b.mp[t][3] <= eps_m:
         return
-    d = b.dims[k]
-    r = t - b.offset[k]
-    node = b.lo[k] + wp.vec3i(r // (d[1] * d[2]), (r // d[2]) % d[1], r % d[2])
+    k, node = box_node(b, t)
     for j in range(k):
         if box_mass(b, j, node) > eps_m:
             return  # a lower fragment has mass here: its thread leads
