@@ -231,3 +231,84 @@ def test_latched_normal_contact_gated_by_both_band_masses(device, seed):
         lo = [int(t) for t in boxes.lo[k]]
         ours[:, k] = vel[i - lo[0], j - lo[1], l - lo[2]].double()
     assert rel_err(m[..., None] * ours, m[..., None] * after) <= 1e-5, f"contact (seed {seed})"
+
+
+@pytest.mark.parametrize("fragments", [2, 6])
+def test_a_substep_in_boxes_is_the_slot_storages(device, seed, fragments):
+    """K fields in boxes against the slot storage on the same latched slab (K = 2: the latched normal and the
+    band gate; K = 6 Voronoi pieces: mass-gradient normals and the fill gate; friction on, the pieces driven
+    into each other): one substep moves every particle whose stencil meets at most two fields as the slot
+    storage does, bitwise on the CPU where both add the deposits in particle order (at a node of three
+    fields or more the Gauss–Seidel sweep goes in fragment order here, in slot order there: close, not
+    equal), and records the same contact statistics (at K = 2: counts and first contact exact, the momentum
+    sums to float32 rounding)."""
+    from test_transfer_launch import slab
+
+    from fracture_gs.sim.layout import N_PAIR_STATS, N_STATS, NEVER, PAIR_FIRST_T, STAT_FIRST_T, STAT_GATED
+
+    sims = []
+    for _ in range(2):
+        sim, topo = slab(seed, device, fragments, 8)
+        sim.cfg.contact.friction = 0.3
+        sim.latch(topo)
+        P = sim.particles
+        P.v.copy_(0.5 - P.x)  # every piece moves toward the slab's middle: the pieces press into each other
+        sim.fit_active_box(0.01)
+        sim.set_clock(1e-3)
+        sim.compute_stress(sim.stress, commit=True)
+        sims.append(sim)
+    slots, boxed = sims
+    slots.record_contact = True
+    slots.transfer()
+    P, K = boxed.particles, boxed.grid.max_fragments
+    stats = torch.zeros(N_STATS, device=device)
+    stats[STAT_FIRST_T] = NEVER
+    pair_stats = torch.zeros(K * K * N_PAIR_STATS, device=device)
+    pair_stats.view(-1, N_PAIR_STATS)[:, PAIR_FIRST_T] = NEVER
+    boxes = FragmentBoxes(boxed.grid.shape, boxed.grid.origin, boxed.grid.dx, device)
+    boxes.fit(P.x, P.fragment)
+    w, cw, c = boxed.wp, boxed.wp["counts"], boxed.cfg
+    boxes.p2g(w, 1e-3, cw)
+    crowded = crowded_particles(boxes, P.x.cpu(), boxed.eps_m)  # [N] a stencil node holds three fields or more
+    boxed.boundaries.colliders.wall_cells = int(c.wall_cells)
+    n = tuple(float(a) for a in boxed._normal)
+    boxes.update(
+        1e-3, boxed.eps_m, c.gravity, c.contact.fill * boxed.node_mass, w["centroids"], cw, e=c.restitution,
+        mu=0.3, colliders=boxed.boundaries.colliders, t=0.0, latched=n, eps_b=boxed.eps_b,
+        mass_gradient=boxed.normal_mode == 1, stats=(wp.from_torch(stats), wp.from_torch(pair_stats), K),
+    )  # fmt: skip
+    boxes.g2p(w, 1e-3, boxed._lower, boxed._upper, cw)
+    ref_stats = slots.grid.contact_stats.cpu()
+    assert float(ref_stats[STAT_GATED]) > 10, "the pieces pressed into each other at many nodes"
+    assert bool(crowded.any()) == (fragments > 2)
+    for name in ("x", "v", "C", "F"):
+        a, b = getattr(slots.particles, name).cpu(), getattr(P, name).cpu()
+        if device == "cpu":
+            assert torch.equal(a[~crowded], b[~crowded]), name
+        else:
+            assert rel_err(b[~crowded], a[~crowded]) <= 1e-5, f"{name} (seed {seed})"
+        # where three or more fields meet, the boxes take the pairs in fragment order, the slots in slot order
+        assert rel_err(b, a) <= 1e-2, f"{name} (seed {seed})"
+    ours = stats.cpu()
+    if fragments > 2:  # the sweep's order changes which later pairs still approach: the same contacts, near enough
+        assert abs(float(ours[STAT_GATED] - ref_stats[STAT_GATED])) <= 0.05 * float(ref_stats[STAT_GATED])
+        return
+    assert torch.equal(ours[[0, 1, STAT_FIRST_T]], ref_stats[[0, 1, STAT_FIRST_T]]), (ours, ref_stats)
+    scale = float(ref_stats[5])  # Σ|m v| before: the momentum sums' scale
+    torch.testing.assert_close(ours[2:5], ref_stats[2:5], rtol=0.0, atol=1e-5 * scale)
+    torch.testing.assert_close(ours[5:8], ref_stats[5:8], rtol=1e-5, atol=1e-6)
+    gated = pair_stats.cpu().view(-1, N_PAIR_STATS)[:, -1]
+    assert torch.equal(gated, slots.grid.pair_stats.cpu().view(-1, N_PAIR_STATS)[:, -1]), (
+        "gated pairs per fragment pair"
+    )
+
+
+def crowded_particles(boxes, x, eps_m):  # [N, 3] -> [N] bool
+    """Particles with a stencil node where three or more fields hold mass (after P2G)."""
+    counts = torch.zeros(tuple(boxes.shape), dtype=torch.int64)
+    for k in range(boxes.K):
+        m = boxes.field(k)[0].cpu()
+        lo, d = [int(v) for v in boxes.lo[k]], m.shape
+        counts[lo[0] : lo[0] + d[0], lo[1] : lo[1] + d[1], lo[2] : lo[2] + d[2]] += (m > eps_m).long()
+    nodes, _, _, _ = ref.stencil(x, boxes.origin, boxes.dx)  # [N, 27, 3]
+    return (counts[nodes[..., 0], nodes[..., 1], nodes[..., 2]] >= 3).any(1)

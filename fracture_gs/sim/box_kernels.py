@@ -26,7 +26,7 @@ from __future__ import annotations
 import warp as wp
 
 from .boundary import Colliders, apply_boundaries
-from .contact import NORMAL_MASS_GRADIENT, contact_normal, contact_projection
+from .contact import NORMAL_MASS_GRADIENT, contact_normal, contact_projection, record_contact
 from .layout import COUNT_ESCAPED, COUNT_SLOT_OVERFLOW
 from .run_kernels import stencil_sums
 from .transfer_kernels import atomic_add_vec4, deposit, finish_g2p, node_terms, normalized, stencil
@@ -210,9 +210,16 @@ def box_contact(
     centroids: wp.array(dtype=wp.vec3),  # [K] fragment centroids (normal fallback)
     restitution: float,
     friction: float,
+    project: int,  # apply the projection (FractureFields; 0: Local Multi-Field, detection only)
+    record: int,  # accumulate the contact statistics
+    time: float,  # of the substep [s] (the first contact's)
+    stats: wp.array(dtype=float),  # [N_STATS]
+    pair_stats: wp.array(dtype=float),  # [K·K·N_PAIR_STATS]
+    n_fragments: int,  # K (pair rows of pair_stats)
     counts: wp.array(dtype=wp.int32),
 ):
-    """One thread per box node; the lowest fragment with mass at a node projects its contacts."""
+    """One thread per box node; the lowest fragment with mass at a node projects its approaching pairs (as the
+    slot storage's pool pass: the same gate, normal, projection and statistics per pair)."""
     t = wp.tid()
     if b.mp[t][3] <= eps_m:
         return
@@ -250,9 +257,20 @@ def box_contact(
                 touching = b.band[idx[a]] > eps_b and b.band[idx[c]] > eps_b
             if touching:
                 nrm = contact_normal(normal_mode, latched, G[a], G[c], centroids[frag[a]], centroids[frag[c]])
-                w0, w1 = contact_projection(V[a], V[c], m[a], m[c], nrm, restitution, friction)
-                V[a] = w0
-                V[c] = w1
+                v0 = V[a]
+                v1 = V[c]
+                if wp.dot(v1 - v0, nrm) < 0.0:
+                    w0 = v0
+                    w1 = v1
+                    if project != 0:
+                        w0, w1 = contact_projection(v0, v1, m[a], m[c], nrm, restitution, friction)
+                    if record != 0:
+                        pair = -1
+                        if frag[c] < n_fragments:
+                            pair = frag[a] * n_fragments + frag[c]
+                        record_contact(stats, pair_stats, pair, time, v0, v1, w0, w1, m[a], m[c], nrm, project)
+                    V[a] = w0
+                    V[c] = w1
     for a in range(n):
         b.vel[idx[a]] = V[a]
 

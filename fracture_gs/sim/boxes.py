@@ -4,8 +4,7 @@ A building block of the storage planned in docs/DESIGN.md ("Grid storage: per-fr
 not yet what `Simulator` uses: it holds K boxes in one buffer and launches P2G, normalization, contact,
 boundaries and G2P on them, so the plan's claim (every particle on a dense path, contact only where
 fields meet) can be checked against the float64 twins and the shared-field transfer, and timed against
-the slot storage (`apps/bench_fragments.py --boxes`), before the solver is moved onto it. Contact
-statistics are not here yet.
+the slot storage (`apps/bench_fragments.py --boxes`), before the solver is moved onto it.
 """
 
 from __future__ import annotations
@@ -106,17 +105,27 @@ class FragmentBoxes:
         t=0.0,
         latched=None,
         eps_b: float = 0.0,
+        project: bool = True,
+        stats=None,
+        mass_gradient=None,
     ) -> None:
         """Every field's v = p/m + Δt g, then contact where fields meet, then with `colliders`
         (`boundary.Colliders`) the boundaries at time t. Contact: with `latched` (n_Π, a 3-tuple) along it
         where both fields' band masses exceed `eps_b` (the paper's gate); else along the fields' mass
-        gradients where m_a + m_b ≥ fill_mass (`centroids` [K] vec3 Warp array: the normals' fallback)."""
+        gradients where m_a + m_b ≥ fill_mass (`centroids` [K] vec3 Warp array: the normals' fallback).
+        `mass_gradient` True takes the mass-gradient normals with `latched` as their last fallback. `project`
+        False detects approach without projecting (Local Multi-Field); `stats` = (stats, pair_stats, K), Warp
+        arrays laid out as the grid's contact statistics, accumulates them."""
         self._launch(box_normalize, self.nodes, [self.view, float(eps_m), float(dt), wp.vec3(*gravity)])
         self._launch(box_gradients, self.nodes, [self.view, float(eps_m)])
-        mode = NORMAL_MASS_GRADIENT if latched is None else NORMAL_LATCHED
+        by_gradient = latched is None if mass_gradient is None else mass_gradient
+        mode = NORMAL_MASS_GRADIENT if by_gradient else NORMAL_LATCHED
         n = wp.vec3(*(latched if latched is not None else (0.0, 0.0, 1.0)))
+        if stats is None:
+            none = wp.zeros(1, dtype=float, device=self.device)
+            stats = (none, none, 0)
         inputs = [self.view, float(eps_m), float(eps_b), float(fill_mass), mode, n, centroids, float(e), float(mu)]
-        inputs.append(counts)
+        inputs += [int(project), int(stats[2] > 0), float(t), stats[0], stats[1], int(stats[2]), counts]
         self._launch(box_contact, self.nodes, inputs)
         if colliders is not None:
             self._launch(box_boundaries, self.nodes, [self.view, float(eps_m), float(t), colliders])
