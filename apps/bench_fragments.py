@@ -85,6 +85,7 @@ class BoxTransfer:
         count = torch.bincount(P.fragment.long().clamp_min(0), minlength=K).clamp_min(1)
         self.centroids = wp.from_torch((sums / count[:, None]).contiguous(), dtype=wp.vec3)
         self.fill = sim.cfg.contact.fill * sim.node_mass
+        self.normal = tuple(float(a) for a in sim._normal)  # the simulator's normals and gate (latched at K = 2)
 
     def _stream_scope(self):
         return self.sim._stream_scope()
@@ -97,8 +98,11 @@ class BoxTransfer:
         s, w, dt = self.sim, self.sim.wp, self.sim.cfg.dt
         c = s.cfg.contact
         self.boxes.p2g(w, dt, w["counts"], run=s.p2g_run)  # runs where the simulator uses them (cell order, GPU)
-        self.boxes.update(dt, s.eps_m, s.cfg.gravity, self.fill, self.centroids, w["counts"],
-                          e=float(s.cfg.restitution), mu=float(c.friction))  # fmt: skip
+        self.boxes.update(
+            dt, s.eps_m, s.cfg.gravity, self.fill, self.centroids, w["counts"], e=float(s.cfg.restitution),
+            mu=float(c.friction), latched=self.normal, eps_b=s.eps_b, mass_gradient=s.normal_mode == 1,
+            project=s.spec.contact,
+        )  # fmt: skip
         self.boxes.g2p(w, dt, s._lower, s._upper, w["counts"])
 
 
