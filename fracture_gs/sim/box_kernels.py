@@ -26,7 +26,7 @@ from __future__ import annotations
 import warp as wp
 
 from .boundary import Colliders, apply_boundaries
-from .contact import NORMAL_MASS_GRADIENT, contact_normal, contact_projection, record_contact
+from .contact import NORMAL_MASS_GRADIENT, contact_normal, contact_pair
 from .layout import COUNT_ESCAPED, COUNT_SLOT_OVERFLOW
 from .run_kernels import stencil_sums
 from .transfer_kernels import atomic_add_vec4, deposit, finish_g2p, node_terms, normalized, stencil
@@ -257,20 +257,12 @@ def box_contact(
                 touching = b.band[idx[a]] > eps_b and b.band[idx[c]] > eps_b
             if touching:
                 nrm = contact_normal(normal_mode, latched, G[a], G[c], centroids[frag[a]], centroids[frag[c]])
-                v0 = V[a]
-                v1 = V[c]
-                if wp.dot(v1 - v0, nrm) < 0.0:
-                    w0 = v0
-                    w1 = v1
-                    if project != 0:
-                        w0, w1 = contact_projection(v0, v1, m[a], m[c], nrm, restitution, friction)
-                    if record != 0:
-                        pair = -1
-                        if frag[c] < n_fragments:
-                            pair = frag[a] * n_fragments + frag[c]
-                        record_contact(stats, pair_stats, pair, time, v0, v1, w0, w1, m[a], m[c], nrm, project)
-                    V[a] = w0
-                    V[c] = w1
+                w0, w1 = contact_pair(
+                    V[a], V[c], m[a], m[c], nrm, restitution, friction, project, record, stats, pair_stats,
+                    frag[a], frag[c], n_fragments, time,
+                )  # fmt: skip
+                V[a] = w0
+                V[c] = w1
     for a in range(n):
         b.vel[idx[a]] = V[a]
 

@@ -115,3 +115,36 @@ def record_contact(
         wp.atomic_add(pair_stats, base + PAIR_DPZ, dp[2])
         wp.atomic_add(pair_stats, base + PAIR_PNORM, wp.length(before))
         wp.atomic_add(pair_stats, base + PAIR_GATED, 1.0)
+
+
+@wp.func
+def contact_pair(
+    v0: wp.vec3,
+    v1: wp.vec3,
+    m0: float,
+    m1: float,
+    normal: wp.vec3,
+    restitution: float,
+    friction: float,
+    project: int,
+    record: int,
+    stats: wp.array(dtype=float),
+    pair_stats: wp.array(dtype=float),
+    frag0: int,
+    frag1: int,
+    n_fragments: int,
+    t: float,
+):
+    """One gated pair of fields at a node, field 0 the lower fragment id: if they approach along `normal`,
+    the projection (with `project`) and the statistics (with `record`); returns the two velocities."""
+    w0 = v0
+    w1 = v1
+    if wp.dot(v1 - v0, normal) < 0.0:
+        if project != 0:
+            w0, w1 = contact_projection(v0, v1, m0, m1, normal, restitution, friction)
+        if record != 0:
+            pair = -1
+            if frag1 < n_fragments:
+                pair = frag0 * n_fragments + frag1
+            record_contact(stats, pair_stats, pair, t, v0, v1, w0, w1, m0, m1, normal, project)
+    return w0, w1

@@ -15,7 +15,7 @@ import warp as wp
 
 from .boundary import Colliders, apply_boundaries
 from .clock import Clock, clock_dt, clock_time
-from .contact import NORMAL_MASS_GRADIENT, contact_normal, contact_projection, record_contact
+from .contact import NORMAL_MASS_GRADIENT, contact_normal, contact_pair
 from .layout import (
     COUNT_CLAMPED,
     COUNT_ESCAPED,
@@ -426,20 +426,12 @@ def grid_update_pool(
                         lo = c
                         hi = a
                     nrm = contact_normal(normal_mode, latched, G[lo], G[hi], centroids[frag[lo]], centroids[frag[hi]])
-                    v0 = V[lo]
-                    v1 = V[hi]
-                    if wp.dot(v1 - v0, nrm) < 0.0:
-                        w0 = v0
-                        w1 = v1
-                        if project != 0:
-                            w0, w1 = contact_projection(v0, v1, m[lo], m[hi], nrm, restitution, friction)
-                        if record != 0:
-                            pair = -1
-                            if frag[hi] < n_fragments:
-                                pair = frag[lo] * n_fragments + frag[hi]
-                            record_contact(stats, pair_stats, pair, t, v0, v1, w0, w1, m[lo], m[hi], nrm, project)
-                        V[lo] = w0
-                        V[hi] = w1
+                    w0, w1 = contact_pair(
+                        V[lo], V[hi], m[lo], m[hi], nrm, restitution, friction, project, record, stats, pair_stats,
+                        frag[lo], frag[hi], n_fragments, t,
+                    )  # fmt: skip
+                    V[lo] = w0
+                    V[hi] = w1
     for s in range(g.slots):
         v = V[s]
         if m[s] > eps_m:
