@@ -51,6 +51,11 @@ def warp_stream(device: str):
     return _streams[key]
 
 
+def launch(kernel, dim, inputs: list, device: str) -> None:
+    """`wp.launch` on `device`, on this thread's torch stream there (`warp_stream`): how the package launches."""
+    wp.launch(kernel, dim=dim, inputs=inputs, device=device, stream=warp_stream(device))
+
+
 def torch_stream(device: str):
     """Context in which Warp launches go to torch's current stream on `device` (no-op on the CPU)."""
     stream = warp_stream(device)

@@ -116,9 +116,10 @@ def run_in_threads(
         try:
             for t in threads:
                 t.join(timeout=0.05)
-            if not told and channel.first() is not None:
+            first = None if told else channel.first()
+            if first is not None:
                 told = True
-                on_first_topology(channel.first(), frames)
+                on_first_topology(first, frames)
         except KeyboardInterrupt:  # the variants stop at their next frame and return what they have
             interrupted = True
             stop.set()

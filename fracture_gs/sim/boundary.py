@@ -12,7 +12,7 @@ import warp as wp
 
 from ..config import CuboidBoundary, ParticleRegion, PlaneBoundary
 from ..errors import SimulationError
-from ..runtime import ensure_warp, warp_stream
+from ..runtime import ensure_warp, launch
 from .clock import Clock
 
 wp.set_module_options({"enable_backward": False})  # forward-only kernels compile in half the time
@@ -194,10 +194,5 @@ class Boundaries:
         for i, r in enumerate(self.regions):
             if active is not None and not active[i]:
                 continue
-            wp.launch(
-                apply_particle_region,
-                dim=n,
-                device=device,
-                stream=warp_stream(device),
-                inputs=[x_wp, v_wp, wp.vec3(*r.lower), wp.vec3(*r.upper), 0 if r.kind == "impulse" else 1, i, clock],
-            )
+            kind = 0 if r.kind == "impulse" else 1
+            launch(apply_particle_region, n, [x_wp, v_wp, wp.vec3(*r.lower), wp.vec3(*r.upper), kind, i, clock], device)

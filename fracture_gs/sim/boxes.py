@@ -12,7 +12,7 @@ from __future__ import annotations
 import torch
 import warp as wp
 
-from ..runtime import ensure_warp, warp_stream
+from ..runtime import ensure_warp, launch
 from .box_kernels import BoxView, box_boundaries, box_contact, box_g2p, box_gradients, box_normalize, box_p2g_runs
 from .contact import NORMAL_LATCHED, NORMAL_MASS_GRADIENT
 
@@ -28,6 +28,7 @@ class FragmentBoxes:
         self.capacity = 0
         self.lo = self.dims = self.offset = None
         self.nodes = 0
+        self._no_stats = None  # a 1-element array for the contact kernel's statistics when none are kept
 
     def fit(self, x: torch.Tensor, fragment: torch.Tensor, slack: int = 1) -> None:  # [N, 3], [N]
         """Box k: the bounding box of fragment k's stencils plus `slack` nodes each way, inside the grid.
@@ -76,9 +77,6 @@ class FragmentBoxes:
         v.shape, v.boxes = wp.vec3i(*self.shape), K
         self.view = v
 
-    def _launch(self, kernel, dim: int, inputs: list) -> None:
-        wp.launch(kernel, dim=dim, inputs=inputs, device=self.device, stream=warp_stream(self.device))
-
     def p2g(self, w: dict, dt: float, counts, run: int = 0) -> None:
         """Clear the boxes, then every particle's deposit into its fragment's box. `w`: Warp arrays x, v, C,
         mass, volume, stress, fragment, band; `counts`: the escape counter's array; `run` > 0: that many
@@ -89,7 +87,7 @@ class FragmentBoxes:
         n = w["x"].shape[0]
         keys = ("x", "v", "C", "mass", "volume", "stress", "fragment", "band")
         run = max(1, int(run))
-        self._launch(box_p2g_runs, -(-n // run), [w[k] for k in keys] + [float(dt), self.view, run, counts])
+        launch(box_p2g_runs, -(-n // run), [w[k] for k in keys] + [float(dt), self.view, run, counts], self.device)
 
     def update(
         self,
@@ -116,24 +114,27 @@ class FragmentBoxes:
         `mass_gradient` True takes the mass-gradient normals with `latched` as their last fallback. `project`
         False detects approach without projecting (Local Multi-Field); `stats` = (stats, pair_stats, K), Warp
         arrays laid out as the grid's contact statistics, accumulates them."""
-        self._launch(box_normalize, self.nodes, [self.view, float(eps_m), float(dt), wp.vec3(*gravity)])
-        self._launch(box_gradients, self.nodes, [self.view, float(eps_m)])
+        launch(box_normalize, self.nodes, [self.view, float(eps_m), float(dt), wp.vec3(*gravity)], self.device)
+        launch(box_gradients, self.nodes, [self.view, float(eps_m)], self.device)
         by_gradient = latched is None if mass_gradient is None else mass_gradient
         mode = NORMAL_MASS_GRADIENT if by_gradient else NORMAL_LATCHED
         n = wp.vec3(*(latched if latched is not None else (0.0, 0.0, 1.0)))
-        if stats is None:
-            none = wp.zeros(1, dtype=float, device=self.device)
-            stats = (none, none, 0)
+        if stats is None:  # made once: no allocation per substep
+            if self._no_stats is None:
+                self._no_stats = wp.zeros(1, dtype=float, device=self.device)
+            stats = (self._no_stats, self._no_stats, 0)
         inputs = [self.view, float(eps_m), float(eps_b), float(fill_mass), mode, n, centroids, float(e), float(mu)]
         inputs += [int(project), int(stats[2] > 0), float(t), stats[0], stats[1], int(stats[2]), counts]
-        self._launch(box_contact, self.nodes, inputs)
+        launch(box_contact, self.nodes, inputs, self.device)
         if colliders is not None:
-            self._launch(box_boundaries, self.nodes, [self.view, float(eps_m), float(t), colliders])
+            launch(box_boundaries, self.nodes, [self.view, float(eps_m), float(t), colliders], self.device)
 
     def g2p(self, w: dict, dt: float, lower, upper, counts) -> None:
         """Every particle gathers from its own fragment's box (v, C, F, x; clamped into [lower, upper])."""
         keys = ("x", "v", "C", "F", "fragment")
-        self._launch(box_g2p, w["x"].shape[0], [w[k] for k in keys] + [float(dt), self.view, lower, upper, counts])
+        launch(
+            box_g2p, w["x"].shape[0], [w[k] for k in keys] + [float(dt), self.view, lower, upper, counts], self.device
+        )
 
     def field(self, k: int) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """Box k's mass [X,Y,Z], momentum [X,Y,Z,3] and velocity [X,Y,Z,3] (its lowest node: `lo[k]`)."""

@@ -16,7 +16,7 @@ import warp as wp
 
 from ..errors import SimulationDiverged
 from ..profiling import phases
-from ..runtime import capture_lock, side_stream, warp_stream
+from ..runtime import capture_lock, launch, side_stream, warp_stream
 from .clock import tick
 from .layout import COUNT_ESCAPED, COUNT_POOL_OVERFLOW, COUNT_SLOT_OVERFLOW
 from .particles import SimulationError
@@ -43,7 +43,7 @@ class FrameLoop:
         )
         self.compute_stress(self.stress, commit=True)
         self.transfer()
-        wp.launch(tick, dim=1, device=self.device, stream=warp_stream(self.device), inputs=[self.clock.view])
+        launch(tick, 1, [self.clock.view], self.device)
 
     def _graph_key(self) -> tuple:
         """Everything a recorded substep bakes in besides the clock: a change means recording again."""

@@ -19,7 +19,7 @@ import warp as wp
 
 from ..config import SimConfig
 from ..errors import SimulationError
-from ..runtime import ensure_warp, warp_stream
+from ..runtime import ensure_warp, launch
 from .field_metrics_kernels import OUT_ACTIVE, OUT_MASS, OUT_MIXING, OUT_SHARED, OUT_TOTAL, dense_sums, pool_sums
 from .layout import (
     EMPTY_KEY,
@@ -288,11 +288,8 @@ class Grid:
         rows = SUM_ROWS if self.device.startswith("cuda") else 1  # spread the atomics (see the kernels)
         out = torch.zeros((rows, OUT_MASS + K), dtype=torch.float64, device=self.device)
         o = wp.from_torch(out, dtype=wp.float64)
-        stream = warp_stream(self.device)
-        wp.launch(dense_sums, dim=self.shape, device=self.device, stream=stream, inputs=[self.view, float(eps_m), K, o])
-        wp.launch(
-            pool_sums, dim=self.capacity, device=self.device, stream=stream, inputs=[self.view, float(eps_m), K, o]
-        )
+        launch(dense_sums, self.shape, [self.view, float(eps_m), K, o], self.device)
+        launch(pool_sums, self.capacity, [self.view, float(eps_m), K, o], self.device)
         out = out.sum(0)
         cf = out[OUT_MIXING] / (out[OUT_TOTAL] + EPS)
         shared = 100.0 * out[OUT_SHARED] / out[OUT_ACTIVE].clamp_min(1.0)

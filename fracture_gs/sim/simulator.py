@@ -17,7 +17,7 @@ import torch
 import warp as wp
 
 from ..config import MATERIALS, SimConfig
-from ..runtime import StreamFork, cpu_ranges, ensure_warp, run_ranges, torch_stream, warp_stream
+from ..runtime import StreamFork, cpu_ranges, ensure_warp, launch, run_ranges, torch_stream
 from ..variants import VARIANTS, variant_spec
 from .boundary import Boundaries
 from .clock import FrameClock
@@ -500,8 +500,7 @@ class Simulator(FrameLoop):
         self.counts += self._range_counts.sum(0, dtype=torch.int32)
 
     def _launch(self, kernel, dim, inputs: list) -> None:
-        """A kernel on this simulator's device, on this thread's torch stream (`runtime.warp_stream`)."""
-        wp.launch(kernel, dim=dim, inputs=inputs, device=self.device, stream=warp_stream(self.device))
+        launch(kernel, dim, inputs, self.device)
 
     def _beside(self, on: bool = True):
         """Context for launches that need nothing issued after the last join and that nothing reads before
