@@ -29,7 +29,7 @@ from .boundary import Colliders, apply_boundaries
 from .contact import NORMAL_MASS_GRADIENT, contact_normal, contact_pair
 from .layout import COUNT_ESCAPED, COUNT_SLOT_OVERFLOW
 from .run_kernels import stencil_sums
-from .transfer_kernels import atomic_add_vec4, deposit, finish_g2p, node_terms, normalized, stencil
+from .transfer_kernels import atomic_add_vec4, deposit, finish_g2p, gather, node_terms, normalized, stencil
 
 wp.set_module_options({"enable_backward": False})
 
@@ -285,17 +285,5 @@ def box_g2p(
     base, f, w, dw = stencil(x[p], b.origin, b.inv_dx, b.shape)
     if not stencil_inside(b, k, base):
         return  # counted by P2G
-    origin = box_index(b, k, base)
-    d = b.dims[k]
-    vp = wp.vec3(0.0)
-    B = wp.mat33(0.0)
-    gradv = wp.mat33(0.0)
-    for i in range(3):
-        for j in range(3):
-            for l in range(3):  # noqa: E741
-                weight, grad, dpos = node_terms(i, j, l, f, w, dw, b.dx, b.inv_dx)
-                vi = b.vel[origin + (i * d[1] + j) * d[2] + l]
-                vp = vp + weight * vi
-                B = B + weight * wp.outer(vi, dpos)
-                gradv = gradv + wp.outer(vi, grad)
+    vp, B, gradv = gather(b.vel, b.offset[k], b.dims[k], base - b.lo[k], f, w, dw, b.dx, b.inv_dx)
     finish_g2p(p, vp, B, gradv, dt, b.inv_dx, x, v, C, F, lower, upper, counts)
