@@ -3,14 +3,16 @@ FractureFields, time per transfer substep and grid memory.
 
     python apps/bench_fragments.py --device cuda:0                     # 171,553 particles, 128³
     python apps/bench_fragments.py --device cpu --particles 3000 --n 32  # a smoke run
-    python apps/bench_fragments.py --device cuda:0 --boxes             # also the per-fragment box transfer
+    python apps/bench_fragments.py --device cuda:0 --storage boxes     # FractureFields in per-fragment boxes only
 
 Scope as the paper's Table 2: grid reset, P2G, grid update (normalization, contact, boundaries), G2P
-(no stress, diagnostics or rendering). Each branch runs on its own copy of one latched state; on CUDA
+(no stress, diagnostics or rendering). FractureFields runs in each grid storage of `--storage` (the
+simulator's `sim.grid_storage`: slots, boxes). Each branch runs on its own copy of one latched state; on CUDA
 the substep is a recorded graph timed with CUDA events (medians over `--steps` after warm-up, builds
 round-robin over `--placements` fresh allocations, trials round-robin). Memory: the grid buffers as
-allocated (dense slot 0, owner words, the pool of multi-fragment nodes sized for the state), and beside
-them the slot cache of the GPU's fan-out (a buffer index per (particle that is not solo, stencil node)).
+allocated (slots: dense slot 0, owner words, the pool of multi-fragment nodes sized for the state, and
+beside them the slot cache of the GPU's fan-out, a buffer index per (particle that is not solo, stencil
+node); boxes: the dense grid the simulator keeps for the time before a latch plus the boxes' buffers).
 """
 
 from __future__ import annotations
@@ -30,12 +32,11 @@ from fracture_gs import assets
 from fracture_gs.config import SceneConfig, SimConfig
 from fracture_gs.runtime import warp_stream
 from fracture_gs.sim import Particles, Simulator, Topology
-from fracture_gs.sim.boxes import FragmentBoxes
 from fracture_gs.sim.layout import COUNT_ESCAPED, COUNT_SLOT_OVERFLOW
 from fracture_gs.sim.providers.cuts import voronoi_labels
 from fracture_gs.sim.providers.voronoi import voronoi_sites
 
-BRANCHES = (("Shared", "stress_zero"), ("FractureFields", "full"))
+BRANCHES = (("Shared", "stress_zero", "slots"), ("FractureFields", "full", "slots"), ("Boxes", "full", "boxes"))
 
 
 def state(particles, device: str, n: int):
@@ -52,9 +53,9 @@ def topology(P: Particles, K: int, dx: float) -> Topology:
     return Topology(fragment=fragment, band=band, normal=(0.0, 0.0, 1.0), point=(0.5, 0.5, 0.4))
 
 
-def build(cfg, P, topo, variant, device, sort="cell"):
+def build(cfg, P, topo, variant, device, sort="cell", storage="slots"):
     c = copy.deepcopy(cfg.sim)
-    c.variant = variant
+    c.variant, c.grid_storage = variant, storage
     sim = Simulator(c, P.clone(), device=device)
     sim.record_contact = False
     if sort != "built":  # the same order for every branch (cell: P2G in runs on a GPU)
@@ -70,40 +71,9 @@ def build(cfg, P, topo, variant, device, sort="cell"):
     return sim
 
 
-class BoxTransfer:
-    """`--boxes`: the per-fragment box transfer (`fracture_gs.sim.boxes`: clear, P2G, normalization, contact
-    where fields meet, G2P) on a built simulator's particles, timed like a simulator's `transfer`. The boxes
-    are fitted once, with 2 nodes of slack (stencils that leave them later are counted as escapes)."""
-
-    def __init__(self, sim: Simulator):
-        self.sim, self.device = sim, sim.device
-        P, g = sim.particles, sim.grid
-        self.boxes = FragmentBoxes(g.shape, g.origin, g.dx, sim.device)
-        self.boxes.fit(P.x, P.fragment, slack=2)
-        K = self.boxes.K
-        sums = torch.zeros(K, 3, device=P.x.device).index_add_(0, P.fragment.long().clamp_min(0), P.x)
-        count = torch.bincount(P.fragment.long().clamp_min(0), minlength=K).clamp_min(1)
-        self.centroids = wp.from_torch((sums / count[:, None]).contiguous(), dtype=wp.vec3)
-        self.fill = sim.cfg.contact.fill * sim.node_mass
-        self.normal = tuple(float(a) for a in sim._normal)  # the simulator's normals and gate (latched at K = 2)
-
-    def _stream_scope(self):
-        return self.sim._stream_scope()
-
-    @property
-    def nbytes(self) -> int:
-        return self.boxes.nodes * (16 + 12 + 12 + 4)  # (p, m), v, ∇m, the box of each node
-
-    def transfer(self) -> None:
-        s, w, dt = self.sim, self.sim.wp, self.sim.cfg.dt
-        c = s.cfg.contact
-        self.boxes.p2g(w, dt, w["counts"], run=s.p2g_run)  # runs where the simulator uses them (cell order, GPU)
-        self.boxes.update(
-            dt, s.eps_m, s.cfg.gravity, self.fill, self.centroids, w["counts"], e=float(s.cfg.restitution),
-            mu=float(c.friction), latched=self.normal, eps_b=s.eps_b, mass_gradient=s.normal_mode == 1,
-            project=s.spec.contact,
-        )  # fmt: skip
-        self.boxes.g2p(w, dt, s._lower, s._upper, w["counts"])
+def grid_bytes(sim: Simulator) -> int:
+    """The grid buffers the simulator holds (with boxes: its dense grid and the boxes)."""
+    return sim.grid.nbytes + (sim.boxes.nbytes if sim.boxes is not None else 0)
 
 
 def time_builds(sims: list, steps: int, warmup: int, trials: int) -> list[float]:
@@ -161,10 +131,9 @@ def main(argv=None) -> int:
         "--sort", choices=("cell", "interleaved", "built"), default="cell", help="particle order (default cell)"
     )
     p.add_argument(
-        "--boxes",
-        action="store_true",
-        help="also time the per-fragment box transfer (fracture_gs.sim.boxes; docs/DESIGN.md's plan) on the "
-        "FractureFields state",
+        "--storage",
+        default="slots,boxes",
+        help="FractureFields' grid storages to time (sim.grid_storage), comma-separated (default slots,boxes)",
     )
     a = p.parse_args(argv)
     if a.device.startswith("cuda"):  # graph capture needs a non-default stream
@@ -176,61 +145,46 @@ def main(argv=None) -> int:
     for K in (int(k) for k in a.K.split(",")):
         topo = topology(P, K, cfg.sim.dx)
         out = {"K": K}
-        for label, variant in BRANCHES:
-            sims = [build(cfg, P, topo, variant, a.device, a.sort) for _ in range(a.placements)]
+        storages = a.storage.split(",")
+        for label, variant, storage in BRANCHES:
+            if variant == "full" and storage not in storages:
+                continue
+            sims = [build(cfg, P, topo, variant, a.device, a.sort, storage) for _ in range(a.placements)]
             ms = time_builds(sims, a.steps, a.warmup, a.trials)
             out[label] = {
                 "median_ms": statistics.median(ms),
                 "min_ms": min(ms),
                 "max_ms": max(ms),
-                "grid_mib": sims[0].grid.nbytes / 2**20,
+                "grid_mib": grid_bytes(sims[0]) / 2**20,
                 "slot_cache_mib": sims[0]._slot_cache.numel() * 4 / 2**20 if sims[0].fanout else 0.0,
                 "pool_rows": int(sims[0].grid.rows_used()),
                 "slot_overflow": int(sims[0].counts[COUNT_SLOT_OVERFLOW]),
+                "escaped": int(sims[0].counts[COUNT_ESCAPED]),
             }
-            if label == "FractureFields" and a.boxes:
-                boxes = [BoxTransfer(s) for s in sims]
-                ms = time_builds(boxes, a.steps, a.warmup, a.trials)
-                out["Boxes"] = {
-                    "median_ms": statistics.median(ms),
-                    "min_ms": min(ms),
-                    "max_ms": max(ms),
-                    "grid_mib": boxes[0].nbytes / 2**20,
-                    "escaped": int(sims[0].counts[COUNT_ESCAPED]),
-                }
-                del boxes
+            if storage == "boxes":
+                out[label]["slot_cache_mib"] = 0.0
             del sims
-        if "Boxes" in out:
-            out["boxes_time_ratio"] = out["Boxes"]["median_ms"] / out["Shared"]["median_ms"]
-        out["time_ratio"] = out["FractureFields"]["median_ms"] / out["Shared"]["median_ms"]
-        out["memory_ratio"] = out["FractureFields"]["grid_mib"] / out["Shared"]["grid_mib"]
-        ff = out["FractureFields"]
-        out["memory_ratio_with_cache"] = (ff["grid_mib"] + ff["slot_cache_mib"]) / out["Shared"]["grid_mib"]
+        for label in ("FractureFields", "Boxes"):
+            if label in out:
+                ff = out[label]
+                out[label]["time_ratio"] = ff["median_ms"] / out["Shared"]["median_ms"]
+                out[label]["memory_ratio"] = (ff["grid_mib"] + ff["slot_cache_mib"]) / out["Shared"]["grid_mib"]
         rows.append(out)
         print(json.dumps(out), flush=True)
     dev = torch.cuda.get_device_name(a.device) if a.device.startswith("cuda") else "cpu"
     print(f"\n### K fragments ({dev}, {len(P)} particles, {a.n}³, {a.sort} order)\n")
-    print(
-        "| K | Shared ms | FractureFields ms | × Shared | Shared MiB | FF MiB | × memory | FF slot cache MiB "
-        "| × memory with it | pool rows | overflow |"
-    )
-    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    print("| K | Shared ms | FractureFields storage | ms | × Shared | MiB (with slot cache) | × Shared's | escaped | "
+          "overflow |")  # fmt: skip
+    print("|---|---|---|---|---|---|---|---|---|")
     for r in rows:
-        s, f = r["Shared"], r["FractureFields"]
-        print(
-            f"| {r['K']} | {s['median_ms']:.4f} | {f['median_ms']:.4f} | {r['time_ratio']:.3f} | {s['grid_mib']:.1f} | "
-            f"{f['grid_mib']:.1f} | {r['memory_ratio']:.3f} | {f['slot_cache_mib']:.1f} | "
-            f"{r['memory_ratio_with_cache']:.3f} | {f['pool_rows']} | {f['slot_overflow']} |"
-        )
-    if any("Boxes" in r for r in rows):
-        print("\n| K | per-fragment boxes ms | × Shared | box MiB | × Shared's grid | escaped stencils |")
-        print("|---|---|---|---|---|---|")
-        for r in rows:
-            b = r["Boxes"]
-            print(
-                f"| {r['K']} | {b['median_ms']:.4f} | {r['boxes_time_ratio']:.3f} | {b['grid_mib']:.1f} | "
-                f"{b['grid_mib'] / r['Shared']['grid_mib']:.3f} | {b['escaped']} |"
-            )
+        for label, storage in (("FractureFields", "slots"), ("Boxes", "boxes")):
+            if label in r:
+                f = r[label]
+                print(
+                    f"| {r['K']} | {r['Shared']['median_ms']:.4f} | {storage} | {f['median_ms']:.4f} | "
+                    f"{f['time_ratio']:.3f} | {f['grid_mib'] + f['slot_cache_mib']:.1f} | {f['memory_ratio']:.3f} | "
+                    f"{f['escaped']} | {f['slot_overflow']} |"
+                )
     return 0
 
 

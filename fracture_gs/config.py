@@ -20,6 +20,7 @@ MaterialName = Literal["fixed_corotated", "neo_hookean", "stvk_hencky_vm", "druc
 PlaneMode = Literal["sticky", "slip", "friction"]
 RegionKind = Literal["impulse", "velocity"]
 GridKind = Literal["explicit", "auto"]
+GridStorage = Literal["slots", "boxes"]
 ProviderName = Literal["none", "oracle", "stress", "voronoi"]
 RenderMode = Literal["classic", "antialiased"]
 RenderBackend = Literal["auto", "gsplat", "torch"]
@@ -210,8 +211,13 @@ class SimConfig:
     max_fragments: int = 64
     """Most fragment ids a run may create (K); providers stop splitting beyond it."""
     field_slots: int = 4
-    """Fields one grid node can hold (S, 2…8): a node reached by more fragments merges the extra ones
-    into its first field and counts a slot overflow."""
+    """Fields one grid node couples (S, 2…8). Slots: a node reached by more fragments merges the extra ones
+    into its first field and counts a slot overflow. Boxes: the extra fields keep their own velocity (no
+    contact with the others there) and are counted the same way."""
+    grid_storage: GridStorage = "slots"
+    """Where the fragment fields live after a latch (multi-field variants): `slots` (one dense grid plus a pool
+    of extra slots at nodes two fragments reach) or `boxes` (a dense box per fragment, fitted every frame;
+    DESIGN.md "Grid storage: per-fragment boxes")."""
     contact: ContactConfig = field(default_factory=ContactConfig)
     """Fragment–fragment contact: friction and normals."""
     max_grid_cells: int = 16_777_216

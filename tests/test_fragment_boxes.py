@@ -11,11 +11,24 @@ from simutil import rel_err
 
 from fracture_gs.runtime import ensure_warp
 from fracture_gs.sim import reference as ref
+from fracture_gs.sim.boundary import Boundaries
 from fracture_gs.sim.boxes import FragmentBoxes
+from fracture_gs.sim.clock import FrameClock
 from fracture_gs.sim.layout import COUNT_ESCAPED, N_COUNTS
 
 N, n, DT, EPS_M = 3000, 24, 1e-3, 1e-9
 GRAVITY = (0.0, 0.0, -9.8)
+
+
+def clock(device, dt=DT):
+    """The frame clock at the first substep of Δt (what the kernels read Δt and t from)."""
+    c = FrameClock(device, 0)
+    c.set(dt, [0.0])
+    return c.view
+
+
+def no_walls(device):
+    return Boundaries([], device, (n, n, n), 0).colliders
 
 
 def state(seed, device, sort=False):
@@ -68,7 +81,7 @@ def test_each_particle_deposits_into_its_own_fragments_box_only(device, seed, ru
     """One particle a thread, or runs of 8 consecutive particles summed in registers (sorted by cell, so runs
     share stencil bases; a change of fragment or base flushes): the same fields to float32 rounding."""
     P, w, counts, boxes = state(seed, device, sort=run > 0)
-    boxes.p2g(w, DT, wp.from_torch(counts), run=run)
+    boxes.p2g(w, clock(device), wp.from_torch(counts), run=run)
     assert int(counts[COUNT_ESCAPED]) == 0
     gm, gp, _ = reference_fields(P)
     assert boxes.nodes < 4 * n**3 / 8, "the boxes hug their fragments"
@@ -82,16 +95,17 @@ def test_each_particle_deposits_into_its_own_fragments_box_only(device, seed, ru
 def test_normalize_and_g2p_read_each_particle_back_from_its_own_field(device, seed):
     P, w, counts, boxes = state(seed, device)
     cw = wp.from_torch(counts)
-    boxes.p2g(w, DT, cw)
-    boxes.update(DT, EPS_M, GRAVITY, fill_mass=float("inf"), centroids=wp.zeros(4, dtype=wp.vec3, device=device),
-                 counts=cw)  # fmt: skip
+    c = clock(device)
+    boxes.p2g(w, c, cw)
+    boxes.update(c, EPS_M, GRAVITY, fill_mass=float("inf"), centroids=wp.zeros(4, dtype=wp.vec3, device=device),
+                 counts=cw, colliders=no_walls(device))  # fmt: skip
     gm, gp, cpu = reference_fields(P)
     gv = ref.grid_update(gm, gp, torch.zeros_like(gm), EPS_M, 0.0, DT, GRAVITY)  # no contact: the gate never opens
     for k in range(4):  # weighted by the node's mass: p/m of a node at a stencil's far edge is ill-conditioned
         m, _, vel = (t.cpu() for t in boxes.field(k))
         mv = boxed(boxes, k, gm[k])[..., None] * boxed(boxes, k, gv[k])
         assert rel_err(m[..., None] * vel, mv) <= 1e-5, f"velocity {k} (seed {seed})"
-    boxes.g2p(w, DT, wp.vec3(0.0, 0.0, 0.0), wp.vec3(1.0, 1.0, 1.0), cw)
+    boxes.g2p(w, c, wp.vec3(0.0, 0.0, 0.0), wp.vec3(1.0, 1.0, 1.0), cw)
     x1, v1, C1, F1 = ref.g2p(cpu["x"], cpu["F"], gv, cpu["fragment"], (0.0, 0.0, 0.0), 1.0 / n, DT)
     for name, theirs in (("x", x1), ("v", v1), ("C", C1), ("F", F1)):
         assert rel_err(P[name].cpu(), theirs) <= 1e-5, f"G2P {name} (seed {seed})"
@@ -112,12 +126,13 @@ def mass_gradients(gm):  # [K, n, n, n] -> [K, n, n, n, 3], central differences,
 def test_contact_where_fields_meet_is_the_reference_and_conserves_momentum(device, seed):
     P, w, counts, boxes = state(seed, device)
     cw = wp.from_torch(counts)
-    boxes.p2g(w, DT, cw)
+    c = clock(device)
+    boxes.p2g(w, c, cw)
     gm, gp, cpu = reference_fields(P)
     fill = 0.05 * float(gm[gm > 0].mean())
     centroids = torch.stack([cpu["x"][cpu["fragment"] == k].mean(0) for k in range(4)])
-    boxes.update(DT, EPS_M, GRAVITY, fill, wp.from_torch(centroids.to(device).contiguous(), dtype=wp.vec3), cw,
-                 e=0.0, mu=0.3)  # fmt: skip
+    boxes.update(c, EPS_M, GRAVITY, fill, wp.from_torch(centroids.to(device).contiguous(), dtype=wp.vec3), cw,
+                 no_walls(device), e=0.0, mu=0.3)  # fmt: skip
     gv = ref.grid_update(gm, gp, torch.zeros_like(gm), EPS_M, 0.0, DT, GRAVITY)
     G = mass_gradients(gm)
     # nodes with two or more fields: slots in fragment order (as the box kernel collects them)
@@ -180,11 +195,12 @@ def test_one_box_is_the_shared_field_transfer_walls_included(device, seed):
     boxes.fit(P.x, torch.zeros_like(P.fragment))
     w = dict(boxed_sim.wp, fragment=wp.from_torch(torch.zeros_like(P.fragment)))
     cw = boxed_sim.wp["counts"]
-    boxes.p2g(w, 1e-3, cw)
+    c = boxed_sim.clock.view
+    boxes.p2g(w, c, cw)
     none = wp.zeros(1, dtype=wp.vec3, device=device)
     boxed_sim.boundaries.colliders.wall_cells = int(boxed_sim.cfg.wall_cells)
-    boxes.update(1e-3, boxed_sim.eps_m, GRAVITY, 0.0, none, cw, colliders=boxed_sim.boundaries.colliders, t=0.0)
-    boxes.g2p(w, 1e-3, boxed_sim._lower, boxed_sim._upper, cw)
+    boxes.update(c, boxed_sim.eps_m, GRAVITY, 0.0, none, cw, colliders=boxed_sim.boundaries.colliders)
+    boxes.g2p(w, c, boxed_sim._lower, boxed_sim._upper, cw)
     floor = (plain.particles.v[:, 2] - (-2.0 - 9.8e-3)).abs() > 1e-3
     assert bool(floor.any()), "the floor changed some velocities"
     for name in ("x", "v", "C", "F"):
@@ -206,7 +222,8 @@ def test_latched_normal_contact_gated_by_both_band_masses(device, seed):
     P["v"][:, 0] = torch.where(x[:, 0] > 0.5, -1.0, 1.0)  # the halves approach along x
     boxes.fit(P["x"], P["fragment"])
     cw = wp.from_torch(counts)
-    boxes.p2g(w, DT, cw)
+    c = clock(device)
+    boxes.p2g(w, c, cw)
     cpu = {k: t.cpu().clone() for k, t in P.items()}
     gm, gp, gb = ref.p2g(
         cpu["x"], cpu["v"], cpu["C"], cpu["mass"], cpu["volume"], cpu["stress"], cpu["fragment"], 2, (n, n, n),
@@ -214,7 +231,8 @@ def test_latched_normal_contact_gated_by_both_band_masses(device, seed):
     )  # fmt: skip
     eps_b = 0.01 * float(gm[gm > 0].mean())
     none = wp.zeros(2, dtype=wp.vec3, device=device)
-    boxes.update(DT, EPS_M, GRAVITY, 0.0, none, cw, e=0.0, mu=0.2, latched=(1.0, 0.0, 0.0), eps_b=eps_b)
+    boxes.update(c, EPS_M, GRAVITY, 0.0, none, cw, no_walls(device), e=0.0, mu=0.2, latched=(1.0, 0.0, 0.0),
+                 eps_b=eps_b)  # fmt: skip
     gv = ref.grid_update(gm, gp, gb, EPS_M, eps_b, DT, GRAVITY)
     both = (gm > EPS_M).all(0)
     i, j, l = torch.nonzero(both).unbind(1)
@@ -268,16 +286,16 @@ def test_a_substep_in_boxes_is_the_slot_storages(device, seed, fragments):
     boxes = FragmentBoxes(boxed.grid.shape, boxed.grid.origin, boxed.grid.dx, device)
     boxes.fit(P.x, P.fragment)
     w, cw, c = boxed.wp, boxed.wp["counts"], boxed.cfg
-    boxes.p2g(w, 1e-3, cw)
+    boxes.p2g(w, boxed.clock.view, cw)
     crowded = crowded_particles(boxes, P.x.cpu(), boxed.eps_m)  # [N] a stencil node holds three fields or more
     boxed.boundaries.colliders.wall_cells = int(c.wall_cells)
     n = tuple(float(a) for a in boxed._normal)
     boxes.update(
-        1e-3, boxed.eps_m, c.gravity, c.contact.fill * boxed.node_mass, w["centroids"], cw, e=c.restitution,
-        mu=0.3, colliders=boxed.boundaries.colliders, t=0.0, latched=n, eps_b=boxed.eps_b,
+        boxed.clock.view, boxed.eps_m, c.gravity, c.contact.fill * boxed.node_mass, w["centroids"], cw,
+        boxed.boundaries.colliders, e=c.restitution, mu=0.3, latched=n, eps_b=boxed.eps_b,
         mass_gradient=boxed.normal_mode == 1, stats=(wp.from_torch(stats), wp.from_torch(pair_stats), K),
     )  # fmt: skip
-    boxes.g2p(w, 1e-3, boxed._lower, boxed._upper, cw)
+    boxes.g2p(w, boxed.clock.view, boxed._lower, boxed._upper, cw)
     ref_stats = slots.grid.contact_stats.cpu()
     assert float(ref_stats[STAT_GATED]) > 10, "the pieces pressed into each other at many nodes"
     assert bool(crowded.any()) == (fragments > 2)

@@ -1,21 +1,21 @@
-"""Fields in dense boxes, one per fragment (docs/DESIGN.md "Grid storage: per-fragment boxes (plan)").
+"""Fields in dense boxes, one per fragment (docs/DESIGN.md "Grid storage: per-fragment boxes").
 
 Fragment k's field lives on the nodes of its own box B_k: lo_k + [0, dims_k), stored at
 offset_k + (i·dims_y + j)·dims_z + l of one buffer for all boxes. Every particle takes the dense path into
-its own fragment's box: no owner words, claims or pool, and no limit on how many fields meet at a node.
+its own fragment's box: no owner words, claims or pool. Launches cover the buffer's capacity; an index past
+the boxes has box_of = −1.
 
+- `box_clear`: m, p and the band mass of every field to 0.
 - `box_p2g_runs`: Eq. multifield_p2g, m_i^k += Σ w_ip m_p, p_i^k += Σ w_ip m_p (v_p + C_p(x_i − x_p)) − Δt V⁰ τ_p
   ∇w_ip, for the particles of fragment k into B_k, `run` consecutive particles a thread (a stencil that
-  leaves B_k is counted, as an escape from the active box is, and not deposited: the caller fits the boxes
-  so that it cannot happen).
-- `box_normalize`: v_i^k = p_i^k / m_i^k + Δt g where m_i^k > ε_m, else 0.
-- `box_gradients`: ∇m of every field with mass, by central differences inside its box (0 beyond it).
-- `box_contact`: at a node where two or more fields hold mass, the thread of the lowest fragment id there
-  projects every pair in fragment order (the Gauss–Seidel of `contact.contact_projection`), the other
-  fields' threads leaving that node to it. Normals and gate as the slot storage's (`contact.contact_normal`):
-  the fields' mass gradients and m_a + m_b ≥ fill_mass, or the latched normal and both band masses > ε_b.
-- `box_boundaries`: the grid-side boundaries on every field, after the contact (as the slot storage's
-  pool pass orders them).
+  leaves B_k is counted as an escape and not deposited: the frame is then redone with larger boxes).
+- `box_grid_update`: per field node v_i^k = p_i^k / m_i^k + Δt g where m_i^k > ε_m (else 0); where two or
+  more fields hold mass at a node, the thread of the lowest fragment id there leads: it projects every pair
+  in fragment order (the Gauss–Seidel of `contact.contact_projection`; normals and gate of
+  `contact.contact_normal`: the fields' mass gradients, central differences inside each box, with
+  m_a + m_b ≥ fill_mass, or the latched normal with both band masses > ε_b), then applies the boundaries to
+  every field there. It only looks for other fields in the boxes that overlap its own (`over`, made per fit).
+  Fields beyond the first `slots` at a node keep their own velocity (no contact) and are counted.
 - `box_g2p`: Eqs. field_g2p / field_apic / field_deformation from the particle's own box.
 Twins: `reference.p2g`, `reference.grid_update`, `reference.contact_fields`, `reference.g2p` on K dense
 fields (tests/test_fragment_boxes.py).
@@ -26,36 +26,36 @@ from __future__ import annotations
 import warp as wp
 
 from .boundary import Colliders, apply_boundaries
+from .clock import Clock, clock_dt, clock_time
 from .contact import NORMAL_MASS_GRADIENT, contact_normal, contact_pair
-from .layout import COUNT_ESCAPED, COUNT_SLOT_OVERFLOW
+from .layout import COUNT_ESCAPED, COUNT_SLOT_OVERFLOW, MAX_SLOTS
 from .run_kernels import stencil_sums
 from .transfer_kernels import atomic_add_vec4, deposit, finish_g2p, gather, node_terms, normalized, stencil
 
 wp.set_module_options({"enable_backward": False})
 
-MAX_FIELDS = 8  # fields one contact thread projects at a node; more are counted as slot overflows
-vec_f = wp.types.vector(length=MAX_FIELDS, dtype=float)
+MAX_FIELDS = MAX_SLOTS  # most fields one contact leader projects at a node (sim.field_slots ≤ this)
 vec_fi = wp.types.vector(length=MAX_FIELDS, dtype=wp.int32)
-mat_f3 = wp.types.matrix(shape=(MAX_FIELDS, 3), dtype=float)
 
 
 @wp.struct
 class BoxView:
     """Every fragment's box (`boxes.FragmentBoxes.view`)."""
 
-    lo: wp.array(dtype=wp.vec3i)  # [K] lowest node of box k
-    dims: wp.array(dtype=wp.vec3i)  # [K] nodes per axis
-    offset: wp.array(dtype=wp.int32)  # [K + 1] first buffer index of box k; offset[K] = all nodes
-    box_of: wp.array(dtype=wp.int32)  # [nodes] the box a buffer index belongs to
-    mp: wp.array(dtype=wp.vec4)  # [nodes] (momentum, mass)
-    vel: wp.array(dtype=wp.vec3)  # [nodes]
-    grad: wp.array(dtype=wp.vec3)  # [nodes] ∇m of the node's field (`box_gradients`)
-    band: wp.array(dtype=float)  # [nodes] the field's band-particle mass (the latched normals' gate)
+    lo: wp.array(dtype=wp.vec3i)  # [K_max] lowest node of box k
+    dims: wp.array(dtype=wp.vec3i)  # [K_max] nodes per axis
+    offset: wp.array(dtype=wp.int32)  # [K_max + 1] first buffer index of box k
+    box_of: wp.array(dtype=wp.int32)  # [capacity] the box a buffer index belongs to (−1: none)
+    over_start: wp.array(dtype=wp.int32)  # [K_max + 1] box k's overlapping boxes: over[over_start[k]:over_start[k+1]]
+    over: wp.array(dtype=wp.int32)  # [K_max²] ascending fragment ids
+    mp: wp.array(dtype=wp.vec4)  # [capacity] (momentum, mass)
+    vel: wp.array(dtype=wp.vec3)  # [capacity]
+    band: wp.array(dtype=float)  # [capacity] the field's band-particle mass (the latched normals' gate)
     origin: wp.vec3
     dx: float
     inv_dx: float
     shape: wp.vec3i  # the grid's nodes per axis (stencils are clamped into it, as on the dense grid)
-    boxes: int  # K
+    boxes: int  # K in use
 
 
 @wp.func
@@ -69,17 +69,16 @@ def box_index(b: BoxView, k: int, node: wp.vec3i):
 
 
 @wp.func
-def box_mass(b: BoxView, k: int, node: wp.vec3i):
-    i = box_index(b, k, node)
-    if i < 0:
-        return 0.0
-    return b.mp[i][3]
-
-
-@wp.func
 def stencil_inside(b: BoxView, k: int, base: wp.vec3i):
     """All 27 nodes of the stencil at `base` lie in box k."""
     return box_index(b, k, base) >= 0 and box_index(b, k, base + wp.vec3i(2, 2, 2)) >= 0
+
+
+@wp.kernel
+def box_clear(b: BoxView):
+    t = wp.tid()
+    b.mp[t] = wp.vec4(0.0)
+    b.band[t] = 0.0
 
 
 @wp.kernel
@@ -92,7 +91,7 @@ def box_p2g_runs(
     stress: wp.array(dtype=wp.mat33),  # [N] Kirchhoff τ
     fragment: wp.array(dtype=wp.int32),  # [N] the particle's box
     band: wp.array(dtype=wp.int32),  # [N] γ_p ≠ 0: its mass also goes to the field's band mass
-    dt: float,
+    clock: Clock,  # Δt
     b: BoxView,
     run: int,  # consecutive particles per thread
     counts: wp.array(dtype=wp.int32),  # [N_COUNTS]
@@ -101,6 +100,7 @@ def box_p2g_runs(
     fragment and stencil base are summed in registers and reach their box as one reduction per node (run = 1:
     one particle a thread)."""
     t = wp.tid()
+    dt = clock_dt(clock)
     acc = stencil_sums()
     cur = wp.vec3i(-1, -1, -1)
     ck = int(-1)  # noqa: UP018 (a dynamic Warp variable)
@@ -151,56 +151,30 @@ def flush_box(b: BoxView, k: int, base: wp.vec3i, acc: stencil_sums):
                 )
 
 
-@wp.kernel
-def box_normalize(b: BoxView, eps_m: float, dt: float, gravity: wp.vec3):
-    t = wp.tid()
-    b.vel[t] = normalized(b.mp[t], eps_m, dt, gravity)
+@wp.func
+def node_mass(b: BoxView, i: int, step: int, r: int, extent: int):
+    """Mass at buffer index i + step, whose coordinate along its axis is r (0 outside [0, extent))."""
+    if r < 0 or r >= extent:
+        return 0.0
+    return b.mp[i + step][3]
 
 
 @wp.func
-def box_node(b: BoxView, i: int):
-    """(fragment, grid node) of buffer index i."""
-    k = b.box_of[i]
+def box_mass_gradient(b: BoxView, k: int, i: int, node: wp.vec3i):
+    """∇m^k at the node of buffer index i in box k, by central differences of the box's nodal masses (0 beyond
+    the box) [kg/m]."""
     d = b.dims[k]
-    r = i - b.offset[k]
-    return k, b.lo[k] + wp.vec3i(r // (d[1] * d[2]), (r // d[2]) % d[1], r % d[2])
+    r = node - b.lo[k]
+    sx = d[1] * d[2]
+    h = 0.5 * b.inv_dx
+    gx = node_mass(b, i, sx, r[0] + 1, d[0]) - node_mass(b, i, -sx, r[0] - 1, d[0])
+    gy = node_mass(b, i, d[2], r[1] + 1, d[1]) - node_mass(b, i, -d[2], r[1] - 1, d[1])
+    gz = node_mass(b, i, 1, r[2] + 1, d[2]) - node_mass(b, i, -1, r[2] - 1, d[2])
+    return wp.vec3(gx, gy, gz) * h
 
 
 @wp.kernel
-def box_boundaries(b: BoxView, eps_m: float, t: float, colliders: Colliders):
-    """The grid-side boundaries (`boundary.apply_boundaries`) on every field with mass, after the contact."""
-    i = wp.tid()
-    if b.mp[i][3] > eps_m:
-        k, node = box_node(b, i)
-        xi = b.origin + wp.vec3(float(node[0]), float(node[1]), float(node[2])) * b.dx
-        b.vel[i] = apply_boundaries(b.vel[i], node, xi, t, colliders)
-
-
-@wp.func
-def box_mass_gradient(b: BoxView, k: int, node: wp.vec3i):
-    """∇m^k at `node` by central differences of box k's nodal masses (0 beyond the box) [kg/m]."""
-    out = wp.vec3(0.0)
-    for a in range(3):
-        e = wp.vec3i(0, 0, 0)
-        e[a] = 1
-        out[a] = (box_mass(b, k, node + e) - box_mass(b, k, node - e)) * (0.5 * b.inv_dx)
-    return out
-
-
-@wp.kernel
-def box_gradients(b: BoxView, eps_m: float):
-    """∇m of every field with mass at its node, a thread per box node: the contact leaders then read it
-    instead of making six lookups per field in series."""
-    t = wp.tid()
-    G = wp.vec3(0.0)
-    if b.mp[t][3] > eps_m:
-        k, node = box_node(b, t)
-        G = box_mass_gradient(b, k, node)
-    b.grad[t] = G
-
-
-@wp.kernel
-def box_contact(
+def box_grid_update(
     b: BoxView,
     eps_m: float,
     eps_b: float,  # latched normals: two fields touch where both band masses exceed this [kg]
@@ -212,59 +186,89 @@ def box_contact(
     friction: float,
     project: int,  # apply the projection (FractureFields; 0: Local Multi-Field, detection only)
     record: int,  # accumulate the contact statistics
-    time: float,  # of the substep [s] (the first contact's)
+    slots: int,  # fields a leader projects (≤ MAX_FIELDS); more are counted as slot overflows
+    clock: Clock,  # Δt and t
+    gravity: wp.vec3,
+    colliders: Colliders,
     stats: wp.array(dtype=float),  # [N_STATS]
     pair_stats: wp.array(dtype=float),  # [K·K·N_PAIR_STATS]
     n_fragments: int,  # K (pair rows of pair_stats)
     counts: wp.array(dtype=wp.int32),
 ):
-    """One thread per box node; the lowest fragment with mass at a node projects its approaching pairs (as the
-    slot storage's pool pass: the same gate, normal, projection and statistics per pair)."""
+    """One thread per buffer index: normalization and boundaries of its field, or, where fields meet, the
+    lowest fragment's thread does the whole node (normalization, contact, boundaries) and the others skip it."""
     t = wp.tid()
-    if b.mp[t][3] <= eps_m:
+    k = b.box_of[t]
+    if k < 0:
         return
-    k, node = box_node(b, t)
-    for j in range(k):
-        if box_mass(b, j, node) > eps_m:
-            return  # a lower fragment has mass here: its thread leads
-    idx = vec_fi(-1)
-    frag = vec_fi(-1)
-    m = vec_f(0.0)
-    V = mat_f3(0.0)
-    n = int(0)  # noqa: UP018 (a dynamic Warp variable)
-    for j in range(k, b.boxes):
+    q = b.mp[t]
+    dt = clock_dt(clock)
+    if q[3] <= eps_m:
+        b.vel[t] = wp.vec3(0.0)
+        return
+    d = b.dims[k]
+    r = t - b.offset[k]
+    node = b.lo[k] + wp.vec3i(r // (d[1] * d[2]), (r // d[2]) % d[1], r % d[2])
+    xi = b.origin + wp.vec3(float(node[0]), float(node[1]), float(node[2])) * b.dx
+    time = clock_time(clock)
+    # the other fields with mass here, in the boxes that overlap this one
+    others = int(0)  # noqa: UP018 (a dynamic Warp variable)
+    for o in range(b.over_start[k], b.over_start[k + 1]):
+        j = b.over[o]
         i = box_index(b, j, node)
         if i >= 0:
-            mj = b.mp[i][3]
-            if mj > eps_m:
-                if n < MAX_FIELDS:
-                    idx[n] = i
-                    frag[n] = j
-                    m[n] = mj
-                    V[n] = b.vel[i]
-                    n += 1
-                else:
-                    wp.atomic_add(counts, COUNT_SLOT_OVERFLOW, 1)
-    if n < 2:
+            if b.mp[i][3] > eps_m:
+                if j < k:
+                    return  # a lower fragment has mass here: its thread leads
+                others += 1
+    if others == 0:
+        b.vel[t] = apply_boundaries(normalized(q, eps_m, dt, gravity), node, xi, time, colliders)
         return
-    G = mat_f3(0.0)
+    idx = vec_fi(-1)
+    frag = vec_fi(-1)
+    idx[0] = t
+    frag[0] = k
+    n = int(1)  # noqa: UP018
+    b.vel[t] = normalized(q, eps_m, dt, gravity)
+    for o in range(b.over_start[k], b.over_start[k + 1]):
+        j = b.over[o]
+        if j > k:
+            i = box_index(b, j, node)
+            if i >= 0:
+                qj = b.mp[i][3]
+                if qj > eps_m:
+                    b.vel[i] = normalized(b.mp[i], eps_m, dt, gravity)
+                    if n < slots:
+                        idx[n] = i
+                        frag[n] = j
+                        n += 1
+                    else:  # kept, uncoupled: its own velocity and the boundaries only
+                        wp.atomic_add(counts, COUNT_SLOT_OVERFLOW, 1)
+                        b.vel[i] = apply_boundaries(b.vel[i], node, xi, time, colliders)
     for a in range(n):
-        G[a] = b.grad[idx[a]]
-    for a in range(n):
+        ia = idx[a]
+        ma = b.mp[ia][3]
+        ga = wp.vec3(0.0)
         for c in range(a + 1, n):
-            touching = m[a] + m[c] >= fill_mass
+            ic = idx[c]
+            mc = b.mp[ic][3]
+            touching = ma + mc >= fill_mass
             if normal_mode != NORMAL_MASS_GRADIENT:
-                touching = b.band[idx[a]] > eps_b and b.band[idx[c]] > eps_b
+                touching = b.band[ia] > eps_b and b.band[ic] > eps_b
             if touching:
-                nrm = contact_normal(normal_mode, latched, G[a], G[c], centroids[frag[a]], centroids[frag[c]])
+                gc = wp.vec3(0.0)
+                if normal_mode == NORMAL_MASS_GRADIENT:
+                    ga = box_mass_gradient(b, frag[a], ia, node)
+                    gc = box_mass_gradient(b, frag[c], ic, node)
+                nrm = contact_normal(normal_mode, latched, ga, gc, centroids[frag[a]], centroids[frag[c]])
                 w0, w1 = contact_pair(
-                    V[a], V[c], m[a], m[c], nrm, restitution, friction, project, record, stats, pair_stats,
+                    b.vel[ia], b.vel[ic], ma, mc, nrm, restitution, friction, project, record, stats, pair_stats,
                     frag[a], frag[c], n_fragments, time,
                 )  # fmt: skip
-                V[a] = w0
-                V[c] = w1
+                b.vel[ia] = w0
+                b.vel[ic] = w1
     for a in range(n):
-        b.vel[idx[a]] = V[a]
+        b.vel[idx[a]] = apply_boundaries(b.vel[idx[a]], node, xi, time, colliders)
 
 
 @wp.kernel
@@ -274,7 +278,7 @@ def box_g2p(
     C: wp.array(dtype=wp.mat33),
     F: wp.array(dtype=wp.mat33),
     fragment: wp.array(dtype=wp.int32),
-    dt: float,
+    clock: Clock,  # Δt
     b: BoxView,
     lower: wp.vec3,  # particles are clamped into [lower, upper] and counted
     upper: wp.vec3,
@@ -286,4 +290,4 @@ def box_g2p(
     if not stencil_inside(b, k, base):
         return  # counted by P2G
     vp, B, gradv = gather(b.vel, b.offset[k], b.dims[k], base - b.lo[k], f, w, dw, b.dx, b.inv_dx)
-    finish_g2p(p, vp, B, gradv, dt, b.inv_dx, x, v, C, F, lower, upper, counts)
+    finish_g2p(p, vp, B, gradv, clock_dt(clock), b.inv_dx, x, v, C, F, lower, upper, counts)

@@ -63,6 +63,7 @@ class FrameLoop:
             self._fan_cap,
             self._run_length(int(self.multifield)),
             self.concurrent,
+            self.boxes.layout_key if self.boxed else None,
         )
 
     def _frame_substeps_run(self, n: int, dt: float, start: float) -> None:
@@ -113,12 +114,12 @@ class FrameLoop:
     def advance(self, frame_dt: float) -> int:
         """Simulate one frame: n substeps, then the divergence check and the event provider.
 
-        The frame runs on an active box fitted at its start. If a particle's stencil left the box
-        (P2G counts it) or the pool of multi-fragment nodes filled up, the frame is rolled back and
-        redone: with more box slack (the second escape runs on the whole grid, where nothing can
-        escape) or with a pool twice as large. One host read per try. On CUDA the frame runs on the
-        simulator's own stream (graphs are recorded on a non-default stream), ordered after the
-        caller's current stream and before it again at the end."""
+        The frame runs on an active box (or per-fragment boxes) fitted at its start. If a particle's
+        stencil left its box (P2G counts it) or the pool of multi-fragment nodes filled up, the frame is
+        rolled back and redone: with more box slack (the second escape runs on the whole grid, where
+        nothing can escape; per-fragment boxes only grow their slack) or with a pool twice as large. One
+        host read per try. On CUDA the frame runs on the simulator's own stream (graphs are recorded on a
+        non-default stream), ordered after the caller's current stream and before it again at the end."""
         if not self.device.startswith("cuda"):
             return self._advance(frame_dt)
         if self._cuda_stream is None:
@@ -137,7 +138,7 @@ class FrameLoop:
         self._save_state()
         escapes = 0
         for attempt in range(self.MAX_TRIES):
-            if escapes < 2:
+            if escapes < 2 or self.boxed:  # boxes grow with the slack instead of taking the whole grid
                 vmax = self.fit_active_box(frame_dt)  # the frame's one host read also gives max |v|
             else:
                 if self.multifield:

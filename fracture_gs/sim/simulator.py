@@ -20,6 +20,7 @@ from ..config import MATERIALS, SimConfig
 from ..runtime import StreamFork, cpu_ranges, ensure_warp, launch, run_ranges, torch_stream
 from ..variants import VARIANTS, variant_spec
 from .boundary import Boundaries
+from .boxes import FragmentBoxes
 from .clock import FrameClock
 from .constitutive import compute_stress, lame
 from .contact import NORMAL_LATCHED, NORMAL_MASS_GRADIENT
@@ -27,13 +28,13 @@ from .fanout_kernels import LANES, g2p_fanout, p2g_fanout
 from .frame_loop import FrameLoop
 from .grid import Grid, check_inside, fit_grid
 from .layout import COUNT_CLAMPED, MAX_SLOTS, N_COUNTS
-from .neighbourhood import cell_order, fragment_centroids, solo_mask, solo_radius
-from .normal_kernels import pool_mass_gradients
+from .neighbourhood import cell_order, fragment_centroids
 from .particles import Particles, SimulationError
 from .recorded import Recorded
 from .run_kernels import p2g_runs
+from .slot_storage import SlotStorage
 from .topology import Topology
-from .transfer_kernels import clear_dense, clear_pool, g2p, grid_update_dense, grid_update_pool, p2g
+from .transfer_kernels import clear_dense, clear_pool, g2p, grid_update_dense, p2g
 
 P2G_RUN = 8  # particles per P2G thread in cell order on a GPU (H100, Table 2 ficus: runs of 2 / 4 / 8 → P2G 40 / 34 /
 # 30 µs against 67 one per thread); not while most particles take the slot path (K = 16: 4 % slower; BENCHMARKS.md)
@@ -55,6 +56,8 @@ def validate_sim_config(cfg: SimConfig) -> None:
         raise SimulationError("sim.eps_mass and sim.eps_band must be >= 0")
     if not 2 <= cfg.field_slots <= MAX_SLOTS:
         raise SimulationError(f"sim.field_slots = {cfg.field_slots} must lie in [2, {MAX_SLOTS}]")
+    if cfg.grid_storage not in ("slots", "boxes"):
+        raise SimulationError(f"sim.grid_storage '{cfg.grid_storage}' is unknown; use slots or boxes")
     if not 2 <= cfg.max_fragments <= 4096:
         raise SimulationError(f"sim.max_fragments = {cfg.max_fragments} must lie in [2, 4096]")
     if not (cfg.contact.friction >= 0 and math.isfinite(cfg.contact.friction)):
@@ -75,7 +78,7 @@ def normalize_device(device) -> str:
     return device
 
 
-class Simulator(FrameLoop):
+class Simulator(SlotStorage, FrameLoop):
     """MLS-MPM on torch tensors with Warp kernels; `particles` is shared with the kernels."""
 
     MUTABLE = ("x", "v", "C", "F", "yield_stress")  # what a substep writes into the particles
@@ -89,8 +92,11 @@ class Simulator(FrameLoop):
         self.particles = particles.to(self.device)
         origin, dx, shape = fit_grid(cfg, self.particles.x)
         check_inside(self.particles.x, origin, dx, shape)
-        slots = cfg.field_slots if self.spec.multifield else 1
+        boxed = self.spec.multifield and cfg.grid_storage == "boxes"
+        slots = cfg.field_slots if self.spec.multifield and not boxed else 1
         self.grid = Grid(origin, dx, shape, self.device, slots, cfg.max_fragments)
+        # the fragment fields after a latch in dense boxes, one per fragment (`boxes.py`), instead of slots
+        self.boxes = FragmentBoxes(shape, origin, dx, self.device, cfg.max_fragments) if boxed else None
         self.boundaries = Boundaries(cfg.boundaries, self.device, shape, cfg.wall_cells)
         self.clock = FrameClock(self.device, len(self.boundaries.regions))
         self.use_graphs = True  # CUDA: replay one recorded substep per substep of a frame
@@ -226,70 +232,21 @@ class Simulator(FrameLoop):
             for a, (o, s) in enumerate(zip(g.origin, g.shape))
         ]
         box = tuple(lo) + tuple(hi)
+        if self.multifield and self.normal_mode == NORMAL_MASS_GRADIENT:
+            self._update_centroids()
+        if self.boxed:  # each fragment's box: its stencils plus the travel and the slack (the frame's second read)
+            self.boxes.fit(P.x, P.fragment, 1 + math.ceil(travel / g.dx) + self.box_slack, self.n_fragments)
+            self._set_box(box)
+            return vmax
         moved = g.ensure_pool(self.pool_rows) if self.multifield else False
         if self.multifield:
             self._pool_gradient_buffer()
         if box != self.box or moved:
             self._set_box(box)
             g.zero()
-        if self.multifield and self.normal_mode == NORMAL_MASS_GRADIENT:
-            self._update_centroids()
         if self.multifield:
             self._update_solo(travel)
         return vmax
-
-    def _update_solo(self, travel: float) -> None:
-        """Mark the particles no other fragment can reach this frame ("solo": every node of their stencil
-        holds their fragment only, so P2G and G2P take the dense path with no slot claims; bitwise the
-        same fields): no particle of another fragment within 4Δx + twice the travel (and the box slack)."""
-        P, g = self.particles, self.grid
-        reach = 4.0 * g.dx + 2.0 * travel + self.box_slack * g.dx
-        r = solo_radius(reach, g.dx)  # the mask depends on the reach only through r; None: nobody is solo
-
-        def query():
-            return solo_mask(P.x, P.fragment, g.origin, g.dx, g.shape, reach)
-
-        key = (r, P.x.data_ptr(), P.fragment.data_ptr())  # on CUDA one recorded graph per r (`recorded.py`)
-        self.set_solo(None if r is None else self._queries(key, query) if self.use_graphs else query())
-
-    def set_solo(self, mask: Optional[torch.Tensor]) -> None:
-        """Set the solo flags (None: no particle is solo) and, with `slow_first` or `fanout`, the launch order,
-        which must list exactly the particles that are not solo first (device ops; with `fanout` one host read
-        of their count, which sizes the fan-out launches and P2G's slot cache). Set them only here: flags
-        changed behind it would make P2G and G2P skip particles."""
-        if mask is None:
-            self.solo.zero_()
-        else:
-            self.solo.copy_(mask)
-        if self.slow_first or self.fanout:
-            self._order.copy_(torch.argsort(self.solo, stable=True))
-            self._first.copy_((self.solo == 0).sum().view(1))
-        if self.fanout:
-            # None (a latch, a reorder, a redo on the whole grid) fans nothing out until the next frame's flags
-            n = len(self.particles) if mask is None else int(self._first)  # the frame's second host read
-            self._slow = n
-            flagged = mask is not None and self.multifield and n > 0
-            self._fan_cap = min(len(self.particles), max(256, 1 << (n - 1).bit_length())) if flagged else 0
-            if self._slot_cache.numel() != max(1, 27 * self._fan_cap):  # sized with the capacity (graphs record anew)
-                self._slot_cache = torch.empty(max(1, 27 * self._fan_cap), dtype=torch.int32, device=self.device)
-                self.wp["slot_cache"] = wp.from_torch(self._slot_cache)
-
-    def _fans_out(self, multi: int, only_fragment: int, gather: bool = False) -> bool:
-        """Whether the particles that are not solo take `fanout_kernels` (multi-field grids with a fan-out
-        capacity, on a GPU by default; not in the global fragment pass); `gather`: in G2P, where it also
-        needs them to be few (at most `g2p_fanout_max` of the particles)."""
-        few = not gather or self._slow <= self.g2p_fanout_max * len(self.particles)
-        return bool(self.fanout and multi and only_fragment < 0 and self._fan_cap > 0 and few)
-
-    def _run_length(self, multi: int) -> int:
-        """Particles per thread of P2G's runs: `p2g_run`, or 0 (one per thread) on a multi-field grid where
-        more than half of the particles take the slot path (the runs then only cost: BENCHMARKS.md)."""
-        return self.p2g_run if not multi or 2 * self._slow <= len(self.particles) else 0
-
-    def _split(self, multi: int) -> bool:
-        """Whether G2P launches the particles that are not solo first (multi-field grids, on a GPU by
-        default: on the CPU a single thread runs every launch in order, so it only costs)."""
-        return bool(self.slow_first and multi)
 
     def _update_centroids(self) -> None:
         """Mass centroid of every fragment (the contact normal's fallback), on the device."""
@@ -309,6 +266,11 @@ class Simulator(FrameLoop):
     def multifield(self) -> bool:
         """Fragment-conditioned transfer is in force (multi-field variant, after the latch)."""
         return self.latched and self.spec.multifield
+
+    @property
+    def boxed(self) -> bool:
+        """The fragment fields are in per-fragment boxes (`sim.grid_storage = "boxes"`, after the latch)."""
+        return self.boxes is not None and self.multifield
 
     @property
     def release(self) -> bool:
@@ -385,6 +347,11 @@ class Simulator(FrameLoop):
 
     def _p2g(self, only_fragment: int = -1, target=None, multifield=None, stress=None, counts=None) -> None:
         g, w = target or self.grid, self.wp
+        if self.boxed and target is None and multifield is None and stress is None:
+            # band particles' mass reaches a band buffer only for the latched normals' gate
+            band = w["band"] if self.normal_mode == NORMAL_LATCHED else w["zeros"]
+            self.boxes.p2g(w, self.clock.view, w["counts"] if counts is None else counts, self.p2g_run, band)
+            return
         multi = int(self.multifield if multifield is None else multifield)
         fan = target is None and self._fans_out(multi, only_fragment)
         side = self._beside(on=fan)  # the pool's reset and the fan-out beside the dense deposits
@@ -422,6 +389,9 @@ class Simulator(FrameLoop):
     def _update_grid(self) -> None:
         g, multi = self.grid, int(self.multifield)
         self.boundaries.colliders.wall_cells = int(self.cfg.wall_cells)  # the config may change between calls
+        if self.boxed:
+            self._update_boxes()
+            return
         if multi:  # the nodes with a pool row, beside the dense pass (they write disjoint nodes)
             with self._beside():
                 self._update_pool()
@@ -430,37 +400,25 @@ class Simulator(FrameLoop):
         self._launch(grid_update_dense, (b[3] - b[0], b[4] - b[1], b[5] - b[2]), dense)
         self._fork.join()
 
-    def _update_pool(self) -> None:
-        """Pool rows: mass-gradient normals (if used), then every field's normalization, contact, boundaries."""
-        g, multi = self.grid, int(self.multifield)
-        c = self.cfg.contact
-        grad0 = self._pool_gradient_buffer()
-        if self.normal_mode == NORMAL_MASS_GRADIENT:
-            self._launch(pool_mass_gradients, g.capacity * g.slots, [g.view, self.eps_m, grad0])
-        gate = [multi, int(self.spec.contact), self.normal_mode, self._normal, self.wp["centroids"]]
-        law = [
-            float(self.cfg.restitution),
-            float(c.friction),
-            self.clock.view,
-            self._gravity,
-            self.boundaries.colliders,
-        ]
-        record = [int(self.record_contact), g.wp["stats"], g.wp["pair_stats"], g.max_fragments, grad0]
-        inputs = [g.view, self.eps_m, self.eps_b, c.fill * self.node_mass] + gate + law + record
-        self._launch(grid_update_pool, g.capacity, inputs)
-
-    def _pool_gradient_buffer(self):
-        """[capacity] vec3 for ∇m of each pool row's slot-0 field (`normal_kernels`), sized with the pool:
-        between frames by `fit_active_box`, so never inside a graph capture."""
-        if self._grad0 is None or self._grad0.shape[0] != self.grid.capacity:
-            self._grad0 = torch.zeros(max(1, self.grid.capacity), 3, dtype=torch.float32, device=self.device)
-            self.wp["grad0"] = wp.from_torch(self._grad0, dtype=wp.vec3)
-        return self.wp["grad0"]
+    def _update_boxes(self) -> None:
+        """Every fragment box's normalization, contact where fields meet, boundaries (`box_grid_update`)."""
+        g, c = self.grid, self.cfg.contact
+        stats = (g.wp["stats"], g.wp["pair_stats"], g.max_fragments) if self.record_contact else None
+        self.boxes.update(
+            self.clock.view, self.eps_m, self.cfg.gravity, c.fill * self.node_mass, self.wp["centroids"],
+            self.wp["counts"], self.boundaries.colliders, e=float(self.cfg.restitution), mu=float(c.friction),
+            latched=tuple(float(a) for a in self._normal), eps_b=self.eps_b, project=bool(self.spec.contact),
+            stats=stats, mass_gradient=self.normal_mode == NORMAL_MASS_GRADIENT, slots=self.cfg.field_slots,
+        )  # fmt: skip
 
     def _g2p(self, only_fragment: int = -1) -> None:
         """Per particle but for the clamp counter: on the CPU one launch per core's share, each with its
         own counter."""
         g, w = self.grid, self.wp
+        if self.boxed and only_fragment < 0:
+            lo, hi = self._lower, self._upper
+            self._g2p_ranges(lambda a, b, counts: self.boxes.g2p(w, self.clock.view, lo, hi, counts, a, b), False)
+            return
         arrays = [w["x"], w["v"], w["C"], w["F"], w["fragment"], w["solo"]]
         multi = int(self.multifield)
         fan = self._fans_out(multi, only_fragment, gather=True)
@@ -488,7 +446,13 @@ class Simulator(FrameLoop):
             )
             if listed:
                 return
-        ranges = [(0, len(self.particles))] if split or not self._ranges else self._ranges
+        self._g2p_ranges(launch, split)
+
+    def _g2p_ranges(self, launch, whole: bool) -> None:
+        """G2P's `launch(a, b, counts)` over the particles: on the CPU once per core's share (unless `whole`),
+        each share with its own clamp counter, summed after."""
+        w = self.wp
+        ranges = [(0, len(self.particles))] if whole or not self._ranges else self._ranges
         if len(ranges) == 1:
             launch(*ranges[0], w["counts"])
             return
@@ -540,7 +504,11 @@ class Simulator(FrameLoop):
         self.pool_rows = max(self.pool_rows, 4 * bands + len(P) // 64)
         self._reset_boxes()  # the routing changed: the next advance() refits the box and the pool
         self.set_solo(None)
-        if self.multifield:
+        if self.boxed:  # boxes for the new fragments (the next frame's fit adds its travel)
+            if self.normal_mode == NORMAL_MASS_GRADIENT:
+                self._update_centroids()
+            self.boxes.fit(P.x, P.fragment, 1 + self.box_slack, self.n_fragments)
+        elif self.multifield:
             self.grid.ensure_pool(self.pool_rows)
             self.grid.zero()
             if self.normal_mode == NORMAL_MASS_GRADIENT:
