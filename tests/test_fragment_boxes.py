@@ -79,11 +79,24 @@ def boxed(boxes, k, dense):  # the region of box k in a dense [n, n, n, ...] fie
 @pytest.mark.parametrize("run", [0, 8])
 def test_each_particle_deposits_into_its_own_fragments_box_only(device, seed, run):
     """One particle a thread, or runs of 8 consecutive particles summed in registers (sorted by cell, so runs
-    share stencil bases; a change of fragment or base flushes): the same fields to float32 rounding."""
+    share stencil bases; a change of fragment or base flushes): the same fields to float32 rounding, band
+    particles' mass also in the band buffer."""
     P, w, counts, boxes = state(seed, device, sort=run > 0)
+    P["band"].copy_(((P["x"][:, 0] - 0.5).abs() < 1.5 / n).to(torch.int32))
     boxes.p2g(w, clock(device), wp.from_torch(counts), run=run)
     assert int(counts[COUNT_ESCAPED]) == 0
     gm, gp, _ = reference_fields(P)
+    cpu = {k: t.cpu() for k, t in P.items()}
+    _, _, gb = ref.p2g(
+        cpu["x"], cpu["v"], cpu["C"], cpu["mass"], cpu["volume"], cpu["stress"], cpu["fragment"], 4, (n, n, n),
+        (0.0, 0.0, 0.0), 1.0 / n, DT, band=cpu["band"],
+    )  # fmt: skip
+    gb = gb.reshape(4, n, n, n)
+    assert float(gb.sum()) > 0
+    for k in range(4):
+        a, b = int(boxes.offset[k]), int(boxes.offset[k + 1])
+        band = boxes.band[a:b].reshape([int(d) for d in boxes.dims[k]]).cpu()
+        assert rel_err(band, boxed(boxes, k, gb[k])) <= 1e-5, f"band mass of field {k} (seed {seed})"
     assert boxes.nodes < 4 * n**3 / 8, "the boxes hug their fragments"
     for k in range(4):
         m, p, _ = boxes.field(k)

@@ -95,3 +95,23 @@ def test_runs_are_on_only_for_cell_order_on_a_gpu(device):
     assert sim.p2g_run == (8 if device != "cpu" else 0)
     sim.sort_particles("interleaved")
     assert sim.p2g_run == 0
+
+
+def test_sorting_after_a_latch_orders_cells_by_fragment_and_keeps_the_topology(device, seed):
+    """After a latch `sort_particles("cell")` orders each cell's particles by fragment (a run of P2G breaks at
+    most once per fragment in a cell) and reorders the latched topologies with the particles."""
+    from test_transfer_launch import slab
+
+    sim, topo = slab(seed, device, 6, storage="boxes")
+    sim.latch(topo)
+    before = {k: getattr(sim.particles, k).clone() for k in ("x", "fragment", "band")}
+    order = sim.sort_particles("cell")
+    P, g = sim.particles, sim.grid
+    for k, t in before.items():
+        assert torch.equal(getattr(P, k), t[order]), k
+    assert torch.equal(sim.topology.fragment.to(P.fragment.device, torch.int32), P.fragment)
+    assert torch.equal(sim.topology.band.to(P.band.device).bool(), P.band.bool())
+    cell = torch.floor((P.x - torch.tensor(g.origin, device=P.x.device)) / g.dx - 0.5).long()
+    key = ((cell[:, 0] * g.shape[1] + cell[:, 1]) * g.shape[2] + cell[:, 2]) * 6 + P.fragment.long()
+    assert bool((key[1:] >= key[:-1]).all()), "by cell, then fragment"
+    assert bool((P.fragment[1:] != P.fragment[:-1]).any())

@@ -36,6 +36,7 @@ wp.set_module_options({"enable_backward": False})
 
 MAX_FIELDS = MAX_SLOTS  # most fields one contact leader projects at a node (sim.field_slots ≤ this)
 vec_fi = wp.types.vector(length=MAX_FIELDS, dtype=wp.int32)
+band_sums = wp.types.vector(length=27, dtype=float)  # band mass of the 27 stencil nodes
 
 
 @wp.struct
@@ -48,6 +49,9 @@ class BoxView:
     box_of: wp.array(dtype=wp.int32)  # [capacity] the box a buffer index belongs to (−1: none)
     over_start: wp.array(dtype=wp.int32)  # [K_max + 1] box k's overlapping boxes: over[over_start[k]:over_start[k+1]]
     over: wp.array(dtype=wp.int32)  # [K_max²] ascending fragment ids
+    over_lo: wp.array(dtype=wp.vec3i)  # [K_max²] lo, dims and offset of the box over[o] (no dependent loads)
+    over_dims: wp.array(dtype=wp.vec3i)
+    over_off: wp.array(dtype=wp.int32)
     mp: wp.array(dtype=wp.vec4)  # [capacity] (momentum, mass)
     vel: wp.array(dtype=wp.vec3)  # [capacity]
     band: wp.array(dtype=float)  # [capacity] the field's band-particle mass (the latched normals' gate)
@@ -66,6 +70,16 @@ def box_index(b: BoxView, k: int, node: wp.vec3i):
     if r[0] < 0 or r[1] < 0 or r[2] < 0 or r[0] >= d[0] or r[1] >= d[1] or r[2] >= d[2]:
         return -1
     return b.offset[k] + (r[0] * d[1] + r[1]) * d[2] + r[2]
+
+
+@wp.func
+def partner_index(b: BoxView, o: int, node: wp.vec3i):
+    """Buffer index of `node` in the overlapping box of entry o of the overlap lists, or −1 outside it."""
+    d = b.over_dims[o]
+    r = node - b.over_lo[o]
+    if r[0] < 0 or r[1] < 0 or r[2] < 0 or r[0] >= d[0] or r[1] >= d[1] or r[2] >= d[2]:
+        return -1
+    return b.over_off[o] + (r[0] * d[1] + r[1]) * d[2] + r[2]
 
 
 @wp.func
@@ -98,12 +112,14 @@ def box_p2g_runs(
 ):
     """Deposits of `run` consecutive particles a thread (`run_kernels.p2g_runs` on boxes): those with the same
     fragment and stencil base are summed in registers and reach their box as one reduction per node (run = 1:
-    one particle a thread)."""
+    one particle a thread). Band particles' mass is summed the same way into the band buffer."""
     t = wp.tid()
     dt = clock_dt(clock)
     acc = stencil_sums()
+    bacc = band_sums()
+    banded = int(0)  # noqa: UP018 (a dynamic Warp variable)
     cur = wp.vec3i(-1, -1, -1)
-    ck = int(-1)  # noqa: UP018 (a dynamic Warp variable)
+    ck = int(-1)  # noqa: UP018
     for p in range(t * run, wp.min(t * run + run, x.shape[0])):
         k = wp.max(fragment[p], 0)
         base, f, w, dw = stencil(x[p], b.origin, b.inv_dx, b.shape)
@@ -112,8 +128,10 @@ def box_p2g_runs(
             continue
         if k != ck or base[0] != cur[0] or base[1] != cur[1] or base[2] != cur[2]:
             if ck >= 0:
-                flush_box(b, ck, cur, acc)
+                flush_box(b, ck, cur, acc, bacc, banded)
             acc = stencil_sums()
+            bacc = band_sums()
+            banded = 0
             cur = base
             ck = k
         m = mass[p]
@@ -121,8 +139,8 @@ def box_p2g_runs(
         Cp = C[p]
         force = -dt * volume[p] * stress[p]
         in_band = band[p] != 0
-        origin = box_index(b, k, base)
-        d = b.dims[k]
+        if in_band:
+            banded = 1
         for i in range(3):
             for j in range(3):
                 for l in range(3):  # noqa: E741
@@ -131,24 +149,26 @@ def box_p2g_runs(
                     dep = deposit(weight, grad, dpos, m, vp, Cp, force)
                     for c in range(4):
                         acc[q, c] = acc[q, c] + dep[c]
-                    if in_band:  # few particles (the band around a cut): straight to the node
-                        wp.atomic_add(b.band, origin + (i * d[1] + j) * d[2] + l, weight * m)
+                    if in_band:
+                        bacc[q] = bacc[q] + weight * m
     if ck >= 0:
-        flush_box(b, ck, cur, acc)
+        flush_box(b, ck, cur, acc, bacc, banded)
 
 
 @wp.func
-def flush_box(b: BoxView, k: int, base: wp.vec3i, acc: stencil_sums):
-    """Add a run's 27 node sums to box k: one reduction per node."""
+def flush_box(b: BoxView, k: int, base: wp.vec3i, acc: stencil_sums, bacc: band_sums, banded: int):
+    """Add a run's 27 node sums to box k: one reduction per node (and per node for the band mass, if the run
+    had band particles)."""
     origin = box_index(b, k, base)
     d = b.dims[k]
     for i in range(3):
         for j in range(3):
             for l in range(3):  # noqa: E741
                 q = 9 * i + 3 * j + l
-                atomic_add_vec4(
-                    b.mp, origin + (i * d[1] + j) * d[2] + l, wp.vec4(acc[q, 0], acc[q, 1], acc[q, 2], acc[q, 3])
-                )
+                n = origin + (i * d[1] + j) * d[2] + l
+                atomic_add_vec4(b.mp, n, wp.vec4(acc[q, 0], acc[q, 1], acc[q, 2], acc[q, 3]))
+                if banded != 0:
+                    wp.atomic_add(b.band, n, bacc[q])
 
 
 @wp.func
@@ -214,11 +234,10 @@ def box_grid_update(
     # the other fields with mass here, in the boxes that overlap this one
     others = int(0)  # noqa: UP018 (a dynamic Warp variable)
     for o in range(b.over_start[k], b.over_start[k + 1]):
-        j = b.over[o]
-        i = box_index(b, j, node)
+        i = partner_index(b, o, node)
         if i >= 0:
             if b.mp[i][3] > eps_m:
-                if j < k:
+                if b.over[o] < k:
                     return  # a lower fragment has mass here: its thread leads
                 others += 1
     if others == 0:
@@ -233,7 +252,7 @@ def box_grid_update(
     for o in range(b.over_start[k], b.over_start[k + 1]):
         j = b.over[o]
         if j > k:
-            i = box_index(b, j, node)
+            i = partner_index(b, o, node)
             if i >= 0:
                 qj = b.mp[i][3]
                 if qj > eps_m:

@@ -33,6 +33,9 @@ class FragmentBoxes:
         self.offset = torch.zeros(K + 1, dtype=torch.int32, device=device)
         self.over_start = torch.zeros(K + 1, dtype=torch.int32, device=device)
         self.over = torch.zeros(K * K, dtype=torch.int32, device=device)
+        self.over_lo = torch.zeros(K * K, 3, dtype=torch.int32, device=device)
+        self.over_dims = torch.zeros(K * K, 3, dtype=torch.int32, device=device)
+        self.over_off = torch.zeros(K * K, dtype=torch.int32, device=device)
         self.capacity = 0
         self.nodes = 0
         self.K = 0
@@ -91,6 +94,9 @@ class FragmentBoxes:
         self.offset[: K + 1].copy_(offset)
         self.over_start[: K + 1].copy_(over_start)
         self.over[: len(pairs)].copy_(pairs)
+        self.over_lo[: len(pairs)].copy_(lo[pairs])
+        self.over_dims[: len(pairs)].copy_(dims[pairs])
+        self.over_off[: len(pairs)].copy_(offset[pairs])
         where = torch.arange(self.capacity, device=self.device)
         box = torch.searchsorted(offset[1:].to(self.device), where, right=True)
         self.box_of.copy_(torch.where(box < K, box, -1))
@@ -104,6 +110,11 @@ class FragmentBoxes:
         v.lo, v.dims = wp.from_torch(self.lo, dtype=wp.vec3i), wp.from_torch(self.dims, dtype=wp.vec3i)
         v.offset, v.box_of = wp.from_torch(self.offset), wp.from_torch(self.box_of)
         v.over_start, v.over = wp.from_torch(self.over_start), wp.from_torch(self.over)
+        v.over_lo, v.over_dims = (
+            wp.from_torch(self.over_lo, dtype=wp.vec3i),
+            wp.from_torch(self.over_dims, dtype=wp.vec3i),
+        )
+        v.over_off = wp.from_torch(self.over_off)
         v.mp, v.vel = wp.from_torch(self.mp, dtype=wp.vec4), wp.from_torch(self.vel, dtype=wp.vec3)
         v.band = wp.from_torch(self.band)
         v.origin, v.dx, v.inv_dx = wp.vec3(*self.origin), self.dx, 1.0 / self.dx

@@ -12,19 +12,24 @@ from ..errors import SimulationError
 from ..runtime import device_constant
 
 
-def cell_order(x: torch.Tensor, origin, dx: float, shape, mode: str = "interleaved") -> torch.Tensor:
+def cell_order(x: torch.Tensor, origin, dx: float, shape, mode: str = "interleaved", fragment=None) -> torch.Tensor:
     """Permutation of particles (new i = old order[i]) for P2G's atomics.
 
     `cell`: order of the stencil's base node ⌊ξ − 0.5⌋ (the cells of the grid shifted by half a cell):
     consecutive particles share all 27 nodes, which `run_kernels.p2g_runs` sums before the atomics (in
     one warp they would otherwise add to the same nodes at once). `interleaved`: the k-th
     particle of every cell, in cell order, then the (k+1)-th, ... — neighbours in memory are
-    neighbouring cells, so a warp keeps locality while few of its lanes add to the same node."""
+    neighbouring cells, so a warp keeps locality while few of its lanes add to the same node. `fragment` ([N],
+    after a latch): within a cell, by fragment, so a run of one cell's particles breaks at most once per
+    fragment present there (P2G into per-fragment fields)."""
     if mode not in ("cell", "interleaved"):
         raise SimulationError(f"sort mode '{mode}' is not 'cell' or 'interleaved'")
     shift = 0.5 if mode == "cell" else 0.0
     cell = torch.floor((x - device_constant(origin, torch.float32, x.device)) / dx - shift).long()  # [N, 3]
     key = (cell[:, 0] * shape[1] + cell[:, 1]) * shape[2] + cell[:, 2]  # [N]
+    if fragment is not None and fragment.numel():
+        f = fragment.long().clamp_min(0)
+        key = key * (int(f.max()) + 1) + f
     order = torch.argsort(key, stable=True)
     if mode == "interleaved":
         sorted_key = key[order]

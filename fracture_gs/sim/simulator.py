@@ -532,11 +532,18 @@ class Simulator(SlotStorage, FrameLoop):
         return self._diagnostics
 
     def sort_particles(self, mode: str = "cell") -> torch.Tensor:
-        """Reorder particles for P2G's atomics (`neighbourhood.cell_order`); returns `order` (new
-        particle i was old order[i])."""
+        """Reorder particles for P2G's atomics (`neighbourhood.cell_order`; after a latch by cell, then
+        fragment, and the latched topologies reordered with them); returns `order` (new particle i was old
+        order[i]). Not after the diagnostics have started on a latched state (they index its particles)."""
         P, g = self.particles, self.grid
-        order = cell_order(P.x, g.origin, g.dx, g.shape, mode)
+        if self.latched and self._diagnostics is not None:
+            raise SimulationError("sort_particles must come before the diagnostics start on a latched state")
+        fragment = P.fragment if self.latched else None
+        order = cell_order(P.x, g.origin, g.dx, g.shape, mode, fragment)
         P.permute(order)
+        if self.latched:
+            self.topologies = [t.permuted(order) for t in self.topologies]
+            self.topology = self.topologies[-1]
         self.p2g_run = P2G_RUN if mode == "cell" and self.device != "cpu" else 0
         self.set_solo(None)  # recomputed for the new order at the next frame
         return order
