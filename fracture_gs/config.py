@@ -20,7 +20,7 @@ MaterialName = Literal["fixed_corotated", "neo_hookean", "stvk_hencky_vm", "druc
 PlaneMode = Literal["sticky", "slip", "friction"]
 RegionKind = Literal["impulse", "velocity"]
 GridKind = Literal["explicit", "auto"]
-GridStorage = Literal["slots", "boxes"]
+GridStorage = Literal["auto", "slots", "boxes"]
 ProviderName = Literal["none", "oracle", "stress", "voronoi"]
 RenderMode = Literal["classic", "antialiased"]
 RenderBackend = Literal["auto", "gsplat", "torch"]
@@ -214,10 +214,11 @@ class SimConfig:
     """Fields one grid node couples (S, 2…8). Slots: a node reached by more fragments merges the extra ones
     into its first field and counts a slot overflow. Boxes: the extra fields keep their own velocity (no
     contact with the others there) and are counted the same way."""
-    grid_storage: GridStorage = "slots"
+    grid_storage: GridStorage = "auto"
     """Where the fragment fields live after a latch (multi-field variants): `slots` (one dense grid plus a pool
-    of extra slots at nodes two fragments reach) or `boxes` (a dense box per fragment, fitted every frame;
-    DESIGN.md "Grid storage: per-fragment boxes")."""
+    of extra slots at nodes two fragments reach), `boxes` (a dense box per fragment, fitted every frame;
+    DESIGN.md "Grid storage: per-fragment boxes") or `auto` (boxes once contact takes mass-gradient normals,
+    i.e. many pieces or repeated fracture; slots for one plane cut into two, the paper's setting)."""
     contact: ContactConfig = field(default_factory=ContactConfig)
     """Fragment–fragment contact: friction and normals."""
     max_grid_cells: int = 16_777_216

@@ -6,6 +6,7 @@ its own fragment's box: no owner words, claims or pool. Launches cover the buffe
 the boxes has box_of = −1.
 
 - `box_clear`: m, p and the band mass of every field to 0.
+- `box_band_mass`: each field's band mass (its band particles' Σ w_ip m_p), for the latched normals' gate.
 - `box_p2g_runs`: Eq. multifield_p2g, m_i^k += Σ w_ip m_p, p_i^k += Σ w_ip m_p (v_p + C_p(x_i − x_p)) − Δt V⁰ τ_p
   ∇w_ip, for the particles of fragment k into B_k, `run` consecutive particles a thread (a stencil that
   leaves B_k is counted as an escape and not deposited: the frame is then redone with larger boxes).
@@ -36,7 +37,6 @@ wp.set_module_options({"enable_backward": False})
 
 MAX_FIELDS = MAX_SLOTS  # most fields one contact leader projects at a node (sim.field_slots ≤ this)
 vec_fi = wp.types.vector(length=MAX_FIELDS, dtype=wp.int32)
-band_sums = wp.types.vector(length=27, dtype=float)  # band mass of the 27 stencil nodes
 
 
 @wp.struct
@@ -104,7 +104,6 @@ def box_p2g_runs(
     volume: wp.array(dtype=float),  # [N] rest volume V⁰
     stress: wp.array(dtype=wp.mat33),  # [N] Kirchhoff τ
     fragment: wp.array(dtype=wp.int32),  # [N] the particle's box
-    band: wp.array(dtype=wp.int32),  # [N] γ_p ≠ 0: its mass also goes to the field's band mass
     clock: Clock,  # Δt
     b: BoxView,
     run: int,  # consecutive particles per thread
@@ -112,14 +111,12 @@ def box_p2g_runs(
 ):
     """Deposits of `run` consecutive particles a thread (`run_kernels.p2g_runs` on boxes): those with the same
     fragment and stencil base are summed in registers and reach their box as one reduction per node (run = 1:
-    one particle a thread). Band particles' mass is summed the same way into the band buffer."""
+    one particle a thread)."""
     t = wp.tid()
     dt = clock_dt(clock)
     acc = stencil_sums()
-    bacc = band_sums()
-    banded = int(0)  # noqa: UP018 (a dynamic Warp variable)
     cur = wp.vec3i(-1, -1, -1)
-    ck = int(-1)  # noqa: UP018
+    ck = int(-1)  # noqa: UP018 (a dynamic Warp variable)
     for p in range(t * run, wp.min(t * run + run, x.shape[0])):
         k = wp.max(fragment[p], 0)
         base, f, w, dw = stencil(x[p], b.origin, b.inv_dx, b.shape)
@@ -128,19 +125,14 @@ def box_p2g_runs(
             continue
         if k != ck or base[0] != cur[0] or base[1] != cur[1] or base[2] != cur[2]:
             if ck >= 0:
-                flush_box(b, ck, cur, acc, bacc, banded)
+                flush_box(b, ck, cur, acc)
             acc = stencil_sums()
-            bacc = band_sums()
-            banded = 0
             cur = base
             ck = k
         m = mass[p]
         vp = v[p]
         Cp = C[p]
         force = -dt * volume[p] * stress[p]
-        in_band = band[p] != 0
-        if in_band:
-            banded = 1
         for i in range(3):
             for j in range(3):
                 for l in range(3):  # noqa: E741
@@ -149,26 +141,49 @@ def box_p2g_runs(
                     dep = deposit(weight, grad, dpos, m, vp, Cp, force)
                     for c in range(4):
                         acc[q, c] = acc[q, c] + dep[c]
-                    if in_band:
-                        bacc[q] = bacc[q] + weight * m
     if ck >= 0:
-        flush_box(b, ck, cur, acc, bacc, banded)
+        flush_box(b, ck, cur, acc)
 
 
 @wp.func
-def flush_box(b: BoxView, k: int, base: wp.vec3i, acc: stencil_sums, bacc: band_sums, banded: int):
-    """Add a run's 27 node sums to box k: one reduction per node (and per node for the band mass, if the run
-    had band particles)."""
+def flush_box(b: BoxView, k: int, base: wp.vec3i, acc: stencil_sums):
+    """Add a run's 27 node sums to box k: one reduction per node."""
     origin = box_index(b, k, base)
     d = b.dims[k]
     for i in range(3):
         for j in range(3):
             for l in range(3):  # noqa: E741
                 q = 9 * i + 3 * j + l
-                n = origin + (i * d[1] + j) * d[2] + l
-                atomic_add_vec4(b.mp, n, wp.vec4(acc[q, 0], acc[q, 1], acc[q, 2], acc[q, 3]))
-                if banded != 0:
-                    wp.atomic_add(b.band, n, bacc[q])
+                atomic_add_vec4(
+                    b.mp, origin + (i * d[1] + j) * d[2] + l, wp.vec4(acc[q, 0], acc[q, 1], acc[q, 2], acc[q, 3])
+                )
+
+
+@wp.kernel
+def box_band_mass(
+    x: wp.array(dtype=wp.vec3),  # [N]
+    mass: wp.array(dtype=float),  # [N]
+    fragment: wp.array(dtype=wp.int32),  # [N]
+    band: wp.array(dtype=wp.int32),  # [N] γ_p ≠ 0: an interface-band particle
+    b: BoxView,
+):
+    """The band mass of every field, Σ w_ip m_p over its band particles (the latched normals' contact gate):
+    a pass of its own, so P2G carries no band work (band particles are few)."""
+    p = wp.tid()
+    if band[p] == 0:
+        return
+    k = wp.max(fragment[p], 0)
+    base, f, w, dw = stencil(x[p], b.origin, b.inv_dx, b.shape)
+    if not stencil_inside(b, k, base):
+        return  # counted by P2G
+    origin = box_index(b, k, base)
+    d = b.dims[k]
+    m = mass[p]
+    for i in range(3):
+        for j in range(3):
+            for l in range(3):  # noqa: E741
+                weight = w[i, 0] * w[j, 1] * w[l, 2]
+                wp.atomic_add(b.band, origin + (i * d[1] + j) * d[2] + l, weight * m)
 
 
 @wp.func

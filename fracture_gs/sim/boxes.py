@@ -13,7 +13,7 @@ import torch
 import warp as wp
 
 from ..runtime import ensure_warp, launch
-from .box_kernels import MAX_FIELDS, BoxView, box_clear, box_g2p, box_grid_update, box_p2g_runs
+from .box_kernels import MAX_FIELDS, BoxView, box_band_mass, box_clear, box_g2p, box_grid_update, box_p2g_runs
 from .contact import NORMAL_LATCHED, NORMAL_MASS_GRADIENT
 
 GROWTH = 1.25  # capacity headroom when the boxes outgrow the buffer
@@ -121,17 +121,19 @@ class FragmentBoxes:
         v.shape, v.boxes = wp.vec3i(*self.shape), self.K
         self.view = v
 
-    def p2g(self, w: dict, clock, counts, run: int = 0, band=None) -> None:
+    def p2g(self, w: dict, clock, counts, run: int = 0, band: bool = True) -> None:
         """Clear the boxes, then every particle's deposit into its fragment's box. `w`: Warp arrays x, v, C,
-        mass, volume, stress, fragment, band (`band` overrides the last); `counts`: the escape counter's
-        array; `run` > 0: that many consecutive particles a thread, summed in registers while they share
-        fragment and stencil base (particles sorted by cell)."""
+        mass, volume, stress, fragment, band; `counts`: the escape counter's array; `run` > 0: that many
+        consecutive particles a thread, summed in registers while they share fragment and stencil base
+        (particles sorted by cell); `band`: also each field's band mass (only the latched normals' gate reads
+        it)."""
         launch(box_clear, self.capacity, [self.view], self.device)
         n = w["x"].shape[0]
         arrays = [w[k] for k in ("x", "v", "C", "mass", "volume", "stress", "fragment")]
-        arrays.append(w["band"] if band is None else band)
         run = max(1, int(run))
         launch(box_p2g_runs, -(-n // run), arrays + [clock, self.view, run, counts], self.device)
+        if band:
+            launch(box_band_mass, n, [w[k] for k in ("x", "mass", "fragment", "band")] + [self.view], self.device)
 
     def update(
         self,

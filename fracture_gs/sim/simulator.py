@@ -56,8 +56,8 @@ def validate_sim_config(cfg: SimConfig) -> None:
         raise SimulationError("sim.eps_mass and sim.eps_band must be >= 0")
     if not 2 <= cfg.field_slots <= MAX_SLOTS:
         raise SimulationError(f"sim.field_slots = {cfg.field_slots} must lie in [2, {MAX_SLOTS}]")
-    if cfg.grid_storage not in ("slots", "boxes"):
-        raise SimulationError(f"sim.grid_storage '{cfg.grid_storage}' is unknown; use slots or boxes")
+    if cfg.grid_storage not in ("auto", "slots", "boxes"):
+        raise SimulationError(f"sim.grid_storage '{cfg.grid_storage}' is unknown; use auto, slots or boxes")
     if not 2 <= cfg.max_fragments <= 4096:
         raise SimulationError(f"sim.max_fragments = {cfg.max_fragments} must lie in [2, 4096]")
     if not (cfg.contact.friction >= 0 and math.isfinite(cfg.contact.friction)):
@@ -92,10 +92,11 @@ class Simulator(SlotStorage, FrameLoop):
         self.particles = particles.to(self.device)
         origin, dx, shape = fit_grid(cfg, self.particles.x)
         check_inside(self.particles.x, origin, dx, shape)
-        boxed = self.spec.multifield and cfg.grid_storage == "boxes"
-        slots = cfg.field_slots if self.spec.multifield and not boxed else 1
+        storage = cfg.grid_storage if self.spec.multifield else "none"  # one field: neither slots nor boxes
+        slots = cfg.field_slots if storage in ("auto", "slots") else 1
         self.grid = Grid(origin, dx, shape, self.device, slots, cfg.max_fragments)
         # the fragment fields after a latch in dense boxes, one per fragment (`boxes.py`), instead of slots
+        boxed = storage in ("auto", "boxes")
         self.boxes = FragmentBoxes(shape, origin, dx, self.device, cfg.max_fragments) if boxed else None
         self.boundaries = Boundaries(cfg.boundaries, self.device, shape, cfg.wall_cells)
         self.clock = FrameClock(self.device, len(self.boundaries.regions))
@@ -269,8 +270,11 @@ class Simulator(SlotStorage, FrameLoop):
 
     @property
     def boxed(self) -> bool:
-        """The fragment fields are in per-fragment boxes (`sim.grid_storage = "boxes"`, after the latch)."""
-        return self.boxes is not None and self.multifield
+        """The fragment fields are in per-fragment boxes (after the latch: `sim.grid_storage = "boxes"`, or
+        `auto` with mass-gradient normals)."""
+        if self.boxes is None or not self.multifield:
+            return False
+        return self.cfg.grid_storage == "boxes" or self.normal_mode == NORMAL_MASS_GRADIENT
 
     @property
     def release(self) -> bool:
@@ -348,9 +352,8 @@ class Simulator(SlotStorage, FrameLoop):
     def _p2g(self, only_fragment: int = -1, target=None, multifield=None, stress=None, counts=None) -> None:
         g, w = target or self.grid, self.wp
         if self.boxed and target is None and multifield is None and stress is None:
-            # band particles' mass reaches a band buffer only for the latched normals' gate
-            band = w["band"] if self.normal_mode == NORMAL_LATCHED else w["zeros"]
-            self.boxes.p2g(w, self.clock.view, w["counts"] if counts is None else counts, self.p2g_run, band)
+            counts = w["counts"] if counts is None else counts  # band mass: only the latched normals' gate reads it
+            self.boxes.p2g(w, self.clock.view, counts, self.p2g_run, band=self.normal_mode == NORMAL_LATCHED)
             return
         multi = int(self.multifield if multifield is None else multifield)
         fan = target is None and self._fans_out(multi, only_fragment)
