@@ -13,10 +13,20 @@ import torch
 import warp as wp
 
 from ..runtime import ensure_warp, launch
-from .box_kernels import MAX_FIELDS, BoxView, box_band_mass, box_clear, box_g2p, box_grid_update, box_p2g_runs
+from .box_kernels import (
+    MAX_FIELDS,
+    BoxView,
+    box_band_mass,
+    box_clear,
+    box_contact,
+    box_g2p,
+    box_grid_update,
+    box_p2g_runs,
+)
 from .contact import NORMAL_LATCHED, NORMAL_MASS_GRADIENT
 
 GROWTH = 1.25  # capacity headroom when the boxes outgrow the buffer
+CONTACT_THREADS = 16384  # threads of `box_contact`'s launch, each taking every 16384-th listed node
 
 
 class FragmentBoxes:
@@ -89,6 +99,7 @@ class FragmentBoxes:
             self.vel = torch.zeros(self.capacity, 3, dtype=torch.float32, device=self.device)
             self.band = torch.zeros(self.capacity, dtype=torch.float32, device=self.device)
             self.box_of = torch.full((self.capacity,), -1, dtype=torch.int32, device=self.device)
+            self.leaders = torch.zeros(1 + self.capacity, dtype=torch.int32, device=self.device)
         self.lo[:K].copy_(lo)
         self.dims[:K].copy_(dims)
         self.offset[: K + 1].copy_(offset)
@@ -116,7 +127,7 @@ class FragmentBoxes:
         )
         v.over_off = wp.from_torch(self.over_off)
         v.mp, v.vel = wp.from_torch(self.mp, dtype=wp.vec4), wp.from_torch(self.vel, dtype=wp.vec3)
-        v.band = wp.from_torch(self.band)
+        v.band, v.leaders = wp.from_torch(self.band), wp.from_torch(self.leaders)
         v.origin, v.dx, v.inv_dx = wp.vec3(*self.origin), self.dx, 1.0 / self.dx
         v.shape, v.boxes = wp.vec3i(*self.shape), self.K
         self.view = v
@@ -127,13 +138,14 @@ class FragmentBoxes:
         consecutive particles a thread, summed in registers while they share fragment and stencil base
         (particles sorted by cell); `band`: also each field's band mass (only the latched normals' gate reads
         it)."""
-        launch(box_clear, self.capacity, [self.view], self.device)
+        launch(box_clear, self.capacity, [self.view, int(band)], self.device)
         n = w["x"].shape[0]
         arrays = [w[k] for k in ("x", "v", "C", "mass", "volume", "stress", "fragment")]
         run = max(1, int(run))
         launch(box_p2g_runs, -(-n // run), arrays + [clock, self.view, run, counts], self.device)
         if band:
-            launch(box_band_mass, n, [w[k] for k in ("x", "mass", "fragment", "band")] + [self.view], self.device)
+            arrays = [w[k] for k in ("x", "mass", "fragment", "band")]
+            launch(box_band_mass, -(-n // run), arrays + [self.view, run], self.device)
 
     def update(
         self,
@@ -167,10 +179,13 @@ class FragmentBoxes:
         n = wp.vec3(*(latched if latched is not None else (0.0, 0.0, 1.0)))
         if stats is None:
             stats = (self._no_stats, self._no_stats, 0)
+        gravity = wp.vec3(*gravity)
+        launch(box_grid_update, self.capacity, [self.view, float(eps_m), clock, gravity, colliders], self.device)
         inputs = [self.view, float(eps_m), float(eps_b), float(fill_mass), mode, n, centroids, float(e), float(mu)]
-        inputs += [int(project), int(stats[2] > 0), int(slots), clock, wp.vec3(*gravity), colliders]
-        inputs += [stats[0], stats[1], int(stats[2]), counts]
-        launch(box_grid_update, self.capacity, inputs, self.device)
+        inputs += [int(project), int(stats[2] > 0), int(slots), clock, gravity, colliders]
+        stride = max(1, min(self.capacity, CONTACT_THREADS))
+        inputs += [stats[0], stats[1], int(stats[2]), counts, stride]
+        launch(box_contact, stride, inputs, self.device)
 
     def g2p(self, w: dict, clock, lower, upper, counts, a: int = 0, b: int = -1) -> None:
         """Particles [a, b) gather from their own fragment's box (v, C, F, x; clamped into [lower, upper])."""
