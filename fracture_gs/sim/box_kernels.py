@@ -5,20 +5,21 @@ offset_k + (i·dims_y + j)·dims_z + l of one buffer for all boxes. Every partic
 its own fragment's box: no owner words, claims or pool. Launches cover the buffer's capacity; an index past
 the boxes has box_of = −1.
 
-- `box_clear`: m, p (and the band mass) of every field to 0, and the list of contact nodes emptied.
 - `box_band_mass`: each field's band mass (its band particles' Σ w_ip m_p), for the latched normals' gate.
 - `box_p2g_runs`: Eq. multifield_p2g, m_i^k += Σ w_ip m_p, p_i^k += Σ w_ip m_p (v_p + C_p(x_i − x_p)) − Δt V⁰ τ_p
   ∇w_ip, for the particles of fragment k into B_k, `run` consecutive particles a thread (a stencil that
   leaves B_k is counted as an escape and not deposited: the frame is then redone with larger boxes).
 - `box_grid_update`: per field node v_i^k = p_i^k / m_i^k + Δt g where m_i^k > ε_m (else 0), then the
-  boundaries; where two or more fields hold mass at a node, the thread of the lowest fragment id there lists
-  the node instead, and `box_contact` (few threads, packed) normalizes every field there, projects every pair
+  boundaries; where two or more fields hold mass at a node, each links its field to the next one there
+  (`next`), the thread of the lowest fragment id lists the node, and `box_contact` (few threads, packed)
+  follows the node's chain: it normalizes every field there, projects every pair
   in fragment order (the Gauss–Seidel of `contact.contact_projection`; normals and gate of
   `contact.contact_normal`: the fields' mass gradients, central differences inside each box, with
   m_a + m_b ≥ fill_mass, or the latched normal with both band masses > ε_b), then applies the boundaries to
   every field there. Only the boxes that overlap a node's own box are searched (`over`, made per fit).
   Fields beyond the first `slots` at a node keep their own velocity (no contact) and are counted.
-- `box_g2p`: Eqs. field_g2p / field_apic / field_deformation from the particle's own box.
+- `box_g2p`: Eqs. field_g2p / field_apic / field_deformation from the particle's own box; threads past the
+  particles clear every field for the next P2G (m, p, the band mass, the contact list): no launch of its own.
 Twins: `reference.p2g`, `reference.grid_update`, `reference.contact_fields`, `reference.g2p` on K dense
 fields (tests/test_fragment_boxes.py).
 """
@@ -36,8 +37,7 @@ from .transfer_kernels import atomic_add_vec4, deposit, finish_g2p, gather, node
 
 wp.set_module_options({"enable_backward": False})
 
-MAX_FIELDS = MAX_SLOTS  # most fields one contact leader projects at a node (sim.field_slots ≤ this)
-vec_fi = wp.types.vector(length=MAX_FIELDS, dtype=wp.int32)
+MAX_FIELDS = MAX_SLOTS  # most fields one node's contact couples (sim.field_slots ≤ this)
 band_sums = wp.types.vector(length=27, dtype=float)  # band mass of the 27 stencil nodes
 
 
@@ -58,6 +58,7 @@ class BoxView:
     vel: wp.array(dtype=wp.vec3)  # [capacity]
     band: wp.array(dtype=float)  # [capacity] the field's band-particle mass (the latched normals' gate)
     leaders: wp.array(dtype=wp.int32)  # [1 + capacity] how many nodes need contact, then their leaders' indices
+    next: wp.array(dtype=wp.int32)  # [capacity] the next field with mass at the node, in fragment order (−1: none)
     origin: wp.vec3
     dx: float
     inv_dx: float
@@ -91,9 +92,9 @@ def stencil_inside(b: BoxView, k: int, base: wp.vec3i):
     return box_index(b, k, base) >= 0 and box_index(b, k, base + wp.vec3i(2, 2, 2)) >= 0
 
 
-@wp.kernel
-def box_clear(b: BoxView, band: int):
-    t = wp.tid()
+@wp.func
+def clear_node(b: BoxView, t: int, band: int):
+    """Node t's (m, p) (and band mass) to 0 for the next P2G; the first also empties the contact list."""
     b.mp[t] = wp.vec4(0.0)
     if band != 0:
         b.band[t] = 0.0
@@ -251,9 +252,9 @@ def node_position(b: BoxView, node: wp.vec3i):
 
 @wp.kernel
 def box_grid_update(b: BoxView, eps_m: float, clock: Clock, gravity: wp.vec3, colliders: Colliders):
-    """One thread per buffer index: a field alone at its node gets v = p/m + Δt g (0 where m ≤ ε_m) and the
-    boundaries; at a node where fields meet, the lowest fragment's thread lists the node for `box_contact`
-    and the others leave it."""
+    """One thread per buffer index with mass: it links its field to the next field with mass at its node (in
+    fragment order, `next`); a field alone there gets v = p/m + Δt g and the boundaries; where fields meet,
+    the lowest fragment's thread lists the node for `box_contact` and the others leave it."""
     t = wp.tid()
     k = b.box_of[t]
     if k < 0:
@@ -263,14 +264,23 @@ def box_grid_update(b: BoxView, eps_m: float, clock: Clock, gravity: wp.vec3, co
         b.vel[t] = wp.vec3(0.0)
         return
     node = buffer_node(b, k, t)
-    for o in range(b.over_start[k], b.over_start[k + 1]):  # the other fields with mass here
+    lower = int(0)  # noqa: UP018 (a dynamic Warp variable)
+    succ = int(-1)  # noqa: UP018
+    for o in range(b.over_start[k], b.over_start[k + 1]):  # ascending: the lower fragments come first
         i = partner_index(b, o, node)
         if i >= 0:
             if b.mp[i][3] > eps_m:
                 if b.over[o] < k:
-                    return  # a lower fragment has mass here: it leads
-                b.leaders[1 + wp.atomic_add(b.leaders, 0, 1)] = t
-                return
+                    lower = 1
+                else:
+                    succ = i
+                    break
+    b.next[t] = succ
+    if lower != 0:
+        return  # a lower fragment has mass here: it leads
+    if succ >= 0:
+        b.leaders[1 + wp.atomic_add(b.leaders, 0, 1)] = t
+        return
     v = normalized(q, eps_m, clock_dt(clock), gravity)
     b.vel[t] = apply_boundaries(v, node, node_position(b, node), clock_time(clock), colliders)
 
@@ -288,7 +298,7 @@ def box_contact(
     friction: float,
     project: int,  # apply the projection (FractureFields; 0: Local Multi-Field, detection only)
     record: int,  # accumulate the contact statistics
-    slots: int,  # fields a leader projects (≤ MAX_FIELDS); more are counted as slot overflows
+    slots: int,  # fields a node's contact couples; more are counted as slot overflows
     clock: Clock,  # Δt and t
     gravity: wp.vec3,
     colliders: Colliders,
@@ -298,41 +308,35 @@ def box_contact(
     counts: wp.array(dtype=wp.int32),
     stride: int,  # threads of the launch: thread s takes the listed nodes s, s + stride, ...
 ):
-    """The nodes `box_grid_update` listed, packed into few threads: normalization of every field there, the
-    pairwise projection in fragment order, then the boundaries (as the slot storage's pool pass)."""
+    """The nodes `box_grid_update` listed, packed into few threads, each following its node's chain of fields
+    (`next`): normalization of every field there, the pairwise projection in fragment order, then the
+    boundaries (as the slot storage's pool pass). Fields past the first `slots` keep their own velocity."""
     dt = clock_dt(clock)
     time = clock_time(clock)
     for e in range(wp.tid(), b.leaders[0], stride):
         t = b.leaders[1 + e]
-        k = b.box_of[t]
-        node = buffer_node(b, k, t)
+        node = buffer_node(b, b.box_of[t], t)
         xi = node_position(b, node)
-        idx = vec_fi(-1)
-        frag = vec_fi(-1)
-        idx[0] = t
-        frag[0] = k
-        n = int(1)  # noqa: UP018 (a dynamic Warp variable)
-        b.vel[t] = normalized(b.mp[t], eps_m, dt, gravity)
-        for o in range(b.over_start[k], b.over_start[k + 1]):
-            j = b.over[o]
-            if j > k:
-                i = partner_index(b, o, node)
-                if i >= 0:
-                    if b.mp[i][3] > eps_m:
-                        b.vel[i] = normalized(b.mp[i], eps_m, dt, gravity)
-                        if n < slots:
-                            idx[n] = i
-                            frag[n] = j
-                            n += 1
-                        else:  # kept, uncoupled: its own velocity and the boundaries only
-                            wp.atomic_add(counts, COUNT_SLOT_OVERFLOW, 1)
-                            b.vel[i] = apply_boundaries(b.vel[i], node, xi, time, colliders)
+        n = int(0)  # noqa: UP018 (a dynamic Warp variable)
+        i = t
+        while i >= 0:
+            b.vel[i] = normalized(b.mp[i], eps_m, dt, gravity)
+            if n >= slots:  # kept, uncoupled: its own velocity and the boundaries only
+                wp.atomic_add(counts, COUNT_SLOT_OVERFLOW, 1)
+                b.vel[i] = apply_boundaries(b.vel[i], node, xi, time, colliders)
+            n += 1
+            i = b.next[i]
+        n = wp.min(n, slots)
+        ia = t
         for a in range(n):
-            ia = idx[a]
+            ka = b.box_of[ia]
             ma = b.mp[ia][3]
             ga = wp.vec3(0.0)
-            for c in range(a + 1, n):
-                ic = idx[c]
+            if normal_mode == NORMAL_MASS_GRADIENT:
+                ga = box_mass_gradient(b, ka, ia, node)
+            ic = b.next[ia]
+            for _c in range(a + 1, n):
+                kc = b.box_of[ic]
                 mc = b.mp[ic][3]
                 touching = ma + mc >= fill_mass
                 if normal_mode != NORMAL_MASS_GRADIENT:
@@ -340,17 +344,17 @@ def box_contact(
                 if touching:
                     gc = wp.vec3(0.0)
                     if normal_mode == NORMAL_MASS_GRADIENT:
-                        ga = box_mass_gradient(b, frag[a], ia, node)
-                        gc = box_mass_gradient(b, frag[c], ic, node)
-                    nrm = contact_normal(normal_mode, latched, ga, gc, centroids[frag[a]], centroids[frag[c]])
+                        gc = box_mass_gradient(b, kc, ic, node)
+                    nrm = contact_normal(normal_mode, latched, ga, gc, centroids[ka], centroids[kc])
                     w0, w1 = contact_pair(
                         b.vel[ia], b.vel[ic], ma, mc, nrm, restitution, friction, project, record, stats,
-                        pair_stats, frag[a], frag[c], n_fragments, time,
+                        pair_stats, ka, kc, n_fragments, time,
                     )  # fmt: skip
                     b.vel[ia] = w0
                     b.vel[ic] = w1
-        for a in range(n):
-            b.vel[idx[a]] = apply_boundaries(b.vel[idx[a]], node, xi, time, colliders)
+                ic = b.next[ic]
+            b.vel[ia] = apply_boundaries(b.vel[ia], node, xi, time, colliders)
+            ia = b.next[ia]
 
 
 @wp.kernel
@@ -365,8 +369,14 @@ def box_g2p(
     lower: wp.vec3,  # particles are clamped into [lower, upper] and counted
     upper: wp.vec3,
     counts: wp.array(dtype=wp.int32),
+    clear: int,  # threads past the particles clear the boxes for the next P2G (G2P reads only velocities)
+    band: int,  # with `clear`: the band masses too
 ):
     p = wp.tid()
+    if p >= x.shape[0]:
+        if clear != 0:
+            clear_node(b, p - x.shape[0], band)
+        return
     k = wp.max(fragment[p], 0)
     base, f, w, dw = stencil(x[p], b.origin, b.inv_dx, b.shape)
     if not stencil_inside(b, k, base):

@@ -17,7 +17,6 @@ from .box_kernels import (
     MAX_FIELDS,
     BoxView,
     box_band_mass,
-    box_clear,
     box_contact,
     box_g2p,
     box_grid_update,
@@ -54,8 +53,9 @@ class FragmentBoxes:
 
     @property
     def nbytes(self) -> int:
-        """Bytes of the box buffers: (p, m), v, the band mass and the box of every node."""
-        return self.capacity * (16 + 12 + 4 + 4)
+        """Bytes of the box buffers: (p, m), v, the band mass, the box, the next field and the contact list of
+        every node."""
+        return self.capacity * (16 + 12 + 4 + 4 + 4 + 4)
 
     @property
     def layout_key(self) -> tuple:
@@ -100,6 +100,7 @@ class FragmentBoxes:
             self.band = torch.zeros(self.capacity, dtype=torch.float32, device=self.device)
             self.box_of = torch.full((self.capacity,), -1, dtype=torch.int32, device=self.device)
             self.leaders = torch.zeros(1 + self.capacity, dtype=torch.int32, device=self.device)
+            self.next = torch.full((self.capacity,), -1, dtype=torch.int32, device=self.device)
         self.lo[:K].copy_(lo)
         self.dims[:K].copy_(dims)
         self.offset[: K + 1].copy_(offset)
@@ -111,6 +112,9 @@ class FragmentBoxes:
         where = torch.arange(self.capacity, device=self.device)
         box = torch.searchsorted(offset[1:].to(self.device), where, right=True)
         self.box_of.copy_(torch.where(box < K, box, -1))
+        self.mp.zero_()  # the boxes moved: P2G starts from empty fields (afterwards each G2P clears them)
+        self.band.zero_()
+        self.leaders[0] = 0
         if grew or K != self.K:
             self.K = K
             self._make_view()
@@ -127,18 +131,17 @@ class FragmentBoxes:
         )
         v.over_off = wp.from_torch(self.over_off)
         v.mp, v.vel = wp.from_torch(self.mp, dtype=wp.vec4), wp.from_torch(self.vel, dtype=wp.vec3)
-        v.band, v.leaders = wp.from_torch(self.band), wp.from_torch(self.leaders)
+        v.band, v.leaders, v.next = wp.from_torch(self.band), wp.from_torch(self.leaders), wp.from_torch(self.next)
         v.origin, v.dx, v.inv_dx = wp.vec3(*self.origin), self.dx, 1.0 / self.dx
         v.shape, v.boxes = wp.vec3i(*self.shape), self.K
         self.view = v
 
     def p2g(self, w: dict, clock, counts, run: int = 0, band: bool = True) -> None:
-        """Clear the boxes, then every particle's deposit into its fragment's box. `w`: Warp arrays x, v, C,
-        mass, volume, stress, fragment, band; `counts`: the escape counter's array; `run` > 0: that many
-        consecutive particles a thread, summed in registers while they share fragment and stencil base
-        (particles sorted by cell); `band`: also each field's band mass (only the latched normals' gate reads
-        it)."""
-        launch(box_clear, self.capacity, [self.view, int(band)], self.device)
+        """Every particle's deposit into its fragment's box, which the last `fit` or `g2p` left empty. `w`: Warp
+        arrays x, v, C, mass, volume, stress, fragment, band; `counts`: the escape counter's array; `run` > 0:
+        that many consecutive particles a thread, summed in registers while they share fragment and stencil
+        base (particles sorted by cell); `band`: also each field's band mass (only the latched normals' gate
+        reads it)."""
         n = w["x"].shape[0]
         arrays = [w[k] for k in ("x", "v", "C", "mass", "volume", "stress", "fragment")]
         run = max(1, int(run))
@@ -187,11 +190,13 @@ class FragmentBoxes:
         inputs += [stats[0], stats[1], int(stats[2]), counts, stride]
         launch(box_contact, stride, inputs, self.device)
 
-    def g2p(self, w: dict, clock, lower, upper, counts, a: int = 0, b: int = -1) -> None:
-        """Particles [a, b) gather from their own fragment's box (v, C, F, x; clamped into [lower, upper])."""
+    def g2p(self, w: dict, clock, lower, upper, counts, a: int = 0, b: int = -1, clear: bool = True) -> None:
+        """Particles [a, b) gather from their own fragment's box (v, C, F, x; clamped into [lower, upper]);
+        with `clear` the same launch empties the boxes for the next P2G (once per substep)."""
         b = w["x"].shape[0] if b < 0 else b
-        arrays = [w[k][a:b] for k in ("x", "v", "C", "F", "fragment")]
-        launch(box_g2p, b - a, arrays + [clock, self.view, lower, upper, counts], self.device)
+        arrays = [w[k] for k in ("x", "v", "C", "F", "fragment")]
+        arrays = [t[a:b] for t in arrays] + [clock, self.view, lower, upper, counts, int(clear), 1]
+        launch(box_g2p, b - a + (self.capacity if clear else 0), arrays, self.device)
 
     def field(self, k: int) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """Box k's mass [X,Y,Z], momentum [X,Y,Z,3] and velocity [X,Y,Z,3] (its lowest node: `lo[k]`)."""
