@@ -38,6 +38,9 @@ from .transfer_kernels import atomic_add_vec4, deposit, finish_g2p, gather, node
 wp.set_module_options({"enable_backward": False})
 
 MAX_FIELDS = MAX_SLOTS  # most fields one node's contact couples (sim.field_slots ≤ this)
+vec_fi = wp.types.vector(length=MAX_FIELDS, dtype=wp.int32)
+vec_f = wp.types.vector(length=MAX_FIELDS, dtype=float)
+mat_f3 = wp.types.matrix(shape=(MAX_FIELDS, 3), dtype=float)
 band_sums = wp.types.vector(length=27, dtype=float)  # band mass of the 27 stencil nodes
 
 
@@ -317,44 +320,46 @@ def box_contact(
         t = b.leaders[1 + e]
         node = buffer_node(b, b.box_of[t], t)
         xi = node_position(b, node)
+        # the node's fields in fragment order, loaded once (the sweep then runs on these copies)
+        idx = vec_fi(-1)
+        frag = vec_fi(0)
+        m = vec_f(0.0)
+        band = vec_f(0.0)
+        V = mat_f3(0.0)
         n = int(0)  # noqa: UP018 (a dynamic Warp variable)
         i = t
         while i >= 0:
-            b.vel[i] = normalized(b.mp[i], eps_m, dt, gravity)
-            if n >= slots:  # kept, uncoupled: its own velocity and the boundaries only
+            if n < slots:
+                idx[n] = i
+                n += 1
+            else:  # kept, uncoupled: its own velocity and the boundaries only
                 wp.atomic_add(counts, COUNT_SLOT_OVERFLOW, 1)
-                b.vel[i] = apply_boundaries(b.vel[i], node, xi, time, colliders)
-            n += 1
+                b.vel[i] = apply_boundaries(normalized(b.mp[i], eps_m, dt, gravity), node, xi, time, colliders)
             i = b.next[i]
-        n = wp.min(n, slots)
-        ia = t
+        G = mat_f3(0.0)
         for a in range(n):
-            ka = b.box_of[ia]
-            ma = b.mp[ia][3]
-            ga = wp.vec3(0.0)
+            ia = idx[a]
+            q = b.mp[ia]
+            frag[a] = b.box_of[ia]
+            m[a] = q[3]
+            band[a] = b.band[ia]
+            V[a] = normalized(q, eps_m, dt, gravity)
             if normal_mode == NORMAL_MASS_GRADIENT:
-                ga = box_mass_gradient(b, ka, ia, node)
-            ic = b.next[ia]
-            for _c in range(a + 1, n):
-                kc = b.box_of[ic]
-                mc = b.mp[ic][3]
-                touching = ma + mc >= fill_mass
+                G[a] = box_mass_gradient(b, frag[a], ia, node)
+        for a in range(n):
+            for c in range(a + 1, n):
+                touching = m[a] + m[c] >= fill_mass
                 if normal_mode != NORMAL_MASS_GRADIENT:
-                    touching = b.band[ia] > eps_b and b.band[ic] > eps_b
+                    touching = band[a] > eps_b and band[c] > eps_b
                 if touching:
-                    gc = wp.vec3(0.0)
-                    if normal_mode == NORMAL_MASS_GRADIENT:
-                        gc = box_mass_gradient(b, kc, ic, node)
-                    nrm = contact_normal(normal_mode, latched, ga, gc, centroids[ka], centroids[kc])
+                    nrm = contact_normal(normal_mode, latched, G[a], G[c], centroids[frag[a]], centroids[frag[c]])
                     w0, w1 = contact_pair(
-                        b.vel[ia], b.vel[ic], ma, mc, nrm, restitution, friction, project, record, stats,
-                        pair_stats, ka, kc, n_fragments, time,
+                        V[a], V[c], m[a], m[c], nrm, restitution, friction, project, record, stats, pair_stats,
+                        frag[a], frag[c], n_fragments, time,
                     )  # fmt: skip
-                    b.vel[ia] = w0
-                    b.vel[ic] = w1
-                ic = b.next[ic]
-            b.vel[ia] = apply_boundaries(b.vel[ia], node, xi, time, colliders)
-            ia = b.next[ia]
+                    V[a] = w0
+                    V[c] = w1
+            b.vel[idx[a]] = apply_boundaries(V[a], node, xi, time, colliders)
 
 
 @wp.kernel

@@ -147,8 +147,8 @@ class FragmentBoxes:
         run = max(1, int(run))
         launch(box_p2g_runs, -(-n // run), arrays + [clock, self.view, run, counts], self.device)
         if band:
-            arrays = [w[k] for k in ("x", "mass", "fragment", "band")]
-            launch(box_band_mass, -(-n // run), arrays + [self.view, run], self.device)
+            arrays = [w[k] for k in ("x", "mass", "fragment", "band")]  # a particle a thread: most exit at once
+            launch(box_band_mass, n, arrays + [self.view, 1], self.device)
 
     def update(
         self,
