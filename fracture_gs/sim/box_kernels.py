@@ -309,14 +309,18 @@ def box_contact(
     pair_stats: wp.array(dtype=float),  # [K·K·N_PAIR_STATS]
     n_fragments: int,  # K (pair rows of pair_stats)
     counts: wp.array(dtype=wp.int32),
-    stride: int,  # threads of the launch: thread s takes the listed nodes s, s + stride, ...
+    stride: int,  # listed nodes per sweep of the launch: working thread s takes the nodes s, s + stride, ...
+    lanes: int,  # threads per listed node, of which only the first works (the others spread the nodes over warps)
 ):
     """The nodes `box_grid_update` listed, packed into few threads, each following its node's chain of fields
     (`next`): normalization of every field there, the pairwise projection in fragment order, then the
     boundaries (as the slot storage's pool pass). Fields past the first `slots` keep their own velocity."""
     dt = clock_dt(clock)
     time = clock_time(clock)
-    for e in range(wp.tid(), b.leaders[0], stride):
+    tid = wp.tid()
+    if tid % lanes != 0:
+        return
+    for e in range(tid / lanes, b.leaders[0], stride):
         t = b.leaders[1 + e]
         node = buffer_node(b, b.box_of[t], t)
         xi = node_position(b, node)

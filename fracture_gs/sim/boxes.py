@@ -25,7 +25,8 @@ from .box_kernels import (
 from .contact import NORMAL_LATCHED, NORMAL_MASS_GRADIENT
 
 GROWTH = 1.25  # capacity headroom when the boxes outgrow the buffer
-CONTACT_THREADS = 16384  # threads of `box_contact`'s launch, each taking every 16384-th listed node
+CONTACT_THREADS = 16384  # working threads of `box_contact`'s launch, each taking every 16384-th listed node
+CONTACT_LANES = 1  # threads per working thread of `box_contact`
 
 
 class FragmentBoxes:
@@ -49,7 +50,8 @@ class FragmentBoxes:
         self.nodes = 0
         self.K = 0
         self.view = None
-        self._no_stats = wp.zeros(1, dtype=float, device=device)  # the statistics' arrays when none are kept
+        self._no_stats = wp.zeros(1, dtype=float, device=device)
+        self.contact_lanes = CONTACT_LANES  # the statistics' arrays when none are kept
 
     @property
     def nbytes(self) -> int:
@@ -187,8 +189,8 @@ class FragmentBoxes:
         inputs = [self.view, float(eps_m), float(eps_b), float(fill_mass), mode, n, centroids, float(e), float(mu)]
         inputs += [int(project), int(stats[2] > 0), int(slots), clock, gravity, colliders]
         stride = max(1, min(self.capacity, CONTACT_THREADS))
-        inputs += [stats[0], stats[1], int(stats[2]), counts, stride]
-        launch(box_contact, stride, inputs, self.device)
+        inputs += [stats[0], stats[1], int(stats[2]), counts, stride, self.contact_lanes]
+        launch(box_contact, stride * self.contact_lanes, inputs, self.device)
 
     def g2p(self, w: dict, clock, lower, upper, counts, a: int = 0, b: int = -1, clear: bool = True) -> None:
         """Particles [a, b) gather from their own fragment's box (v, C, F, x; clamped into [lower, upper]);
