@@ -5,21 +5,19 @@ offset_k + (i·dims_y + j)·dims_z + l of one buffer for all boxes. Every partic
 its own fragment's box: no owner words, claims or pool. Launches cover the buffer's capacity; an index past
 the boxes has box_of = −1.
 
+- `box_clear`: m, p and the band mass of every field to 0.
 - `box_band_mass`: each field's band mass (its band particles' Σ w_ip m_p), for the latched normals' gate.
 - `box_p2g_runs`: Eq. multifield_p2g, m_i^k += Σ w_ip m_p, p_i^k += Σ w_ip m_p (v_p + C_p(x_i − x_p)) − Δt V⁰ τ_p
   ∇w_ip, for the particles of fragment k into B_k, `run` consecutive particles a thread (a stencil that
   leaves B_k is counted as an escape and not deposited: the frame is then redone with larger boxes).
-- `box_grid_update`: per field node v_i^k = p_i^k / m_i^k + Δt g where m_i^k > ε_m (else 0), then the
-  boundaries; where two or more fields hold mass at a node, each links its field to the next one there
-  (`next`), the thread of the lowest fragment id lists the node, and `box_contact` (few threads, packed)
-  follows the node's chain: it normalizes every field there, projects every pair
+- `box_grid_update`: per field node v_i^k = p_i^k / m_i^k + Δt g where m_i^k > ε_m (else 0); where two or
+  more fields hold mass at a node, the thread of the lowest fragment id there leads: it projects every pair
   in fragment order (the Gauss–Seidel of `contact.contact_projection`; normals and gate of
   `contact.contact_normal`: the fields' mass gradients, central differences inside each box, with
   m_a + m_b ≥ fill_mass, or the latched normal with both band masses > ε_b), then applies the boundaries to
-  every field there. Only the boxes that overlap a node's own box are searched (`over`, made per fit).
+  every field there. It only looks for other fields in the boxes that overlap its own (`over`, made per fit).
   Fields beyond the first `slots` at a node keep their own velocity (no contact) and are counted.
-- `box_g2p`: Eqs. field_g2p / field_apic / field_deformation from the particle's own box; threads past the
-  particles clear every field for the next P2G (m, p, the band mass, the contact list): no launch of its own.
+- `box_g2p`: Eqs. field_g2p / field_apic / field_deformation from the particle's own box.
 Twins: `reference.p2g`, `reference.grid_update`, `reference.contact_fields`, `reference.g2p` on K dense
 fields (tests/test_fragment_boxes.py).
 """
@@ -37,11 +35,8 @@ from .transfer_kernels import atomic_add_vec4, deposit, finish_g2p, gather, node
 
 wp.set_module_options({"enable_backward": False})
 
-MAX_FIELDS = MAX_SLOTS  # most fields one node's contact couples (sim.field_slots ≤ this)
+MAX_FIELDS = MAX_SLOTS  # most fields one contact leader projects at a node (sim.field_slots ≤ this)
 vec_fi = wp.types.vector(length=MAX_FIELDS, dtype=wp.int32)
-vec_f = wp.types.vector(length=MAX_FIELDS, dtype=float)
-mat_f3 = wp.types.matrix(shape=(MAX_FIELDS, 3), dtype=float)
-band_sums = wp.types.vector(length=27, dtype=float)  # band mass of the 27 stencil nodes
 
 
 @wp.struct
@@ -60,8 +55,6 @@ class BoxView:
     mp: wp.array(dtype=wp.vec4)  # [capacity] (momentum, mass)
     vel: wp.array(dtype=wp.vec3)  # [capacity]
     band: wp.array(dtype=float)  # [capacity] the field's band-particle mass (the latched normals' gate)
-    leaders: wp.array(dtype=wp.int32)  # [1 + capacity] how many nodes need contact, then their leaders' indices
-    next: wp.array(dtype=wp.int32)  # [capacity] the next field with mass at the node, in fragment order (−1: none)
     origin: wp.vec3
     dx: float
     inv_dx: float
@@ -95,14 +88,11 @@ def stencil_inside(b: BoxView, k: int, base: wp.vec3i):
     return box_index(b, k, base) >= 0 and box_index(b, k, base + wp.vec3i(2, 2, 2)) >= 0
 
 
-@wp.func
-def clear_node(b: BoxView, t: int, band: int):
-    """Node t's (m, p) (and band mass) to 0 for the next P2G; the first also empties the contact list."""
+@wp.kernel
+def box_clear(b: BoxView):
+    t = wp.tid()
     b.mp[t] = wp.vec4(0.0)
-    if band != 0:
-        b.band[t] = 0.0
-    if t == 0:
-        b.leaders[0] = 0
+    b.band[t] = 0.0
 
 
 @wp.kernel
@@ -176,46 +166,24 @@ def box_band_mass(
     fragment: wp.array(dtype=wp.int32),  # [N]
     band: wp.array(dtype=wp.int32),  # [N] γ_p ≠ 0: an interface-band particle
     b: BoxView,
-    run: int,  # consecutive particles per thread
 ):
-    """The band mass of every field, Σ w_ip m_p over its band particles (the latched normals' contact gate), in
-    a pass of its own so that P2G carries no band work: `run` consecutive particles a thread, summed in
-    registers while they share fragment and stencil base."""
-    t = wp.tid()
-    acc = band_sums()
-    cur = wp.vec3i(-1, -1, -1)
-    ck = int(-1)  # noqa: UP018 (a dynamic Warp variable)
-    for p in range(t * run, wp.min(t * run + run, x.shape[0])):
-        if band[p] == 0:
-            continue
-        k = wp.max(fragment[p], 0)
-        base, f, w, dw = stencil(x[p], b.origin, b.inv_dx, b.shape)
-        if not stencil_inside(b, k, base):
-            continue  # counted by P2G
-        if k != ck or base[0] != cur[0] or base[1] != cur[1] or base[2] != cur[2]:
-            if ck >= 0:
-                flush_band(b, ck, cur, acc)
-            acc = band_sums()
-            cur = base
-            ck = k
-        m = mass[p]
-        for i in range(3):
-            for j in range(3):
-                for l in range(3):  # noqa: E741
-                    q = 9 * i + 3 * j + l
-                    acc[q] = acc[q] + w[i, 0] * w[j, 1] * w[l, 2] * m
-    if ck >= 0:
-        flush_band(b, ck, cur, acc)
-
-
-@wp.func
-def flush_band(b: BoxView, k: int, base: wp.vec3i, acc: band_sums):
+    """The band mass of every field, Σ w_ip m_p over its band particles (the latched normals' contact gate):
+    a pass of its own, so P2G carries no band work (band particles are few)."""
+    p = wp.tid()
+    if band[p] == 0:
+        return
+    k = wp.max(fragment[p], 0)
+    base, f, w, dw = stencil(x[p], b.origin, b.inv_dx, b.shape)
+    if not stencil_inside(b, k, base):
+        return  # counted by P2G
     origin = box_index(b, k, base)
     d = b.dims[k]
+    m = mass[p]
     for i in range(3):
         for j in range(3):
             for l in range(3):  # noqa: E741
-                wp.atomic_add(b.band, origin + (i * d[1] + j) * d[2] + l, acc[9 * i + 3 * j + l])
+                weight = w[i, 0] * w[j, 1] * w[l, 2]
+                wp.atomic_add(b.band, origin + (i * d[1] + j) * d[2] + l, weight * m)
 
 
 @wp.func
@@ -240,56 +208,8 @@ def box_mass_gradient(b: BoxView, k: int, i: int, node: wp.vec3i):
     return wp.vec3(gx, gy, gz) * h
 
 
-@wp.func
-def buffer_node(b: BoxView, k: int, t: int):
-    """Grid node of buffer index t in box k."""
-    d = b.dims[k]
-    r = t - b.offset[k]
-    return b.lo[k] + wp.vec3i(r // (d[1] * d[2]), (r // d[2]) % d[1], r % d[2])
-
-
-@wp.func
-def node_position(b: BoxView, node: wp.vec3i):
-    return b.origin + wp.vec3(float(node[0]), float(node[1]), float(node[2])) * b.dx
-
-
 @wp.kernel
-def box_grid_update(b: BoxView, eps_m: float, clock: Clock, gravity: wp.vec3, colliders: Colliders):
-    """One thread per buffer index with mass: it links its field to the next field with mass at its node (in
-    fragment order, `next`); a field alone there gets v = p/m + Δt g and the boundaries; where fields meet,
-    the lowest fragment's thread lists the node for `box_contact` and the others leave it."""
-    t = wp.tid()
-    k = b.box_of[t]
-    if k < 0:
-        return
-    q = b.mp[t]
-    if q[3] <= eps_m:
-        b.vel[t] = wp.vec3(0.0)
-        return
-    node = buffer_node(b, k, t)
-    lower = int(0)  # noqa: UP018 (a dynamic Warp variable)
-    succ = int(-1)  # noqa: UP018
-    for o in range(b.over_start[k], b.over_start[k + 1]):  # ascending: the lower fragments come first
-        i = partner_index(b, o, node)
-        if i >= 0:
-            if b.mp[i][3] > eps_m:
-                if b.over[o] < k:
-                    lower = 1
-                else:
-                    succ = i
-                    break
-    b.next[t] = succ
-    if lower != 0:
-        return  # a lower fragment has mass here: it leads
-    if succ >= 0:
-        b.leaders[1 + wp.atomic_add(b.leaders, 0, 1)] = t
-        return
-    v = normalized(q, eps_m, clock_dt(clock), gravity)
-    b.vel[t] = apply_boundaries(v, node, node_position(b, node), clock_time(clock), colliders)
-
-
-@wp.kernel
-def box_contact(
+def box_grid_update(
     b: BoxView,
     eps_m: float,
     eps_b: float,  # latched normals: two fields touch where both band masses exceed this [kg]
@@ -301,7 +221,7 @@ def box_contact(
     friction: float,
     project: int,  # apply the projection (FractureFields; 0: Local Multi-Field, detection only)
     record: int,  # accumulate the contact statistics
-    slots: int,  # fields a node's contact couples; more are counted as slot overflows
+    slots: int,  # fields a leader projects (≤ MAX_FIELDS); more are counted as slot overflows
     clock: Clock,  # Δt and t
     gravity: wp.vec3,
     colliders: Colliders,
@@ -309,61 +229,80 @@ def box_contact(
     pair_stats: wp.array(dtype=float),  # [K·K·N_PAIR_STATS]
     n_fragments: int,  # K (pair rows of pair_stats)
     counts: wp.array(dtype=wp.int32),
-    stride: int,  # listed nodes per sweep of the launch: working thread s takes the nodes s, s + stride, ...
-    lanes: int,  # threads per listed node, of which only the first works (the others spread the nodes over warps)
 ):
-    """The nodes `box_grid_update` listed, packed into few threads, each following its node's chain of fields
-    (`next`): normalization of every field there, the pairwise projection in fragment order, then the
-    boundaries (as the slot storage's pool pass). Fields past the first `slots` keep their own velocity."""
-    dt = clock_dt(clock)
-    time = clock_time(clock)
-    tid = wp.tid()
-    if tid % lanes != 0:
+    """One thread per buffer index: normalization and boundaries of its field, or, where fields meet, the
+    lowest fragment's thread does the whole node (normalization, contact, boundaries) and the others skip it."""
+    t = wp.tid()
+    k = b.box_of[t]
+    if k < 0:
         return
-    for e in range(tid / lanes, b.leaders[0], stride):
-        t = b.leaders[1 + e]
-        node = buffer_node(b, b.box_of[t], t)
-        xi = node_position(b, node)
-        # the node's fields in fragment order, loaded once (the sweep then runs on these copies)
-        idx = vec_fi(-1)
-        frag = vec_fi(0)
-        m = vec_f(0.0)
-        band = vec_f(0.0)
-        V = mat_f3(0.0)
-        n = int(0)  # noqa: UP018 (a dynamic Warp variable)
-        i = t
-        while i >= 0:
-            if n < slots:
-                idx[n] = i
-                n += 1
-            else:  # kept, uncoupled: its own velocity and the boundaries only
-                wp.atomic_add(counts, COUNT_SLOT_OVERFLOW, 1)
-                b.vel[i] = apply_boundaries(normalized(b.mp[i], eps_m, dt, gravity), node, xi, time, colliders)
-            i = b.next[i]
-        G = mat_f3(0.0)
-        for a in range(n):
-            ia = idx[a]
-            q = b.mp[ia]
-            frag[a] = b.box_of[ia]
-            m[a] = q[3]
-            band[a] = b.band[ia]
-            V[a] = normalized(q, eps_m, dt, gravity)
-            if normal_mode == NORMAL_MASS_GRADIENT:
-                G[a] = box_mass_gradient(b, frag[a], ia, node)
-        for a in range(n):
-            for c in range(a + 1, n):
-                touching = m[a] + m[c] >= fill_mass
-                if normal_mode != NORMAL_MASS_GRADIENT:
-                    touching = band[a] > eps_b and band[c] > eps_b
-                if touching:
-                    nrm = contact_normal(normal_mode, latched, G[a], G[c], centroids[frag[a]], centroids[frag[c]])
-                    w0, w1 = contact_pair(
-                        V[a], V[c], m[a], m[c], nrm, restitution, friction, project, record, stats, pair_stats,
-                        frag[a], frag[c], n_fragments, time,
-                    )  # fmt: skip
-                    V[a] = w0
-                    V[c] = w1
-            b.vel[idx[a]] = apply_boundaries(V[a], node, xi, time, colliders)
+    q = b.mp[t]
+    dt = clock_dt(clock)
+    if q[3] <= eps_m:
+        b.vel[t] = wp.vec3(0.0)
+        return
+    d = b.dims[k]
+    r = t - b.offset[k]
+    node = b.lo[k] + wp.vec3i(r // (d[1] * d[2]), (r // d[2]) % d[1], r % d[2])
+    xi = b.origin + wp.vec3(float(node[0]), float(node[1]), float(node[2])) * b.dx
+    time = clock_time(clock)
+    # the other fields with mass here, in the boxes that overlap this one
+    others = int(0)  # noqa: UP018 (a dynamic Warp variable)
+    for o in range(b.over_start[k], b.over_start[k + 1]):
+        i = partner_index(b, o, node)
+        if i >= 0:
+            if b.mp[i][3] > eps_m:
+                if b.over[o] < k:
+                    return  # a lower fragment has mass here: its thread leads
+                others += 1
+    if others == 0:
+        b.vel[t] = apply_boundaries(normalized(q, eps_m, dt, gravity), node, xi, time, colliders)
+        return
+    idx = vec_fi(-1)
+    frag = vec_fi(-1)
+    idx[0] = t
+    frag[0] = k
+    n = int(1)  # noqa: UP018
+    b.vel[t] = normalized(q, eps_m, dt, gravity)
+    for o in range(b.over_start[k], b.over_start[k + 1]):
+        j = b.over[o]
+        if j > k:
+            i = partner_index(b, o, node)
+            if i >= 0:
+                qj = b.mp[i][3]
+                if qj > eps_m:
+                    b.vel[i] = normalized(b.mp[i], eps_m, dt, gravity)
+                    if n < slots:
+                        idx[n] = i
+                        frag[n] = j
+                        n += 1
+                    else:  # kept, uncoupled: its own velocity and the boundaries only
+                        wp.atomic_add(counts, COUNT_SLOT_OVERFLOW, 1)
+                        b.vel[i] = apply_boundaries(b.vel[i], node, xi, time, colliders)
+    for a in range(n):
+        ia = idx[a]
+        ma = b.mp[ia][3]
+        ga = wp.vec3(0.0)
+        for c in range(a + 1, n):
+            ic = idx[c]
+            mc = b.mp[ic][3]
+            touching = ma + mc >= fill_mass
+            if normal_mode != NORMAL_MASS_GRADIENT:
+                touching = b.band[ia] > eps_b and b.band[ic] > eps_b
+            if touching:
+                gc = wp.vec3(0.0)
+                if normal_mode == NORMAL_MASS_GRADIENT:
+                    ga = box_mass_gradient(b, frag[a], ia, node)
+                    gc = box_mass_gradient(b, frag[c], ic, node)
+                nrm = contact_normal(normal_mode, latched, ga, gc, centroids[frag[a]], centroids[frag[c]])
+                w0, w1 = contact_pair(
+                    b.vel[ia], b.vel[ic], ma, mc, nrm, restitution, friction, project, record, stats, pair_stats,
+                    frag[a], frag[c], n_fragments, time,
+                )  # fmt: skip
+                b.vel[ia] = w0
+                b.vel[ic] = w1
+    for a in range(n):
+        b.vel[idx[a]] = apply_boundaries(b.vel[idx[a]], node, xi, time, colliders)
 
 
 @wp.kernel
@@ -378,14 +317,8 @@ def box_g2p(
     lower: wp.vec3,  # particles are clamped into [lower, upper] and counted
     upper: wp.vec3,
     counts: wp.array(dtype=wp.int32),
-    clear: int,  # threads past the particles clear the boxes for the next P2G (G2P reads only velocities)
-    band: int,  # with `clear`: the band masses too
 ):
     p = wp.tid()
-    if p >= x.shape[0]:
-        if clear != 0:
-            clear_node(b, p - x.shape[0], band)
-        return
     k = wp.max(fragment[p], 0)
     base, f, w, dw = stencil(x[p], b.origin, b.inv_dx, b.shape)
     if not stencil_inside(b, k, base):

@@ -13,20 +13,10 @@ import torch
 import warp as wp
 
 from ..runtime import ensure_warp, launch
-from .box_kernels import (
-    MAX_FIELDS,
-    BoxView,
-    box_band_mass,
-    box_contact,
-    box_g2p,
-    box_grid_update,
-    box_p2g_runs,
-)
+from .box_kernels import MAX_FIELDS, BoxView, box_band_mass, box_clear, box_g2p, box_grid_update, box_p2g_runs
 from .contact import NORMAL_LATCHED, NORMAL_MASS_GRADIENT
 
 GROWTH = 1.25  # capacity headroom when the boxes outgrow the buffer
-CONTACT_THREADS = 16384  # working threads of `box_contact`'s launch, each taking every 16384-th listed node
-CONTACT_LANES = 1  # threads per working thread of `box_contact`
 
 
 class FragmentBoxes:
@@ -50,14 +40,12 @@ class FragmentBoxes:
         self.nodes = 0
         self.K = 0
         self.view = None
-        self._no_stats = wp.zeros(1, dtype=float, device=device)
-        self.contact_lanes = CONTACT_LANES  # the statistics' arrays when none are kept
+        self._no_stats = wp.zeros(1, dtype=float, device=device)  # the statistics' arrays when none are kept
 
     @property
     def nbytes(self) -> int:
-        """Bytes of the box buffers: (p, m), v, the band mass, the box, the next field and the contact list of
-        every node."""
-        return self.capacity * (16 + 12 + 4 + 4 + 4 + 4)
+        """Bytes of the box buffers: (p, m), v, the band mass and the box of every node."""
+        return self.capacity * (16 + 12 + 4 + 4)
 
     @property
     def layout_key(self) -> tuple:
@@ -101,8 +89,6 @@ class FragmentBoxes:
             self.vel = torch.zeros(self.capacity, 3, dtype=torch.float32, device=self.device)
             self.band = torch.zeros(self.capacity, dtype=torch.float32, device=self.device)
             self.box_of = torch.full((self.capacity,), -1, dtype=torch.int32, device=self.device)
-            self.leaders = torch.zeros(1 + self.capacity, dtype=torch.int32, device=self.device)
-            self.next = torch.full((self.capacity,), -1, dtype=torch.int32, device=self.device)
         self.lo[:K].copy_(lo)
         self.dims[:K].copy_(dims)
         self.offset[: K + 1].copy_(offset)
@@ -114,9 +100,6 @@ class FragmentBoxes:
         where = torch.arange(self.capacity, device=self.device)
         box = torch.searchsorted(offset[1:].to(self.device), where, right=True)
         self.box_of.copy_(torch.where(box < K, box, -1))
-        self.mp.zero_()  # the boxes moved: P2G starts from empty fields (afterwards each G2P clears them)
-        self.band.zero_()
-        self.leaders[0] = 0
         if grew or K != self.K:
             self.K = K
             self._make_view()
@@ -133,24 +116,24 @@ class FragmentBoxes:
         )
         v.over_off = wp.from_torch(self.over_off)
         v.mp, v.vel = wp.from_torch(self.mp, dtype=wp.vec4), wp.from_torch(self.vel, dtype=wp.vec3)
-        v.band, v.leaders, v.next = wp.from_torch(self.band), wp.from_torch(self.leaders), wp.from_torch(self.next)
+        v.band = wp.from_torch(self.band)
         v.origin, v.dx, v.inv_dx = wp.vec3(*self.origin), self.dx, 1.0 / self.dx
         v.shape, v.boxes = wp.vec3i(*self.shape), self.K
         self.view = v
 
     def p2g(self, w: dict, clock, counts, run: int = 0, band: bool = True) -> None:
-        """Every particle's deposit into its fragment's box, which the last `fit` or `g2p` left empty. `w`: Warp
-        arrays x, v, C, mass, volume, stress, fragment, band; `counts`: the escape counter's array; `run` > 0:
-        that many consecutive particles a thread, summed in registers while they share fragment and stencil
-        base (particles sorted by cell); `band`: also each field's band mass (only the latched normals' gate
-        reads it)."""
+        """Clear the boxes, then every particle's deposit into its fragment's box. `w`: Warp arrays x, v, C,
+        mass, volume, stress, fragment, band; `counts`: the escape counter's array; `run` > 0: that many
+        consecutive particles a thread, summed in registers while they share fragment and stencil base
+        (particles sorted by cell); `band`: also each field's band mass (only the latched normals' gate reads
+        it)."""
+        launch(box_clear, self.capacity, [self.view], self.device)
         n = w["x"].shape[0]
         arrays = [w[k] for k in ("x", "v", "C", "mass", "volume", "stress", "fragment")]
         run = max(1, int(run))
         launch(box_p2g_runs, -(-n // run), arrays + [clock, self.view, run, counts], self.device)
         if band:
-            arrays = [w[k] for k in ("x", "mass", "fragment", "band")]  # a particle a thread: most exit at once
-            launch(box_band_mass, n, arrays + [self.view, 1], self.device)
+            launch(box_band_mass, n, [w[k] for k in ("x", "mass", "fragment", "band")] + [self.view], self.device)
 
     def update(
         self,
@@ -184,21 +167,16 @@ class FragmentBoxes:
         n = wp.vec3(*(latched if latched is not None else (0.0, 0.0, 1.0)))
         if stats is None:
             stats = (self._no_stats, self._no_stats, 0)
-        gravity = wp.vec3(*gravity)
-        launch(box_grid_update, self.capacity, [self.view, float(eps_m), clock, gravity, colliders], self.device)
         inputs = [self.view, float(eps_m), float(eps_b), float(fill_mass), mode, n, centroids, float(e), float(mu)]
-        inputs += [int(project), int(stats[2] > 0), int(slots), clock, gravity, colliders]
-        stride = max(1, min(self.capacity, CONTACT_THREADS))
-        inputs += [stats[0], stats[1], int(stats[2]), counts, stride, self.contact_lanes]
-        launch(box_contact, stride * self.contact_lanes, inputs, self.device)
+        inputs += [int(project), int(stats[2] > 0), int(slots), clock, wp.vec3(*gravity), colliders]
+        inputs += [stats[0], stats[1], int(stats[2]), counts]
+        launch(box_grid_update, self.capacity, inputs, self.device)
 
-    def g2p(self, w: dict, clock, lower, upper, counts, a: int = 0, b: int = -1, clear: bool = True) -> None:
-        """Particles [a, b) gather from their own fragment's box (v, C, F, x; clamped into [lower, upper]);
-        with `clear` the same launch empties the boxes for the next P2G (once per substep)."""
+    def g2p(self, w: dict, clock, lower, upper, counts, a: int = 0, b: int = -1) -> None:
+        """Particles [a, b) gather from their own fragment's box (v, C, F, x; clamped into [lower, upper])."""
         b = w["x"].shape[0] if b < 0 else b
-        arrays = [w[k] for k in ("x", "v", "C", "F", "fragment")]
-        arrays = [t[a:b] for t in arrays] + [clock, self.view, lower, upper, counts, int(clear), 1]
-        launch(box_g2p, b - a + (self.capacity if clear else 0), arrays, self.device)
+        arrays = [w[k][a:b] for k in ("x", "v", "C", "F", "fragment")]
+        launch(box_g2p, b - a, arrays + [clock, self.view, lower, upper, counts], self.device)
 
     def field(self, k: int) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """Box k's mass [X,Y,Z], momentum [X,Y,Z,3] and velocity [X,Y,Z,3] (its lowest node: `lo[k]`)."""

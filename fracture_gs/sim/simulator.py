@@ -420,7 +420,7 @@ class Simulator(SlotStorage, FrameLoop):
         g, w = self.grid, self.wp
         if self.boxed and only_fragment < 0:
             lo, hi = self._lower, self._upper
-            self._g2p_ranges(lambda a, b, c: self.boxes.g2p(w, self.clock.view, lo, hi, c, a, b, a == 0), False)
+            self._g2p_ranges(lambda a, b, c: self.boxes.g2p(w, self.clock.view, lo, hi, c, a, b), False)
             return
         arrays = [w["x"], w["v"], w["C"], w["F"], w["fragment"], w["solo"]]
         multi = int(self.multifield)
