@@ -6,8 +6,9 @@ FractureFields, time per transfer substep and grid memory.
     python apps/bench_fragments.py --device cuda:0 --storage boxes     # FractureFields in per-fragment boxes only
 
 Scope as the paper's Table 2: grid reset, P2G, grid update (normalization, contact, boundaries), G2P
-(no stress, diagnostics or rendering). FractureFields runs in each grid storage of `--storage` (the
-simulator's `sim.grid_storage`: slots, boxes). Each branch runs on its own copy of one latched state; on CUDA
+(no stress, diagnostics or rendering). The state is `fracture_gs.paper.fragments`' (contact along
+mass-gradient normals for every K: Voronoi faces have no one latched plane). FractureFields runs in each
+grid storage of `--storage` (the simulator's `sim.grid_storage`: slots, boxes). Each branch runs on its own copy of one latched state; on CUDA
 the substep is a recorded graph timed with CUDA events (medians over `--steps` after warm-up, builds
 round-robin over `--placements` fresh allocations, trials round-robin). Memory: the grid buffers as
 allocated (slots: dense slot 0, owner words, the pool of multi-fragment nodes sized for the state, and
@@ -28,29 +29,14 @@ import time
 import torch
 import warp as wp
 
-from fracture_gs import assets
-from fracture_gs.config import SceneConfig, SimConfig
+from fracture_gs.paper.bench import grid_bytes
+from fracture_gs.paper.fragments import shattered_state as state
+from fracture_gs.paper.fragments import voronoi_topology as topology
 from fracture_gs.runtime import warp_stream
-from fracture_gs.sim import Particles, Simulator, Topology
+from fracture_gs.sim import Simulator
 from fracture_gs.sim.layout import COUNT_ESCAPED, COUNT_SLOT_OVERFLOW
-from fracture_gs.sim.providers.cuts import voronoi_labels
-from fracture_gs.sim.providers.voronoi import voronoi_sites
 
 BRANCHES = (("Shared", "stress_zero", "slots"), ("FractureFields", "full", "slots"), ("Boxes", "full", "boxes"))
-
-
-def state(particles, device: str, n: int):
-    gs = assets.build("ficus", size="paper", n=particles)
-    cfg = SceneConfig(scene="ficus")
-    cfg.sim = SimConfig(dx=1.0 / n, grid_shape=(n, n, n), dt=2e-5, gravity=(0.0, 0.0, -9.8), max_fragments=64)
-    cfg.material.E, cfg.material.density = 2e6, 200.0
-    return cfg, Particles.from_gaussians(gs, cfg)
-
-
-def topology(P: Particles, K: int, dx: float) -> Topology:
-    """K Voronoi cells (sites drawn from the particles, seed 0), band 1.5Δx around the cell faces."""
-    fragment, band = voronoi_labels(P.x, voronoi_sites(P.x, K, 0), 1.5 * dx)
-    return Topology(fragment=fragment, band=band, normal=(0.0, 0.0, 1.0), point=(0.5, 0.5, 0.4))
 
 
 def build(cfg, P, topo, variant, device, sort="cell", storage="slots"):
@@ -69,11 +55,6 @@ def build(cfg, P, topo, variant, device, sort="cell", storage="slots"):
     sim.pool_rows = rows
     sim.fit_active_box(0.05)  # a pool sized from the state's own rows, as between frames
     return sim
-
-
-def grid_bytes(sim: Simulator) -> int:
-    """The grid buffers the simulator holds (with boxes: its dense grid and the boxes)."""
-    return sim.grid.nbytes + (sim.boxes.nbytes if sim.boxes is not None else 0)
 
 
 def time_builds(sims: list, steps: int, warmup: int, trials: int) -> list[float]:

@@ -244,3 +244,17 @@ def test_partial_rerun_keeps_the_figures_an_earlier_call_made(tmp_path):
     assert [f["title"] for f in merged] == ["Figure 1: teaser", "Figure 3: method"]
     assert merged[0]["path"] == str(tmp_path / "fig_teaser.png") and merged[1]["caption"] == "new"
     assert merged_figures(tmp_path / "nowhere", now) == now  # no earlier summary: this call's only
+
+
+def test_fragment_rows_press_the_shattered_ficus_with_momentum_conserved():
+    """The figures' K table (`paper.fragments`): per K the timing of both branches, and the pieces pressed into
+    each other: contact fires on more nodes for more pieces, the projection conserves momentum (relative
+    residual ≤ 1e-6), no piece ends inside another (fragment-aware penetration ≤ 1 Δx)."""
+    from fracture_gs.paper.fragments import fragment_rows
+
+    rows, particles, n = fragment_rows("cpu", 3000, 32, Ks=(2, 16), steps=2, warmup=1, trials=1, frames=5)
+    assert [r["K"] for r in rows] == [2, 16] and particles == 3000 and n == 32
+    for r in rows:
+        assert r["shared_ms"] > 0 and r["ff_ms"] > 0 and r["ff_mib"] > 0
+        assert r["residual"] <= 1e-6 and r["penetration"] <= 1.0, r
+    assert rows[1]["contact_nodes"] > rows[0]["contact_nodes"] > 0, rows

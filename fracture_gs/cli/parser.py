@@ -80,7 +80,8 @@ examples:
 Reruns every experiment config (exp_table*.toml) under the paper's protocol and writes Tables 1–5
 (Markdown, CSV, LaTeX), the figures, summary.json and a README with the command that made each.
 Protocols: quick (CPU sized, the default on the CPU) and paper (Δx = 1/128, the paper's particle
-counts, the default on CUDA). Groups for --only: ficus, bread, interaction, bench.
+counts, the default on CUDA). Groups for --only: ficus, bread, interaction, bench, fragments (the shatter
+figure and the K table).
 """
 
 _INIT_EPILOG = """\
@@ -241,7 +242,9 @@ def build_parser() -> argparse.ArgumentParser:
         epilog=_FIGURES_EPILOG,
     )
     p.add_argument("--protocol", choices=("quick", "paper"), help="quick (CPU default) or paper (CUDA default)")
-    p.add_argument("--only", metavar="G1,G2", help="groups to (re)run: ficus, bread, interaction, bench (default: all)")
+    p.add_argument(
+        "--only", metavar="G1,G2", help="groups to (re)run: ficus, bread, interaction, bench, fragments (default: all)"
+    )
     p.add_argument("--reuse", action="store_true", help="load runs cached in OUT/data instead of rerunning them")
     p.add_argument(
         "--backend", choices=("auto", "gsplat", "torch"), help="renderer of the scene panels (default: the configs')"

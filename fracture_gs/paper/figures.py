@@ -46,6 +46,7 @@ import torch
 from ..config import SceneConfig
 from ..io.config import load_config
 from .experiments import ExperimentRun, _load_cache, _save_cache, run_experiment, same_physics
+from .fragments import fragments_table
 from .paper_tables import _notes, _protocol_note, table1, table2, table3, table4, table5
 from .plots import curve_series, curves_figure, method_figure, method_slice, multiscene_figure, teaser_figure
 from .protocol import PROTOCOLS, _scene_render_size, prepare
@@ -69,12 +70,14 @@ EXPERIMENTS = {
     "ficus_manual": ("exp_table5_ficus_manual", ("full",), "Table 5"),
     "bread_vlm": ("exp_table5_bread_vlm", ("full",), "Table 5"),
     "bread_manual": ("exp_table5_bread_manual", ("full",), "Table 5"),
+    "plate_drop": ("plate_drop", ("full",), "shatter figure"),
 }
 GROUPS = {
     "ficus": ("ficus", "ficus_vlm", "ficus_manual"),
     "bread": ("bread", "bread_vlm", "bread_manual"),
     "interaction": ("plane_drop", "recontact"),
     "bench": (),
+    "fragments": ("plate_drop",),  # and the K table (`fragments.fragments_table`)
 }
 TABLE1_CONFIGS = {"ficus": "exp_table1_ficus", "bread": "exp_table1_bread"}
 
@@ -84,6 +87,11 @@ def _teaser_frames(latch, frames):
         return [frames // 2, (3 * frames) // 4, frames]
     span = frames - latch
     return sorted({latch + round(span / 3), latch + round(2 * span / 3), frames})
+
+
+def _shatter_frames(latch, frames):
+    """Before the impact, just after it, while the pieces slide, and at the end."""
+    return sorted({round(0.33 * frames), round(0.5 * frames), round(0.7 * frames), frames})
 
 
 def _grid_frames(latch, frames):
@@ -208,6 +216,8 @@ def _run_figures(device, out_dir, protocol, only, reuse, progress, command, rend
             )
         elif key == "bread":
             render, render_variants = _grid_frames, ("baseline", "stress_zero", "full")
+        elif key == "plate_drop":
+            render, render_variants = _shatter_frames, ("full",)
         elif key == "recontact":
             state = lambda sim, f: method_slice(sim) if sim.cfg.variant == "full" and f > 0 else None  # noqa: E731
         if progress:
@@ -251,6 +261,10 @@ def _run_figures(device, out_dir, protocol, only, reuse, progress, command, rend
         if progress:
             print("Table 2: timing the four branches (apps.bench.time_branches)", flush=True)
         made.append(table2(device, protocol, command))
+    if "fragments" in only:
+        if progress:
+            print("K fragments: timing and pressing the shattered ficus (paper.fragments)", flush=True)
+        made.append(fragments_table(device, protocol, command))
     if exps.get("ficus") or exps.get("bread"):
         made.append(table3({k: exps[k] for k in ("ficus", "bread") if exps.get(k)}, command))
     if exps.get("plane_drop") or exps.get("recontact"):
@@ -305,6 +319,23 @@ def _run_figures(device, out_dir, protocol, only, reuse, progress, command, rend
                 "function": "multiscene_figure",
                 "caption": "Rows: scenes; columns: shared-field baseline, Stress-Zero, FractureFields at the last "
                 "frame (matched post-fracture time). " + _notes([exps[s] for s in panels]),
+            }
+        )
+    pd = exps.get("plate_drop")
+    if pd is not None and pd.runs.get("full") is not None and pd.runs["full"].images:
+        c = pd.prepared.cfg
+        frames = _shatter_frames(None, c.frames)
+        p = out / "fig_shatter.png"
+        teaser_figure({"full": pd.runs["full"].images}, frames, c.frame_dt, p, variants=("full",))
+        K = max(r.get("fragments", 0) for r in pd.runs["full"].rows) if pd.runs["full"].rows else 0
+        figures.append(
+            {
+                "title": "Figure: shatter (plate_drop, FractureFields, repeated fracture)",
+                "path": str(p),
+                "function": "teaser_figure",
+                "caption": f"A plate dropped on a rough floor breaks on impact and its pieces break again (the "
+                f"stress provider's repeated fracture), {K} pieces at the end, each drawn in its own colour; "
+                f"Coulomb friction between pieces and on the floor. " + _protocol_note(pd) + ".",
             }
         )
     rc = exps.get("recontact")
