@@ -11,8 +11,8 @@ mass-gradient normals for every K: Voronoi faces have no one latched plane). Fra
 grid storage of `--storage` (the simulator's `sim.grid_storage`: slots, boxes). Each branch runs on its
 own copy of one latched state; on CUDA the substep is a recorded graph timed with CUDA events (medians over
 `--steps` after warm-up, builds round-robin over `--placements` fresh allocations, trials round-robin).
-Memory: the grid buffers as allocated (slots: dense slot 0, owner words, the pool of multi-fragment nodes sized for the state, and
-beside them the slot cache of the GPU's fan-out, a buffer index per (particle that is not solo, stencil
+Memory: the grid buffers as allocated (slots: dense slot 0, owner words, the pool of multi-fragment nodes
+sized for the state, and beside them the slot cache of the GPU's fan-out, a buffer index per (particle that is not solo, stencil
 node); boxes: the dense grid the simulator keeps for the time before a latch plus the boxes' buffers).
 """
 
