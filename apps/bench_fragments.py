@@ -5,14 +5,14 @@ FractureFields, time per transfer substep and grid memory.
     python apps/bench_fragments.py --device cpu --particles 3000 --n 32  # a smoke run
     python apps/bench_fragments.py --device cuda:0 --storage boxes     # FractureFields in per-fragment boxes only
 
-Scope as the paper's Table 2: grid reset, P2G, grid update (normalization, contact, boundaries), G2P
-(no stress, diagnostics or rendering). The state is `fracture_gs.paper.fragments`' (contact along
-mass-gradient normals for every K: Voronoi faces have no one latched plane). FractureFields runs in each
-grid storage of `--storage` (the simulator's `sim.grid_storage`: slots, boxes). Each branch runs on its
-own copy of one latched state; on CUDA the substep is a recorded graph timed with CUDA events (medians over
-`--steps` after warm-up, builds round-robin over `--placements` fresh allocations, trials round-robin).
-Memory: the grid buffers as allocated (slots: dense slot 0, owner words, the pool of multi-fragment nodes
-sized for the state, and beside them the slot cache of the GPU's fan-out, a buffer index per (particle that is not solo, stencil
+Scope as the paper's Table 2: grid reset, P2G, grid update (normalization, contact, boundaries), G2P (no
+stress, diagnostics or rendering). The state is `fracture_gs.paper.fragments`' (contact along mass-gradient
+normals for every K: Voronoi faces have no one latched plane). FractureFields runs in each grid storage of
+`--storage` (the simulator's `sim.grid_storage`: slots, boxes). Each branch runs on its own copy of one
+latched state; on CUDA the substep is a recorded graph timed with CUDA events (medians over `--steps` after
+warm-up, builds round-robin over `--placements` fresh allocations, trials round-robin). Memory: the grid
+buffers as allocated (slots: dense slot 0, owner words, the pool of multi-fragment nodes sized for the state,
+and beside them the slot cache of the GPU's fan-out, a buffer index per (particle that is not solo, stencil
 node); boxes: the dense grid the simulator keeps for the time before a latch plus the boxes' buffers).
 """
 
