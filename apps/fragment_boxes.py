@@ -1,5 +1,5 @@
 """How much grid K fragments need if each had its own dense box: the geometry behind the storage plan of
-docs/DESIGN.md ("Grid storage: per-fragment boxes (plan)").
+docs/DESIGN.md ("Grid storage: per-fragment boxes").
 
 For the ficus shattered into K Voronoi pieces (as `apps/bench_fragments.py` does), per K:
 - the nodes of every fragment's own box (the bounding box of its particles' 3×3×3 stencils), summed,

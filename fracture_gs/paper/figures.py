@@ -28,7 +28,8 @@ Protocols (`--protocol`):
   check the qualitative story; report numbers from ``paper``.
 
 Outputs in OUT: ``tables/table{1..5}_*.{md,csv,tex}``, ``fig_teaser.png``, ``fig_multiscene.png``,
-``fig_method.png``, ``fig_opening_mixing.png``, ``data/*.json`` (per-frame metrics of every run),
+``fig_method.png``, ``fig_opening_mixing.png``, with ``--only fragments`` (or all groups) ``fig_shatter.png``
+(plate_drop) and ``tables/table_fragments.*`` (K against time, memory and contact: `fragments.py`), ``data/*.json`` (per-frame metrics of every run),
 ``summary.json`` and ``README.md`` (each table and figure with the command that made it).
 """
 
