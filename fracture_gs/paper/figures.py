@@ -29,7 +29,8 @@ Protocols (`--protocol`):
 
 Outputs in OUT: ``tables/table{1..5}_*.{md,csv,tex}``, ``fig_teaser.png``, ``fig_multiscene.png``,
 ``fig_method.png``, ``fig_opening_mixing.png``, with ``--only fragments`` (or all groups) ``fig_shatter.png``
-(plate_drop) and ``tables/table_fragments.*`` (K against time, memory and contact: `fragments.py`), ``data/*.json`` (per-frame metrics of every run),
+(plate_drop) and ``tables/table_fragments.*`` (K against time, memory and contact: `fragments.py`),
+``data/*.json`` (per-frame metrics of every run),
 ``summary.json`` and ``README.md`` (each table and figure with the command that made it).
 """
 
