@@ -7,6 +7,7 @@ projection's momentum residual and the slot overflows. `fragments_table` is the 
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import platform
 
@@ -14,6 +15,7 @@ import torch
 
 from .. import assets
 from ..config import SceneConfig, SimConfig
+from ..runtime import side_stream
 from ..sim import Particles, Simulator, Topology
 from ..sim.providers.cuts import voronoi_labels
 from ..sim.providers.voronoi import voronoi_sites
@@ -70,12 +72,14 @@ def fragment_rows(device: str, particles=None, n: int = 128, Ks=KS, steps=200, w
     cfg, P = shattered_state(particles, device, n)
     cuda = device.startswith("cuda")
     branches = [("Shared", "stress_zero", "1/1/0", "slots"), ("FractureFields", "full", "1/1/0", "boxes")]
+    stream = side_stream(device) if cuda else None  # graph capture needs a stream other than the default
     rows = []
     for K in Ks:
         topo = voronoi_topology(P, K, cfg.sim.dx)
-        shared, ff = time_branches(
-            cfg, P, topo, device, steps, warmup, trials, graph=cuda, placements=2 if cuda else 1, branches=branches
-        )
+        with torch.cuda.stream(stream) if cuda else contextlib.nullcontext():
+            shared, ff = time_branches(
+                cfg, P, topo, device, steps, warmup, trials, graph=cuda, placements=2 if cuda else 1, branches=branches
+            )
         row = {
             "K": K,
             "shared_ms": shared["median_ms"],
