@@ -228,7 +228,8 @@ def test_accuracy_cases_against_known_answers():
 def test_partial_rerun_keeps_the_figures_an_earlier_call_made(tmp_path):
     """`fracture-gs figures --only bench` after a full call: the README keeps every figure whose image is still
     in the folder (as it keeps the tables), a figure this call made again replaces the earlier entry, an entry
-    whose image is gone is dropped, and the order stays Figure 1, 2, ..."""
+    whose image is gone is dropped, and the order stays Figure 1, 2, ...; a kept figure names the call that
+    made it, not this one."""
     from fracture_gs.paper.readme import merged_figures
 
     for name in ("fig_teaser.png", "fig_method.png"):
@@ -238,11 +239,13 @@ def test_partial_rerun_keeps_the_figures_an_earlier_call_made(tmp_path):
         {"title": "Figure 3: method", "path": "fig_method.png", "caption": "old"},
         {"title": "Figure 2: gone", "path": "fig_gone.png", "caption": "old"},
     ]
-    (tmp_path / "summary.json").write_text(json.dumps({"figure_entries": earlier}))
+    meta = {"command": "fracture-gs figures --out X"}
+    (tmp_path / "summary.json").write_text(json.dumps({"figure_entries": earlier, "meta": meta}))
     now = [{"title": "Figure 3: method", "path": str(tmp_path / "fig_method.png"), "caption": "new"}]
     merged = merged_figures(tmp_path, now)
     assert [f["title"] for f in merged] == ["Figure 1: teaser", "Figure 3: method"]
     assert merged[0]["path"] == str(tmp_path / "fig_teaser.png") and merged[1]["caption"] == "new"
+    assert merged[0]["command"] == "fracture-gs figures --out X" and "command" not in merged[1]
     assert merged_figures(tmp_path / "nowhere", now) == now  # no earlier summary: this call's only
 
 

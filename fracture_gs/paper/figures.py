@@ -389,6 +389,7 @@ def _run_figures(device, out_dir, protocol, only, reuse, progress, command, rend
         "wall_s": wall,
         "out_arg": str(out_dir),
     }
+    figures = [{**f, "command": f.get("command", command)} for f in figures]  # each figure names its own call
     if only != set(GROUPS):  # a partial call (`--only`) keeps the figures an earlier call made
         figures = merged_figures(out, figures)
     (out / "README.md").write_text(readme_text(out, tables, figures, meta))

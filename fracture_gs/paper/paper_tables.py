@@ -16,7 +16,14 @@ from .tables import Column, Panel, Table
 
 # the five tables
 
-TABLE_KEYS = ("table1_transfer", "table2_efficiency", "table3_ablation", "table4_interaction", "table5_material_prior")
+TABLE_KEYS = (
+    "table1_transfer",
+    "table2_efficiency",
+    "table3_ablation",
+    "table4_interaction",
+    "table5_material_prior",
+    "table_fragments",  # `fragments.fragments_table`
+)
 
 
 def _protocol_note(exp: ExperimentRun) -> str:

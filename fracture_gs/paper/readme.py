@@ -60,7 +60,7 @@ def readme_text(out_dir: Path, tables: list, figures: list, meta: dict) -> str:
             "",
             f["caption"],
             "",
-            f"Command: `{meta['command']}` (function `fracture_gs.figures.{f['function']}`)",
+            f"Command: `{f.get('command', meta['command'])}` (function `fracture_gs.figures.{f['function']}`)",
             "",
         ]
     lines += _extra_sections(out_dir)
@@ -117,11 +117,13 @@ def merged_figures(out_dir: Path, figures: list) -> list:
     out = Path(out_dir)
     made = {f["title"] for f in figures}
     try:
-        earlier = json.loads((out / "summary.json").read_text()).get("figure_entries", [])
+        summary = json.loads((out / "summary.json").read_text())
+        earlier = summary.get("figure_entries", [])
+        command = summary.get("meta", {}).get("command")  # the call that made entries written without one
     except (OSError, ValueError):
-        earlier = []
+        earlier, command = [], None
     kept = [
-        {**f, "path": str(out / f["path"])}
+        {**f, "path": str(out / f["path"]), "command": f.get("command", command)}
         for f in earlier
         if isinstance(f, dict) and f.get("title") not in made and (out / f.get("path", "")).is_file()
     ]
