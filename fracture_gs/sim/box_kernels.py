@@ -111,24 +111,38 @@ def box_p2g_runs(
 ):
     """Deposits of `run` consecutive particles a thread (`run_kernels.p2g_runs` on boxes): those with the same
     fragment and stencil base are summed in registers and reach their box as one reduction per node (run = 1:
-    one particle a thread)."""
+    one particle a thread). The box's bounds are loaded when the fragment changes, not per particle."""
     t = wp.tid()
     dt = clock_dt(clock)
     acc = stencil_sums()
     cur = wp.vec3i(-1, -1, -1)
     ck = int(-1)  # noqa: UP018 (a dynamic Warp variable)
+    bk = int(-1)  # noqa: UP018 (the fragment whose box bounds are loaded)
+    blo = wp.vec3i(0, 0, 0)
+    bd = wp.vec3i(0, 0, 0)
+    boff = int(0)  # noqa: UP018
+    start = int(0)  # noqa: UP018 (buffer index of the current run's stencil origin)
+    rd = wp.vec3i(0, 0, 0)  # and its box's dims
     for p in range(t * run, wp.min(t * run + run, x.shape[0])):
         k = wp.max(fragment[p], 0)
+        if k != bk:
+            blo = b.lo[k]
+            bd = b.dims[k]
+            boff = b.offset[k]
+            bk = k
         base, f, w, dw = stencil(x[p], b.origin, b.inv_dx, b.shape)
-        if not stencil_inside(b, k, base):
-            wp.atomic_add(counts, COUNT_ESCAPED, 1)
+        r = base - blo
+        if r[0] < 0 or r[1] < 0 or r[2] < 0 or r[0] + 2 >= bd[0] or r[1] + 2 >= bd[1] or r[2] + 2 >= bd[2]:
+            wp.atomic_add(counts, COUNT_ESCAPED, 1)  # the stencil left its box: the frame is redone
             continue
         if k != ck or base[0] != cur[0] or base[1] != cur[1] or base[2] != cur[2]:
             if ck >= 0:
-                flush_box(b, ck, cur, acc)
+                flush_box(b, start, rd, acc)
             acc = stencil_sums()
             cur = base
             ck = k
+            start = boff + (r[0] * bd[1] + r[1]) * bd[2] + r[2]
+            rd = bd
         m = mass[p]
         vp = v[p]
         Cp = C[p]
@@ -142,14 +156,13 @@ def box_p2g_runs(
                     for c in range(4):
                         acc[q, c] = acc[q, c] + dep[c]
     if ck >= 0:
-        flush_box(b, ck, cur, acc)
+        flush_box(b, start, rd, acc)
 
 
 @wp.func
-def flush_box(b: BoxView, k: int, base: wp.vec3i, acc: stencil_sums):
-    """Add a run's 27 node sums to box k: one reduction per node."""
-    origin = box_index(b, k, base)
-    d = b.dims[k]
+def flush_box(b: BoxView, origin: int, d: wp.vec3i, acc: stencil_sums):
+    """Add a run's 27 node sums to its box (stencil origin at buffer index `origin`, box dims d): one reduction
+    per node."""
     for i in range(3):
         for j in range(3):
             for l in range(3):  # noqa: E741
@@ -164,14 +177,12 @@ def box_band_mass(
     x: wp.array(dtype=wp.vec3),  # [N]
     mass: wp.array(dtype=float),  # [N]
     fragment: wp.array(dtype=wp.int32),  # [N]
-    band: wp.array(dtype=wp.int32),  # [N] γ_p ≠ 0: an interface-band particle
+    listed: wp.array(dtype=wp.int32),  # [B] the interface-band particles (γ_p ≠ 0)
     b: BoxView,
 ):
     """The band mass of every field, Σ w_ip m_p over its band particles (the latched normals' contact gate):
-    a pass of its own, so P2G carries no band work (band particles are few)."""
-    p = wp.tid()
-    if band[p] == 0:
-        return
+    a thread per band particle, in a pass of its own so that P2G carries no band work."""
+    p = listed[wp.tid()]
     k = wp.max(fragment[p], 0)
     base, f, w, dw = stencil(x[p], b.origin, b.inv_dx, b.shape)
     if not stencil_inside(b, k, base):

@@ -121,19 +121,26 @@ class FragmentBoxes:
         v.shape, v.boxes = wp.vec3i(*self.shape), self.K
         self.view = v
 
-    def p2g(self, w: dict, clock, counts, run: int = 0, band: bool = True) -> None:
+    @staticmethod
+    def band_list(band: torch.Tensor):
+        """[B] int32 indices of the band particles (γ_p ≠ 0) of a [N] flag tensor, and its Warp view (keep the
+        tensor alive while the view is used)."""
+        listed = torch.nonzero(band != 0).flatten().to(torch.int32)
+        return listed, wp.from_torch(listed)
+
+    def p2g(self, w: dict, clock, counts, run: int = 0, band=None) -> None:
         """Clear the boxes, then every particle's deposit into its fragment's box. `w`: Warp arrays x, v, C,
-        mass, volume, stress, fragment, band; `counts`: the escape counter's array; `run` > 0: that many
-        consecutive particles a thread, summed in registers while they share fragment and stencil base
-        (particles sorted by cell); `band`: also each field's band mass (only the latched normals' gate reads
-        it)."""
+        mass, volume, stress, fragment; `counts`: the escape counter's array; `run` > 0: that many consecutive
+        particles a thread, summed in registers while they share fragment and stencil base (particles sorted
+        by cell); `band` (`band_list`'s Warp view): also each field's band mass from these particles (only the
+        latched normals' gate reads it)."""
         launch(box_clear, self.capacity, [self.view], self.device)
         n = w["x"].shape[0]
         arrays = [w[k] for k in ("x", "v", "C", "mass", "volume", "stress", "fragment")]
         run = max(1, int(run))
         launch(box_p2g_runs, -(-n // run), arrays + [clock, self.view, run, counts], self.device)
-        if band:
-            launch(box_band_mass, n, [w[k] for k in ("x", "mass", "fragment", "band")] + [self.view], self.device)
+        if band is not None and band.shape[0] > 0:
+            launch(box_band_mass, band.shape[0], [w["x"], w["mass"], w["fragment"], band, self.view], self.device)
 
     def update(
         self,

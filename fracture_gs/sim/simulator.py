@@ -352,8 +352,8 @@ class Simulator(SlotStorage, FrameLoop):
     def _p2g(self, only_fragment: int = -1, target=None, multifield=None, stress=None, counts=None) -> None:
         g, w = target or self.grid, self.wp
         if self.boxed and target is None and multifield is None and stress is None:
-            counts = w["counts"] if counts is None else counts  # band mass: only the latched normals' gate reads it
-            self.boxes.p2g(w, self.clock.view, counts, self.p2g_run, band=self.normal_mode == NORMAL_LATCHED)
+            band = self.wp["band_list"] if self.normal_mode == NORMAL_LATCHED else None  # the latched gate's
+            self.boxes.p2g(w, self.clock.view, w["counts"] if counts is None else counts, self.p2g_run, band)
             return
         multi = int(self.multifield if multifield is None else multifield)
         fan = target is None and self._fans_out(multi, only_fragment)
@@ -507,6 +507,7 @@ class Simulator(SlotStorage, FrameLoop):
         self.pool_rows = max(self.pool_rows, 4 * bands + len(P) // 64)
         self._reset_boxes()  # the routing changed: the next advance() refits the box and the pool
         self.set_solo(None)
+        self._list_band()
         if self.boxed:  # boxes for the new fragments (the next frame's fit adds its travel)
             if self.normal_mode == NORMAL_MASS_GRADIENT:
                 self._update_centroids()
@@ -549,4 +550,10 @@ class Simulator(SlotStorage, FrameLoop):
             self.topology = self.topologies[-1]
         self.p2g_run = P2G_RUN if mode == "cell" and self.device != "cpu" else 0
         self.set_solo(None)  # recomputed for the new order at the next frame
+        self._list_band()
         return order
+
+    def _list_band(self) -> None:
+        """The band particles' indices, for the boxes' band-mass pass (at a latch and after a reorder)."""
+        if self.boxes is not None:
+            self._band_list, self.wp["band_list"] = FragmentBoxes.band_list(self.particles.band)
