@@ -257,44 +257,40 @@ def box_grid_update(
     node = b.lo[k] + wp.vec3i(r // (d[1] * d[2]), (r // d[2]) % d[1], r % d[2])
     xi = b.origin + wp.vec3(float(node[0]), float(node[1]), float(node[2])) * b.dx
     time = clock_time(clock)
-    # the other fields with mass here, in the boxes that overlap this one
-    others = int(0)  # noqa: UP018 (a dynamic Warp variable)
+    # the other fields with mass here, in the boxes that overlap this one (ascending: lower fragments first);
+    # a leader keeps the higher ones it meets, so it walks the overlap list once
+    idx = vec_fi(-1)
+    frag = vec_fi(-1)
+    n = int(0)  # noqa: UP018 (a dynamic Warp variable)
     for o in range(b.over_start[k], b.over_start[k + 1]):
         i = partner_index(b, o, node)
         if i >= 0:
             if b.mp[i][3] > eps_m:
-                if b.over[o] < k:
+                j = b.over[o]
+                if j < k:
                     return  # a lower fragment has mass here: its thread leads
-                others += 1
-    if others == 0:
+                if n + 1 < slots:
+                    idx[n] = i
+                    frag[n] = j
+                    n += 1
+                else:  # kept, uncoupled: its own velocity and the boundaries only
+                    wp.atomic_add(counts, COUNT_SLOT_OVERFLOW, 1)
+                    b.vel[i] = apply_boundaries(normalized(b.mp[i], eps_m, dt, gravity), node, xi, time, colliders)
+    if n == 0:
         b.vel[t] = apply_boundaries(normalized(q, eps_m, dt, gravity), node, xi, time, colliders)
         return
-    idx = vec_fi(-1)
-    frag = vec_fi(-1)
-    idx[0] = t
-    frag[0] = k
-    n = int(1)  # noqa: UP018
     b.vel[t] = normalized(q, eps_m, dt, gravity)
-    for o in range(b.over_start[k], b.over_start[k + 1]):
-        j = b.over[o]
-        if j > k:
-            i = partner_index(b, o, node)
-            if i >= 0:
-                qj = b.mp[i][3]
-                if qj > eps_m:
-                    b.vel[i] = normalized(b.mp[i], eps_m, dt, gravity)
-                    if n < slots:
-                        idx[n] = i
-                        frag[n] = j
-                        n += 1
-                    else:  # kept, uncoupled: its own velocity and the boundaries only
-                        wp.atomic_add(counts, COUNT_SLOT_OVERFLOW, 1)
-                        b.vel[i] = apply_boundaries(b.vel[i], node, xi, time, colliders)
     for a in range(n):
-        ia = idx[a]
+        b.vel[idx[a]] = normalized(b.mp[idx[a]], eps_m, dt, gravity)
+    for a in range(n + 1):  # field 0 is this thread's own, then the partners in fragment order
+        ia = t
+        ka = k
+        if a > 0:
+            ia = idx[a - 1]
+            ka = frag[a - 1]
         ma = b.mp[ia][3]
         ga = wp.vec3(0.0)
-        for c in range(a + 1, n):
+        for c in range(a, n):
             ic = idx[c]
             mc = b.mp[ic][3]
             touching = ma + mc >= fill_mass
@@ -303,17 +299,16 @@ def box_grid_update(
             if touching:
                 gc = wp.vec3(0.0)
                 if normal_mode == NORMAL_MASS_GRADIENT:
-                    ga = box_mass_gradient(b, frag[a], ia, node)
+                    ga = box_mass_gradient(b, ka, ia, node)
                     gc = box_mass_gradient(b, frag[c], ic, node)
-                nrm = contact_normal(normal_mode, latched, ga, gc, centroids[frag[a]], centroids[frag[c]])
+                nrm = contact_normal(normal_mode, latched, ga, gc, centroids[ka], centroids[frag[c]])
                 w0, w1 = contact_pair(
                     b.vel[ia], b.vel[ic], ma, mc, nrm, restitution, friction, project, record, stats, pair_stats,
-                    frag[a], frag[c], n_fragments, time,
+                    ka, frag[c], n_fragments, time,
                 )  # fmt: skip
                 b.vel[ia] = w0
                 b.vel[ic] = w1
-    for a in range(n):
-        b.vel[idx[a]] = apply_boundaries(b.vel[idx[a]], node, xi, time, colliders)
+        b.vel[ia] = apply_boundaries(b.vel[ia], node, xi, time, colliders)
 
 
 @wp.kernel
