@@ -262,17 +262,13 @@ def box_grid_update(
     idx = vec_fi(-1)
     frag = vec_fi(-1)
     n = int(0)  # noqa: UP018 (a dynamic Warp variable)
-    q1 = wp.vec4(0.0)  # the first partner's (p, m), kept for the two-field case
     for o in range(b.over_start[k], b.over_start[k + 1]):
         i = partner_index(b, o, node)
         if i >= 0:
-            qi = b.mp[i]
-            if qi[3] > eps_m:
+            if b.mp[i][3] > eps_m:
                 j = b.over[o]
                 if j < k:
                     return  # a lower fragment has mass here: its thread leads
-                if n == 0:
-                    q1 = qi
                 if n + 1 < slots:
                     idx[n] = i
                     frag[n] = j
@@ -282,28 +278,6 @@ def box_grid_update(
                     b.vel[i] = apply_boundaries(normalized(b.mp[i], eps_m, dt, gravity), node, xi, time, colliders)
     if n == 0:
         b.vel[t] = apply_boundaries(normalized(q, eps_m, dt, gravity), node, xi, time, colliders)
-        return
-    if n == 1:  # two fields (most contact nodes): everything in registers
-        i1 = idx[0]
-        k1 = frag[0]
-        v0 = normalized(q, eps_m, dt, gravity)
-        v1 = normalized(q1, eps_m, dt, gravity)
-        touching = q[3] + q1[3] >= fill_mass
-        if normal_mode != NORMAL_MASS_GRADIENT:
-            touching = b.band[t] > eps_b and b.band[i1] > eps_b
-        if touching:
-            g0 = wp.vec3(0.0)
-            g1 = wp.vec3(0.0)
-            if normal_mode == NORMAL_MASS_GRADIENT:
-                g0 = box_mass_gradient(b, k, t, node)
-                g1 = box_mass_gradient(b, k1, i1, node)
-            nrm = contact_normal(normal_mode, latched, g0, g1, centroids[k], centroids[k1])
-            v0, v1 = contact_pair(
-                v0, v1, q[3], q1[3], nrm, restitution, friction, project, record, stats, pair_stats, k, k1,
-                n_fragments, time,
-            )  # fmt: skip
-        b.vel[t] = apply_boundaries(v0, node, xi, time, colliders)
-        b.vel[i1] = apply_boundaries(v1, node, xi, time, colliders)
         return
     b.vel[t] = normalized(q, eps_m, dt, gravity)
     for a in range(n):
