@@ -63,23 +63,24 @@ class BoxView:
 
 
 @wp.func
-def box_index(b: BoxView, k: int, node: wp.vec3i):
-    """Buffer index of `node` in box k, or −1 outside it."""
-    d = b.dims[k]
-    r = node - b.lo[k]
+def index_in(lo: wp.vec3i, d: wp.vec3i, offset: int, node: wp.vec3i):
+    """Buffer index of `node` in the box of lowest node lo, dims d, first index `offset`; −1 outside it."""
+    r = node - lo
     if r[0] < 0 or r[1] < 0 or r[2] < 0 or r[0] >= d[0] or r[1] >= d[1] or r[2] >= d[2]:
         return -1
-    return b.offset[k] + (r[0] * d[1] + r[1]) * d[2] + r[2]
+    return offset + (r[0] * d[1] + r[1]) * d[2] + r[2]
+
+
+@wp.func
+def box_index(b: BoxView, k: int, node: wp.vec3i):
+    """Buffer index of `node` in box k, or −1 outside it."""
+    return index_in(b.lo[k], b.dims[k], b.offset[k], node)
 
 
 @wp.func
 def partner_index(b: BoxView, o: int, node: wp.vec3i):
     """Buffer index of `node` in the overlapping box of entry o of the overlap lists, or −1 outside it."""
-    d = b.over_dims[o]
-    r = node - b.over_lo[o]
-    if r[0] < 0 or r[1] < 0 or r[2] < 0 or r[0] >= d[0] or r[1] >= d[1] or r[2] >= d[2]:
-        return -1
-    return b.over_off[o] + (r[0] * d[1] + r[1]) * d[2] + r[2]
+    return index_in(b.over_lo[o], b.over_dims[o], b.over_off[o], node)
 
 
 @wp.func
