@@ -100,6 +100,8 @@ class FragmentBoxes:
         where = torch.arange(self.capacity, device=self.device)
         box = torch.searchsorted(offset[1:].to(self.device), where, right=True)
         self.box_of.copy_(torch.where(box < K, box, -1))
+        self.mp.zero_()  # the boxes moved: P2G starts from empty fields (afterwards `clear` empties them)
+        self.band.zero_()
         if grew or K != self.K:
             self.K = K
             self._make_view()
@@ -129,18 +131,23 @@ class FragmentBoxes:
         return listed, wp.from_torch(listed)
 
     def p2g(self, w: dict, clock, counts, run: int = 0, band=None) -> None:
-        """Clear the boxes, then every particle's deposit into its fragment's box. `w`: Warp arrays x, v, C,
+        """Every particle's deposit into its fragment's box, which the last `fit` or `clear` emptied. `w`: Warp
+        arrays x, v, C,
         mass, volume, stress, fragment; `counts`: the escape counter's array; `run` > 0: that many consecutive
         particles a thread, summed in registers while they share fragment and stencil base (particles sorted
         by cell); `band` (`band_list`'s Warp view): also each field's band mass from these particles (only the
         latched normals' gate reads it)."""
-        launch(box_clear, self.capacity, [self.view], self.device)
         n = w["x"].shape[0]
         arrays = [w[k] for k in ("x", "v", "C", "mass", "volume", "stress", "fragment")]
         run = max(1, int(run))
         launch(box_p2g_runs, -(-n // run), arrays + [clock, self.view, run, counts], self.device)
         if band is not None and band.shape[0] > 0:
             launch(box_band_mass, band.shape[0], [w["x"], w["mass"], w["fragment"], band, self.view], self.device)
+
+    def clear(self) -> None:
+        """Empty every field (m, p, band mass) for the next P2G. G2P reads only velocities, so this may run
+        beside it (`Simulator._g2p`)."""
+        launch(box_clear, self.capacity, [self.view], self.device)
 
     def update(
         self,
