@@ -251,7 +251,8 @@ def box_grid_update(
     q = b.mp[t]
     dt = clock_dt(clock)
     if q[3] <= eps_m:
-        b.vel[t] = wp.vec3(0.0)
+        if q[3] > 0.0:  # a node no particle reached (m = 0) is read by no G2P: no write
+            b.vel[t] = wp.vec3(0.0)
         return
     d = b.dims[k]
     r = t - b.offset[k]

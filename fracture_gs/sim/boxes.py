@@ -102,6 +102,7 @@ class FragmentBoxes:
         self.box_of.copy_(torch.where(box < K, box, -1))
         self.mp.zero_()  # the boxes moved: P2G starts from empty fields (afterwards `clear` empties them)
         self.band.zero_()
+        self.vel.zero_()  # nodes no particle reaches keep v = 0 (the grid update writes only where m > 0)
         if grew or K != self.K:
             self.K = K
             self._make_view()
@@ -141,6 +142,11 @@ class FragmentBoxes:
         arrays = [w[k] for k in ("x", "v", "C", "mass", "volume", "stress", "fragment")]
         run = max(1, int(run))
         launch(box_p2g_runs, -(-n // run), arrays + [clock, self.view, run, counts], self.device)
+        self.band_mass(w, band)
+
+    def band_mass(self, w: dict, band) -> None:
+        """Each field's band mass from the particles of `band` (`band_list`'s Warp view; None: nothing), into
+        boxes the last `fit` or `clear` emptied. Independent of `p2g`: it may run beside it."""
         if band is not None and band.shape[0] > 0:
             launch(box_band_mass, band.shape[0], [w["x"], w["mass"], w["fragment"], band, self.view], self.device)
 

@@ -352,8 +352,11 @@ class Simulator(SlotStorage, FrameLoop):
     def _p2g(self, only_fragment: int = -1, target=None, multifield=None, stress=None, counts=None) -> None:
         g, w = target or self.grid, self.wp
         if self.boxed and target is None and multifield is None and stress is None:
-            band = self.wp["band_list"] if self.normal_mode == NORMAL_LATCHED else None  # the latched gate's
-            self.boxes.p2g(w, self.clock.view, w["counts"] if counts is None else counts, self.p2g_run, band)
+            if self.normal_mode == NORMAL_LATCHED:  # band masses for the latched gate, beside the deposits
+                with self._beside():
+                    self.boxes.band_mass(w, self.wp["band_list"])
+            self.boxes.p2g(w, self.clock.view, w["counts"] if counts is None else counts, self.p2g_run)
+            self._fork.join()
             return
         multi = int(self.multifield if multifield is None else multifield)
         fan = target is None and self._fans_out(multi, only_fragment)
