@@ -381,20 +381,25 @@ def test_voronoi_provider_shatters_on_contact(device):
 def test_fragment_aware_penetration_between_pieces(seed):
     """Two blocks touching face to face (jittered lattices) have no particle inside the other's
     occupied volume; pushed 3Δx into each other they do, with a depth of at least one voxel; a
-    rotated copy of the same pair gives the same answer (no preferred axis)."""
+    rotated copy of the same pair gives the same answer (no preferred axis) to the measure's
+    resolution: where the face is oblique to the voxels, an isolated particle can read one voxel
+    deep (measured: 1–2 of 9,386 particles in 17 of 600 random orientations, never deeper)."""
     from fracture_gs.sim.penetration import fragment_overlap
 
-    dx = 1 / 32
+    dx, h = 1 / 32, 0.6 / 32
     g = torch.Generator().manual_seed(seed)
     a, _ = block((0.3, 0.3, 0.3), (0.5, 0.6, 0.6), dx / 2, jitter=0.3, generator=g)
     b, _ = block((0.5, 0.3, 0.3), (0.7, 0.6, 0.6), dx / 2, jitter=0.3, generator=g)
     frag = torch.cat([torch.zeros(len(a)), torch.ones(len(b))]).int()
     R = rand_rotations(1, g)[0].float()
     for rot in (torch.eye(3), R):
-        touching = fragment_overlap(torch.cat([a, b]) @ rot.T, frag, 0.6 * dx)
-        assert touching["crossing"] == 0, (seed, touching)
-        pushed = fragment_overlap(torch.cat([a, b - torch.tensor([3 * dx, 0, 0])]) @ rot.T, frag, 0.6 * dx)
-        assert pushed["crossing"] > 0 and pushed["depth"] >= 0.6 * dx, (seed, pushed["crossing"], pushed["depth"])
+        touching = fragment_overlap(torch.cat([a, b]) @ rot.T, frag, h)
+        if rot is R:  # the oblique face's staircase of voxels: a few particles, one voxel deep at most
+            assert touching["crossing"] <= 4 and touching["depth"] <= h + 1e-12, (seed, touching)
+        else:
+            assert touching["crossing"] == 0, (seed, touching)
+        pushed = fragment_overlap(torch.cat([a, b - torch.tensor([3 * dx, 0, 0])]) @ rot.T, frag, h)
+        assert pushed["crossing"] > 0 and pushed["depth"] >= h - 1e-12, (seed, pushed["crossing"], pushed["depth"])
         assert set(pushed["pairs"]) <= {(0, 1), (1, 0)}
 
 

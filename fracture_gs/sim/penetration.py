@@ -7,8 +7,10 @@ fragment's *occupied volume* is its voxels eroded once (a voxel counts when its 
 neighbours belong to the same fragment), so the ragged surface layer, where touching pieces and
 oblique cuts interleave, is excluded. A particle of fragment a inside b's occupied volume is an
 identity crossing; its depth is the number of erosions its voxel survives, times h (a lower bound
-on how far it is inside b). Vectorised torch on the particles' device (sorted keys and binary
-searches, no dense grid).
+on how far it is inside b). Resolution: where a face is oblique to the voxels, the staircase can
+leave an isolated particle reading one voxel deep (two touching jittered blocks: 1–2 of 9,386
+particles in 3 % of random orientations; tests/test_many_fragments.py). Vectorised torch on the
+particles' device (sorted keys and binary searches, no dense grid).
 """
 
 from __future__ import annotations
