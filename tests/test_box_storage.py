@@ -14,9 +14,9 @@ from fracture_gs.sim.layout import N_PAIR_STATS, PAIR_GATED, STAT_FIRST_T, STAT_
 FRAME = 4e-3
 
 
-def advanced(seed, device, storage, fragments, frames=3, slots=8, push=0.5):
+def advanced(seed, device, storage, fragments, frames=3, slots=8, push=0.5, variant="full"):
     """The slab latched, every piece pushed toward its middle, advanced `frames` frames."""
-    sim, topo = slab(seed, device, fragments, slots, storage=storage)
+    sim, topo = slab(seed, device, fragments, slots, storage=storage, variant=variant)
     sim.cfg.contact.friction = 0.3
     sim.latch(topo)
     sim.particles.v.copy_(push * (0.5 - sim.particles.x))
@@ -136,3 +136,19 @@ def test_boxes_move_without_changing_what_recorded_launches_bake_in(device, seed
     assert runs[1]._graph is not None
     torch.testing.assert_close(b.x, a.x, rtol=1e-4, atol=1e-5)
     torch.testing.assert_close(b.v, a.v, rtol=1e-3, atol=1e-4)
+
+
+def test_local_multifield_in_boxes_detects_what_the_slots_detect_and_projects_nothing(device, seed):
+    """Local Multi-Field (per-fragment fields, no contact projection) on six pressed pieces: the boxes count
+    the same approaching node pairs as the slots and move every particle as the slots do (no projection, so
+    the order of the pairs cannot matter: bitwise on the CPU), unlike FractureFields, which projects."""
+    slots, boxes = (advanced(seed, device, s, 6, variant="local_multifield") for s in ("slots", "boxes"))
+    full = advanced(seed, device, "boxes", 6)
+    assert boxes.boxed
+    a, b = float(slots.grid.contact_stats[STAT_GATED]), float(boxes.grid.contact_stats[STAT_GATED])
+    assert a > 10 and (a == b if device == "cpu" else abs(a - b) <= 0.01 * a), (a, b)  # GPU: atomics' order
+    if device == "cpu":
+        assert torch.equal(slots.particles.x, boxes.particles.x)
+    else:
+        torch.testing.assert_close(boxes.particles.x, slots.particles.x, rtol=1e-4, atol=1e-5)
+    assert float((full.particles.v - boxes.particles.v).abs().max()) > 1e-3, "FractureFields projects"

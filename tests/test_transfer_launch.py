@@ -12,14 +12,14 @@ from fracture_gs.sim.providers.cuts import voronoi_labels
 from fracture_gs.sim.providers.voronoi import voronoi_sites
 
 
-def slab(seed, device, fragments=2, slots=8, n=3000, sort=None, storage="slots"):
+def slab(seed, device, fragments=2, slots=8, n=3000, sort=None, storage="slots", variant="full"):
     """A slab at rest under gravity, long in x, cut in two across it (or into Voronoi pieces): particles
     far from the cuts are solo, the rest take the slot path. `sort`: `Simulator.sort_particles`' mode,
     applied before the cut is labelled; `storage`: sim.grid_storage."""
     g = torch.Generator().manual_seed(seed)
     x = torch.tensor([0.1, 0.35, 0.35]) + torch.tensor([0.8, 0.3, 0.3]) * torch.rand(n, 3, generator=g)
     P = S.Particles(x=x, mass=0.5 + torch.rand(n, generator=g), volume=torch.full((n,), 1e-5), E=1e4, nu=0.3)
-    cfg = config(32, variant="full", gravity=(0.0, 0.0, -9.8), dt=1e-3, field_slots=slots, grid_storage=storage)
+    cfg = config(32, variant=variant, gravity=(0.0, 0.0, -9.8), dt=1e-3, field_slots=slots, grid_storage=storage)
     sim = S.Simulator(cfg, P, device=device)
     if sort is not None:
         sim.sort_particles(sort)
