@@ -5,11 +5,14 @@ added in particle order in both), Voronoi pieces as close as a different Gaussâ€
 or more fields allows; mass is never dropped, a stencil that leaves its box redoes the frame with larger
 boxes, and nodes with more fields than `field_slots` are counted."""
 
+from dataclasses import replace
+
 import pytest
 import torch
 from test_transfer_launch import slab
 
 from fracture_gs.sim.layout import N_PAIR_STATS, PAIR_GATED, STAT_FIRST_T, STAT_GATED
+from fracture_gs.sim.topology import FractureEvent
 
 FRAME = 4e-3
 
@@ -152,3 +155,28 @@ def test_local_multifield_in_boxes_detects_what_the_slots_detect_and_projects_no
     else:
         torch.testing.assert_close(boxes.particles.x, slots.particles.x, rtol=1e-4, atol=1e-5)
     assert float((full.particles.v - boxes.particles.v).abs().max()) > 1e-3, "FractureFields projects"
+
+
+def test_auto_storage_moves_to_boxes_when_a_second_latch_makes_a_third_piece(device, seed):
+    """`grid_storage = "auto"`: a plane cut into two pieces runs in the slots (latched normal); a later latch
+    that splits one piece again (three pieces: mass-gradient normals) moves the fields into boxes. The latch is
+    impulse-free (x, v, C, F unchanged to the bit), and the boxes then hold every particle's mass."""
+    sim, topo = slab(seed, device, 2, storage="auto")
+    sim.latch(topo)
+    P = sim.particles
+    P.v.copy_(0.5 * (0.5 - P.x))
+    sim.advance(FRAME)
+    assert not sim.boxed
+    fragment = topo.fragment.clone()
+    fragment[(topo.fragment == 1) & (P.x[:, 1].cpu() > 0.5)] = 2  # the second piece cut along y
+    cut = FractureEvent("plane", sim.time, sim.frame, (1,), (2,), (0.5, 0.5, 0.5), (0.0, 1.0, 0.0))
+    again = replace(topo, fragment=fragment, events=list(topo.events) + [cut], latch_frame=sim.frame)
+    before = {k: getattr(P, k).clone() for k in ("x", "v", "C", "F")}
+    sim.latch(again)
+    assert sim.boxed and sim.n_fragments == 3
+    for k, t in before.items():
+        assert torch.equal(getattr(P, k), t), f"the latch changed {k}"
+    sim.advance(FRAME)
+    total = float(P.mass.double().sum())
+    assert abs(deposited_mass(sim) - total) <= 1e-5 * total
+    assert bool(torch.isfinite(P.x).all()) and sim.frame_redos == 0
