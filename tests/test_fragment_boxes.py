@@ -346,3 +346,30 @@ def crowded_particles(boxes, x, eps_m):  # [N, 3] -> [N] bool
         counts[lo[0] : lo[0] + d[0], lo[1] : lo[1] + d[1], lo[2] : lo[2] + d[2]] += (m > eps_m).long()
     nodes, _, _, _ = ref.stencil(x, boxes.origin, boxes.dx)  # [N, 27, 3]
     return (counts[nodes[..., 0], nodes[..., 1], nodes[..., 2]] >= 3).any(1)
+
+
+def test_overlap_lists_grow_with_the_pieces_not_with_max_fragments(device, seed):
+    """Boxes for up to 4,096 fragments allocate overlap lists for the pairs of boxes that overlap, not for
+    4,096² pairs; 24 pieces outgrow the first lists, which grow (a new layout key: recorded launches record
+    again), and every box's list names exactly the boxes that overlap it."""
+    from fracture_gs.sim.providers.cuts import voronoi_labels
+    from fracture_gs.sim.providers.voronoi import voronoi_sites
+
+    P, w, counts, _ = state(seed, device)
+    boxes = FragmentBoxes((n, n, n), (0.0, 0.0, 0.0), 1.0 / n, device, max_fragments=4096)
+    assert boxes.over.numel() < 1024, "no max_fragments² tables"
+    fragment, _ = voronoi_labels(P["x"].cpu(), voronoi_sites(P["x"].cpu(), 24, 0), 0.0)
+    P["fragment"].copy_(fragment.to(device, torch.int32))
+    key = boxes.layout_key
+    boxes.fit(P["x"], P["fragment"])
+    lo, hi = boxes.lo[: boxes.K].cpu(), (boxes.lo + boxes.dims - 1)[: boxes.K].cpu()
+    meets = ((lo[:, None] <= hi[None]) & (lo[None] <= hi[:, None])).all(2) & ~torch.eye(boxes.K, dtype=torch.bool)
+    assert int(meets.sum()) > 64 and boxes.layout_key != key
+    start, over = boxes.over_start.cpu(), boxes.over.cpu()
+    for k in range(boxes.K):
+        assert over[start[k] : start[k + 1]].tolist() == torch.nonzero(meets[k]).flatten().tolist(), k
+    cw = wp.from_torch(counts)
+    boxes.p2g(w, clock(device), cw)
+    assert int(counts[COUNT_ESCAPED]) == 0
+    total = float(P["mass"].double().sum())
+    assert abs(float(boxes.mp[: boxes.nodes, 3].double().sum()) - total) <= 1e-5 * total

@@ -32,15 +32,21 @@ class FragmentBoxes:
         self.dims = torch.ones(K, 3, dtype=torch.int32, device=device)
         self.offset = torch.zeros(K + 1, dtype=torch.int32, device=device)
         self.over_start = torch.zeros(K + 1, dtype=torch.int32, device=device)
-        self.over = torch.zeros(K * K, dtype=torch.int32, device=device)
-        self.over_lo = torch.zeros(K * K, 3, dtype=torch.int32, device=device)
-        self.over_dims = torch.zeros(K * K, 3, dtype=torch.int32, device=device)
-        self.over_off = torch.zeros(K * K, dtype=torch.int32, device=device)
+        self._grow_overlaps(64)  # entries of the overlap lists: grown with the pairs of boxes that overlap
         self.capacity = 0
         self.nodes = 0
         self.K = 0
         self.view = None
         self._no_stats = wp.zeros(1, dtype=float, device=device)  # the statistics' arrays when none are kept
+
+    def _grow_overlaps(self, n: int) -> None:
+        """Room for n entries of the overlap lists (their number follows the overlapping pairs, O(K), not
+        max_fragments²)."""
+        dev = self.device
+        self.over = torch.zeros(n, dtype=torch.int32, device=dev)
+        self.over_lo = torch.zeros(n, 3, dtype=torch.int32, device=dev)
+        self.over_dims = torch.zeros(n, 3, dtype=torch.int32, device=dev)
+        self.over_off = torch.zeros(n, dtype=torch.int32, device=dev)
 
     @property
     def nbytes(self) -> int:
@@ -49,8 +55,9 @@ class FragmentBoxes:
 
     @property
     def layout_key(self) -> tuple:
-        """What recorded launches bake in: the buffers (capacity) and the number of boxes."""
-        return (self.capacity, self.K)
+        """What recorded launches bake in: the buffers (node capacity, overlap-list room) and the number of
+        boxes."""
+        return (self.capacity, self.over.numel(), self.K)
 
     def fit(self, x: torch.Tensor, fragment: torch.Tensor, slack: int = 1, K: int = 0) -> bool:  # [N, 3], [N]
         """Box k: the bounding box of fragment k's stencils plus `slack` nodes each way, inside the grid, for
@@ -93,6 +100,9 @@ class FragmentBoxes:
         self.dims[:K].copy_(dims)
         self.offset[: K + 1].copy_(offset)
         self.over_start[: K + 1].copy_(over_start)
+        relist = len(pairs) > self.over.numel()
+        if relist:
+            self._grow_overlaps(max(len(pairs), 2 * self.over.numel()))
         self.over[: len(pairs)].copy_(pairs)
         self.over_lo[: len(pairs)].copy_(lo[pairs])
         self.over_dims[: len(pairs)].copy_(dims[pairs])
@@ -103,10 +113,10 @@ class FragmentBoxes:
         self.mp.zero_()  # the boxes moved: P2G starts from empty fields (afterwards `clear` empties them)
         self.band.zero_()
         self.vel.zero_()  # nodes no particle reaches keep v = 0 (the grid update writes only where m > 0)
-        if grew or K != self.K:
+        if grew or relist or K != self.K:
             self.K = K
             self._make_view()
-        return grew
+        return grew or relist
 
     def _make_view(self) -> None:
         v = BoxView()
