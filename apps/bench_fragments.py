@@ -29,7 +29,6 @@ import time
 import torch
 import warp as wp
 
-from fracture_gs.paper.bench import grid_bytes
 from fracture_gs.paper.fragments import shattered_state as state
 from fracture_gs.paper.fragments import voronoi_topology as topology
 from fracture_gs.runtime import warp_stream
@@ -136,14 +135,15 @@ def main(argv=None) -> int:
                 "median_ms": statistics.median(ms),
                 "min_ms": min(ms),
                 "max_ms": max(ms),
-                "grid_mib": grid_bytes(sims[0]) / 2**20,
-                "slot_cache_mib": sims[0]._slot_cache.numel() * 4 / 2**20 if sims[0].fanout else 0.0,
+                "grid_mib": sims[0].grid_nbytes / 2**20,
+                # the slot storage's fan-out cache beside its grid (boxes have none)
+                "slot_cache_mib": sims[0]._slot_cache.numel() * 4 / 2**20
+                if sims[0].fanout and storage == "slots"
+                else 0.0,
                 "pool_rows": int(sims[0].grid.rows_used()),
                 "slot_overflow": int(sims[0].counts[COUNT_SLOT_OVERFLOW]),
                 "escaped": int(sims[0].counts[COUNT_ESCAPED]),
             }
-            if storage == "boxes":
-                out[label]["slot_cache_mib"] = 0.0
             del sims
         for label in ("FractureFields", "Boxes"):
             if label in out:

@@ -260,7 +260,7 @@ def time_branches(
                 "max_ms": max(ms),
                 "samples_ms": ms,
                 "placements": placements,
-                "grid_mib": grid_bytes(first["sim"]) / 2**20,
+                "grid_mib": first["sim"].grid_nbytes / 2**20,
                 "kernels_us": first["kernels"],
             }
         )
@@ -271,11 +271,6 @@ def time_branches(
     for r in rows:
         r["relative"] = r["median_ms"] / base
     return rows
-
-
-def grid_bytes(sim: Simulator) -> int:
-    """The grid buffers a simulator holds (with per-fragment boxes: its dense grid and the boxes)."""
-    return sim.grid.nbytes + (sim.boxes.nbytes if sim.boxes is not None else 0)
 
 
 def _median_step(sim: Simulator, fn, graph, steps: int) -> float:

@@ -277,6 +277,12 @@ class Simulator(SlotStorage, FrameLoop):
         return self.cfg.grid_storage == "boxes" or self.normal_mode == NORMAL_MASS_GRADIENT
 
     @property
+    def grid_nbytes(self) -> int:
+        """Bytes of the grid buffers this simulator holds: the grid (dense, with slots and pool) and, when the
+        storage may use them, the per-fragment boxes."""
+        return self.grid.nbytes + (self.boxes.nbytes if self.boxes is not None else 0)
+
+    @property
     def release(self) -> bool:
         return self.latched and self.spec.release
 
