@@ -132,8 +132,8 @@ def box_p2g_runs(
             boff = b.offset[k]
             bk = k
         base, f, w, dw = stencil(x[p], b.origin, b.inv_dx, b.shape)
-        r = base - blo
-        if r[0] < 0 or r[1] < 0 or r[2] < 0 or r[0] + 2 >= bd[0] or r[1] + 2 >= bd[1] or r[2] + 2 >= bd[2]:
+        origin = index_in(blo, bd, boff, base)
+        if origin < 0 or index_in(blo, bd, boff, base + wp.vec3i(2, 2, 2)) < 0:
             wp.atomic_add(counts, COUNT_ESCAPED, 1)  # the stencil left its box: the frame is redone
             continue
         if k != ck or base[0] != cur[0] or base[1] != cur[1] or base[2] != cur[2]:
@@ -142,7 +142,7 @@ def box_p2g_runs(
             acc = stencil_sums()
             cur = base
             ck = k
-            start = boff + (r[0] * bd[1] + r[1]) * bd[2] + r[2]
+            start = origin
             rd = bd
         m = mass[p]
         vp = v[p]

@@ -143,11 +143,10 @@ class FragmentBoxes:
 
     def p2g(self, w: dict, clock, counts, run: int = 0, band=None) -> None:
         """Every particle's deposit into its fragment's box, which the last `fit` or `clear` emptied. `w`: Warp
-        arrays x, v, C,
-        mass, volume, stress, fragment; `counts`: the escape counter's array; `run` > 0: that many consecutive
-        particles a thread, summed in registers while they share fragment and stencil base (particles sorted
-        by cell); `band` (`band_list`'s Warp view): also each field's band mass from these particles (only the
-        latched normals' gate reads it)."""
+        arrays x, v, C, mass, volume, stress, fragment; `counts`: the escape counter's array; `run` > 0: that
+        many consecutive particles a thread, summed in registers while they share fragment and stencil base
+        (particles sorted by cell); `band` (`band_list`'s Warp view): also each field's band mass from these
+        particles (only the latched normals' gate reads it)."""
         n = w["x"].shape[0]
         arrays = [w[k] for k in ("x", "v", "C", "mass", "volume", "stress", "fragment")]
         run = max(1, int(run))
