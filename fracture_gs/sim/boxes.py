@@ -183,7 +183,7 @@ class FragmentBoxes:
         slots: int = MAX_FIELDS,
     ) -> None:
         """Every field's v = p/m + Δt g, contact where fields meet, then the boundaries (`colliders`,
-        `boundary.Colliders`). Contact: with `latched` (n_Π, a 3-tuple) along it where both fields' band masses
+        `boundary.Colliders`); `gravity` and `latched` are 3-tuples or `wp.vec3`. Contact: with `latched` (n_Π) along it where both fields' band masses
         exceed `eps_b` (the paper's gate); else along the fields' mass gradients where m_a + m_b ≥ fill_mass
         (`centroids` [K] vec3 Warp array: the normals' fallback). `mass_gradient` True takes the mass-gradient
         normals with `latched` as their last fallback. `project` False detects approach without projecting

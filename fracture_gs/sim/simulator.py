@@ -417,9 +417,9 @@ class Simulator(SlotStorage, FrameLoop):
         g, c = self.grid, self.cfg.contact
         stats = (g.wp["stats"], g.wp["pair_stats"], g.max_fragments) if self.record_contact else None
         self.boxes.update(
-            self.clock.view, self.eps_m, self.cfg.gravity, c.fill * self.node_mass, self.wp["centroids"],
+            self.clock.view, self.eps_m, self._gravity, c.fill * self.node_mass, self.wp["centroids"],
             self.wp["counts"], self.boundaries.colliders, e=float(self.cfg.restitution), mu=float(c.friction),
-            latched=tuple(float(a) for a in self._normal), eps_b=self.eps_b, project=bool(self.spec.contact),
+            latched=self._normal, eps_b=self.eps_b, project=bool(self.spec.contact),
             stats=stats, mass_gradient=self.normal_mode == NORMAL_MASS_GRADIENT, slots=self.cfg.field_slots,
         )  # fmt: skip
 
