@@ -183,12 +183,13 @@ class FragmentBoxes:
         slots: int = MAX_FIELDS,
     ) -> None:
         """Every field's v = p/m + Δt g, contact where fields meet, then the boundaries (`colliders`,
-        `boundary.Colliders`); `gravity` and `latched` are 3-tuples or `wp.vec3`. Contact: with `latched` (n_Π) along it where both fields' band masses
-        exceed `eps_b` (the paper's gate); else along the fields' mass gradients where m_a + m_b ≥ fill_mass
-        (`centroids` [K] vec3 Warp array: the normals' fallback). `mass_gradient` True takes the mass-gradient
-        normals with `latched` as their last fallback. `project` False detects approach without projecting
-        (Local Multi-Field); `stats` = (stats, pair_stats, K), Warp arrays laid out as the grid's contact
-        statistics, accumulates them; `slots`: fields a node's contact couples (more are counted)."""
+        `boundary.Colliders`); `gravity` and `latched` are 3-tuples or `wp.vec3`. Contact: with `latched`
+        (n_Π) along it where both fields' band masses exceed `eps_b` (the paper's gate); else along the
+        fields' mass gradients where m_a + m_b ≥ fill_mass (`centroids` [K] vec3 Warp array: the normals'
+        fallback). `mass_gradient` True takes the mass-gradient normals with `latched` as their last
+        fallback. `project` False detects approach without projecting (Local Multi-Field); `stats` = (stats,
+        pair_stats, K), Warp arrays laid out as the grid's contact statistics, accumulates them; `slots`:
+        fields a node's contact couples (more are counted)."""
         if not 2 <= slots <= MAX_FIELDS:
             raise ValueError(f"slots = {slots} must lie in [2, {MAX_FIELDS}]")
         by_gradient = latched is None if mass_gradient is None else mass_gradient
