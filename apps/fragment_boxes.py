@@ -21,11 +21,7 @@ import sys
 
 import torch
 
-from fracture_gs import assets
-from fracture_gs.config import SceneConfig, SimConfig
-from fracture_gs.sim import Particles
-from fracture_gs.sim.providers.cuts import voronoi_labels
-from fracture_gs.sim.providers.voronoi import voronoi_sites
+from fracture_gs.paper.fragments import shattered_state, voronoi_topology
 
 STENCIL = torch.stack(torch.meshgrid(*[torch.arange(3)] * 3, indexing="ij"), -1).reshape(27, 3)  # [27, 3]
 
@@ -78,15 +74,11 @@ def main(argv=None) -> int:
     p.add_argument("--K", default="2,4,8,16", help="Voronoi piece counts, comma-separated")
     p.add_argument("--json", action="store_true", help="print the rows as JSON instead of a table")
     args = p.parse_args(argv)
-    gs = assets.build("ficus", size="paper", n=args.particles)
-    cfg = SceneConfig(scene="ficus")
-    cfg.sim = SimConfig(dx=1.0 / args.n, grid_shape=(args.n,) * 3)
-    x = Particles.from_gaussians(gs, cfg).x
-    dx = 1.0 / args.n
+    cfg, P = shattered_state(args.particles, "cpu", args.n)  # the state and pieces of bench_fragments
+    x, dx = P.x, cfg.sim.dx
     rows = []
     for K in (int(k) for k in args.K.split(",")):
-        fragment, _ = voronoi_labels(x, voronoi_sites(x, K, 0), 1.5 * dx)  # the pieces of bench_fragments
-        rows.append({"K": K, **geometry(x, fragment, dx, args.n)})
+        rows.append({"K": K, **geometry(x, voronoi_topology(P, K, dx).fragment, dx, args.n)})
     if args.json:
         print(json.dumps(rows, indent=2))
         return 0
