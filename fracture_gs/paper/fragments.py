@@ -13,13 +13,11 @@ import platform
 
 import torch
 
-from .. import assets
-from ..config import SceneConfig, SimConfig
 from ..runtime import side_stream
 from ..sim import Particles, Simulator, Topology
 from ..sim.providers.cuts import voronoi_labels
 from ..sim.providers.voronoi import voronoi_sites
-from .bench import time_branches
+from .bench import bench_state, time_branches
 from .tables import Column, Panel, Table
 
 KS = (2, 4, 8, 16)
@@ -28,14 +26,11 @@ PRESS_FRAME = 0.004  # s
 
 
 def shattered_state(particles, device: str, n: int):
-    """The Table 2 ficus (`particles`, default the paper's 171,553, in n³ with Δx = 1/n, room for 64 pieces).
-    Contact takes mass-gradient normals for every K: Voronoi faces have no one latched plane."""
-    gs = assets.build("ficus", size="paper", n=particles)
-    cfg = SceneConfig(scene="ficus")
-    cfg.sim = SimConfig(dx=1.0 / n, grid_shape=(n, n, n), dt=2e-5 * 128 / n, gravity=(0.0, 0.0, -9.8), max_fragments=64)
+    """Table 2's ficus (`bench.bench_state`: `particles`, default the paper's 171,553, in n³ with Δx = 1/n),
+    with contact along mass-gradient normals for every K: Voronoi faces have no one latched plane."""
+    cfg, P, _ = bench_state(particles, device, n)
     cfg.sim.contact.normal = "mass_gradient"
-    cfg.material.E, cfg.material.density = 2e6, 200.0
-    return cfg, Particles.from_gaussians(gs, cfg)
+    return cfg, P
 
 
 def voronoi_topology(P: Particles, K: int, dx: float) -> Topology:
