@@ -182,6 +182,29 @@ def test_contact_where_fields_meet_is_the_reference_and_conserves_momentum(devic
     assert float((momentum(ours) - momentum(v)).abs().max()) <= 1e-5 * scale, "each node's momentum"
 
 
+def test_the_fast_math_grid_update_is_the_exact_one_to_float32_rounding(device, seed):
+    """CUDA devices run the grid update compiled with fast math (approximate division and square root): at the
+    four quadrants' fields, contact and friction included, it gives the exact kernel's velocities to float32
+    rounding, so each node's momentum is conserved as before."""
+    P, w, counts, boxes = state(seed, device)
+    cw = wp.from_torch(counts)
+    c = clock(device)
+    boxes.p2g(w, c, cw)
+    m = boxes.mp[: boxes.nodes, 3].double().cpu()
+    fill = 0.05 * float(m[m > 0].mean())
+    centroids = torch.stack([P["x"][P["fragment"] == k].mean(0) for k in range(4)]).contiguous()
+    centroids = wp.from_torch(centroids, dtype=wp.vec3)
+    vel = {}
+    for fast in (False, True):
+        boxes.update(c, EPS_M, GRAVITY, fill, centroids, cw, no_walls(device), e=0.0, mu=0.3, fast_math=fast)
+        vel[fast] = boxes.vel[: boxes.nodes].double().cpu()
+    live = m > EPS_M
+    p_exact, p_fast = m[live, None] * vel[False][live], m[live, None] * vel[True][live]
+    assert float(p_exact.norm(dim=1).max()) > 0
+    assert rel_err(p_fast, p_exact) <= 1e-5, f"seed {seed}"
+    assert float((p_fast.sum(0) - p_exact.sum(0)).norm()) <= 1e-5 * float(p_exact.norm(dim=1).sum())
+
+
 def test_one_box_is_the_shared_field_transfer_walls_included(device, seed):
     """With every particle in fragment 0 the boxes hold one field, and a substep through them (P2G, normalization,
     the domain walls, G2P) is the simulator's shared-field transfer: bitwise on the CPU, where both add the

@@ -13,7 +13,16 @@ import torch
 import warp as wp
 
 from ..runtime import ensure_warp, launch
-from .box_kernels import MAX_FIELDS, BoxView, box_band_mass, box_clear, box_g2p, box_grid_update, box_p2g_runs
+from .box_kernels import (
+    MAX_FIELDS,
+    BoxView,
+    box_band_mass,
+    box_clear,
+    box_g2p,
+    box_grid_update,
+    box_grid_update_fast,
+    box_p2g_runs,
+)
 from .contact import NORMAL_LATCHED, NORMAL_MASS_GRADIENT
 
 GROWTH = 1.25  # capacity headroom when the boxes outgrow the buffer
@@ -181,6 +190,7 @@ class FragmentBoxes:
         stats=None,
         mass_gradient=None,
         slots: int = MAX_FIELDS,
+        fast_math: bool | None = None,
     ) -> None:
         """Every field's v = p/m + Δt g, contact where fields meet, then the boundaries (`colliders`,
         `boundary.Colliders`); `gravity` and `latched` are 3-tuples or `wp.vec3`. Contact: with `latched`
@@ -189,7 +199,8 @@ class FragmentBoxes:
         fallback). `mass_gradient` True takes the mass-gradient normals with `latched` as their last
         fallback. `project` False detects approach without projecting (Local Multi-Field); `stats` = (stats,
         pair_stats, K), Warp arrays laid out as the grid's contact statistics, accumulates them; `slots`:
-        fields a node's contact couples (more are counted)."""
+        fields a node's contact couples (more are counted); `fast_math`: the kernel compiled with fast math
+        (default: on CUDA devices, not on the CPU)."""
         if not 2 <= slots <= MAX_FIELDS:
             raise ValueError(f"slots = {slots} must lie in [2, {MAX_FIELDS}]")
         by_gradient = latched is None if mass_gradient is None else mass_gradient
@@ -200,7 +211,9 @@ class FragmentBoxes:
         inputs = [self.view, float(eps_m), float(eps_b), float(fill_mass), mode, n, centroids, float(e), float(mu)]
         inputs += [int(project), int(stats[2] > 0), int(slots), clock, wp.vec3(*gravity), colliders]
         inputs += [stats[0], stats[1], int(stats[2]), counts]
-        launch(box_grid_update, self.capacity, inputs, self.device)
+        fast = self.device != "cpu" if fast_math is None else fast_math
+        kernel = box_grid_update_fast if fast else box_grid_update
+        launch(kernel, self.capacity, inputs, self.device)
 
     def g2p(self, w: dict, clock, lower, upper, counts, a: int = 0, b: int = -1) -> None:
         """Particles [a, b) gather from their own fragment's box (v, C, F, x; clamped into [lower, upper])."""
