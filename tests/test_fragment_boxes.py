@@ -106,6 +106,29 @@ def test_each_particle_deposits_into_its_own_fragments_box_only(device, seed, ru
         assert float(boxed(boxes, k, gm[k]).sum()) == pytest.approx(float(gm[k].sum()), rel=1e-12), "all inside"
 
 
+@pytest.mark.parametrize("run", [0, 8])
+def test_a_stencil_outside_its_box_is_counted_and_not_deposited(device, seed, run):
+    """Particles moved after the fit so that their stencils leave their fragment's box (one particle alone,
+    and 24 consecutive ones, whose runs share stencil bases): each is counted once as an escape and deposits
+    nothing; every other particle's mass lands in its own box."""
+    P, w, counts, boxes = state(seed, device, sort=True)
+    g = torch.Generator().manual_seed(seed + 1)
+    lone = int(torch.randint(N, (1,), generator=g))
+    shifted = torch.zeros(N, dtype=torch.bool)
+    shifted[lone] = True
+    shifted[N // 2 : N // 2 + 24] = True  # consecutive in cell order: runs of 8 that share bases
+    P["x"][shifted.to(device), 2] = 0.95  # every box ends below z = 0.7 + its slack (and the grid at 1)
+    x, k = P["x"].cpu().double(), P["fragment"].cpu().long()
+    base = torch.floor(x * n - 0.5).long()
+    lo, hi = boxes.lo.cpu().long()[k], boxes.lo.cpu().long()[k] + boxes.dims.cpu().long()[k] - 1
+    outside = ((base < lo) | (base + 2 > hi)).any(1)
+    assert torch.equal(outside, shifted)
+    boxes.p2g(w, clock(device), wp.from_torch(counts), run=run)
+    assert int(counts[COUNT_ESCAPED]) == int(outside.sum()), "each escaped particle counted once"
+    kept = float(P["mass"].cpu().double()[~outside].sum())
+    assert float(boxes.mp[: boxes.nodes, 3].double().sum()) == pytest.approx(kept, rel=1e-5)
+
+
 def test_normalize_and_g2p_read_each_particle_back_from_its_own_field(device, seed):
     P, w, counts, boxes = state(seed, device)
     cw = wp.from_torch(counts)

@@ -113,7 +113,8 @@ def box_p2g_runs(
 ):
     """Deposits of `run` consecutive particles a thread (`run_kernels.p2g_runs` on boxes): those with the same
     fragment and stencil base are summed in registers and reach their box as one reduction per node (run = 1:
-    one particle a thread). The box's bounds are loaded when the fragment changes, not per particle."""
+    one particle a thread). The box's bounds are loaded when the fragment changes and the stencil is checked
+    against its box when the run changes, not per particle (the check cost 1.8 µs of 31 at K = 16)."""
     t = wp.tid()
     dt = clock_dt(clock)
     acc = stencil_sums()
@@ -123,7 +124,7 @@ def box_p2g_runs(
     blo = wp.vec3i(0, 0, 0)
     bd = wp.vec3i(0, 0, 0)
     boff = int(0)  # noqa: UP018
-    start = int(0)  # noqa: UP018 (buffer index of the current run's stencil origin)
+    start = int(-1)  # noqa: UP018 (buffer index of the current run's stencil origin; −1: it left its box)
     rd = wp.vec3i(0, 0, 0)  # and its box's dims
     for p in range(t * run, wp.min(t * run + run, x.shape[0])):
         k = wp.max(fragment[p], 0)
@@ -133,18 +134,20 @@ def box_p2g_runs(
             boff = b.offset[k]
             bk = k
         base, f, w, dw = stencil(x[p], b.origin, b.inv_dx, b.shape)
-        origin = index_in(blo, bd, boff, base)
-        if origin < 0 or index_in(blo, bd, boff, base + wp.vec3i(2, 2, 2)) < 0:
-            wp.atomic_add(counts, COUNT_ESCAPED, 1)  # the stencil left its box: the frame is redone
-            continue
         if k != ck or base[0] != cur[0] or base[1] != cur[1] or base[2] != cur[2]:
-            if ck >= 0:
+            # a new run: flush the last one, and check once whether this stencil lies in its box
+            if start >= 0:
                 flush_box(b, start, rd, acc)
             acc = stencil_sums()
             cur = base
             ck = k
-            start = origin
+            start = index_in(blo, bd, boff, base)
+            if index_in(blo, bd, boff, base + wp.vec3i(2, 2, 2)) < 0:
+                start = -1
             rd = bd
+        if start < 0:
+            wp.atomic_add(counts, COUNT_ESCAPED, 1)  # the stencil left its box: the frame is redone
+            continue
         m = mass[p]
         vp = v[p]
         Cp = C[p]
@@ -157,7 +160,7 @@ def box_p2g_runs(
                     dep = deposit(weight, grad, dpos, m, vp, Cp, force)
                     for c in range(4):
                         acc[q, c] = acc[q, c] + dep[c]
-    if ck >= 0:
+    if start >= 0:
         flush_box(b, start, rd, acc)
 
 
