@@ -224,6 +224,21 @@ def box_mass_gradient(b: BoxView, k: int, i: int, node: wp.vec3i):
     return wp.vec3(gx, gy, gz) * h
 
 
+@wp.func
+def four_partners(b: BoxView, o: int, end: int, node: wp.vec3i, t: int):
+    """Buffer indices at `node` of the overlap entries o … o + 3 (−1: the node lies outside that box, or the
+    entry is past `end`) and their masses, the four loads issued together (a −1 reads node t's own mass,
+    unused)."""
+    ii = wp.vec4i(-1, -1, -1, -1)
+    for a in range(4):
+        if o + a < end:
+            ii[a] = partner_index(b, o + a, node)
+    mm = wp.vec4(0.0)
+    for a in range(4):
+        mm[a] = b.mp[wp.where(ii[a] >= 0, ii[a], t)][3]
+    return ii, mm
+
+
 @wp.kernel
 def box_grid_update(
     b: BoxView,
@@ -268,11 +283,14 @@ def box_grid_update(
     idx = vec_fi(-1)
     frag = vec_fi(-1)
     n = int(0)  # noqa: UP018 (a dynamic Warp variable)
-    for o in range(b.over_start[k], b.over_start[k + 1]):
-        i = partner_index(b, o, node)
-        if i >= 0:
-            if b.mp[i][3] > eps_m:
-                j = b.over[o]
+    o = b.over_start[k]
+    end = b.over_start[k + 1]
+    while o < end:  # four entries' masses loaded at once: the walk waits on memory once per four
+        ii, mm = four_partners(b, o, end, node, t)
+        for e in range(4):
+            i = ii[e]
+            if i >= 0 and mm[e] > eps_m:
+                j = b.over[o + e]
                 if j < k:
                     return  # a lower fragment has mass here: its thread leads
                 if n + 1 < slots:
@@ -282,6 +300,7 @@ def box_grid_update(
                 else:  # kept, uncoupled: its own velocity and the boundaries only
                     wp.atomic_add(counts, COUNT_SLOT_OVERFLOW, 1)
                     b.vel[i] = apply_boundaries(normalized(b.mp[i], eps_m, dt, gravity), node, xi, time, colliders)
+        o += 4
     if n == 0:
         b.vel[t] = apply_boundaries(normalized(q, eps_m, dt, gravity), node, xi, time, colliders)
         return
