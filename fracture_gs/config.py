@@ -209,7 +209,8 @@ class SimConfig:
     max_substeps_per_frame: int = 100000
     """Safety bound on substeps in one frame (adaptive Δt)."""
     max_fragments: int = 64
-    """Most fragment ids a run may create (K); providers stop splitting beyond it."""
+    """Most fragment ids a run may create (K); providers stop splitting beyond it. Per-pair contact statistics
+    (metrics.jsonl "pairs") cover the first 128 ids; contact between higher ids counts in the totals only."""
     field_slots: int = 4
     """Fields one grid node couples (S, 2…8). Slots: a node reached by more fragments merges the extra ones
     into its first field and counts a slot overflow. Boxes: the extra fields keep their own velocity (no

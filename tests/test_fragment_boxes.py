@@ -228,6 +228,46 @@ def test_the_fast_math_grid_update_is_the_exact_one_to_float32_rounding(device, 
     assert float((p_fast.sum(0) - p_exact.sum(0)).norm()) <= 1e-5 * float(p_exact.norm(dim=1).sum())
 
 
+def test_per_pair_statistics_cover_the_first_ids_and_the_totals_every_pair(device, seed):
+    """Per-pair contact rows exist for fragment ids below a cap (`layout.PAIR_FRAGMENTS`, so a run allowed 4,096
+    fragments keeps 128² rows, not 4,096²): the four quadrants' contact recorded with a cap of 2 keeps only the
+    pair 0–1, equal to its row without the cap, while the totals count every gated pair either way."""
+    from fracture_gs.sim.grid import Grid
+    from fracture_gs.sim.layout import (
+        N_PAIR_STATS,
+        N_STATS,
+        NEVER,
+        PAIR_FIRST_T,
+        PAIR_FRAGMENTS,
+        PAIR_GATED,
+        STAT_GATED,
+    )
+
+    big = Grid((0.0, 0.0, 0.0), 1.0 / n, (n, n, n), device, max_fragments=4096)
+    assert big.pair_fragments == PAIR_FRAGMENTS and big.pair_stats.numel() == PAIR_FRAGMENTS**2 * N_PAIR_STATS
+    P, w, counts, boxes = state(seed, device)
+    cw = wp.from_torch(counts)
+    c = clock(device)
+    boxes.p2g(w, c, cw)
+    m = boxes.mp[: boxes.nodes, 3].double()
+    fill = 0.05 * float(m[m > 0].mean())
+    centroids = torch.stack([P["x"][P["fragment"] == k].mean(0) for k in range(4)]).contiguous()
+    centroids = wp.from_torch(centroids, dtype=wp.vec3)
+    rows = {}
+    for cap in (4, 2):
+        stats = torch.zeros(N_STATS, device=device)
+        pairs = torch.zeros(cap * cap * N_PAIR_STATS, device=device)
+        pairs.view(-1, N_PAIR_STATS)[:, PAIR_FIRST_T] = NEVER
+        boxes.update(c, EPS_M, GRAVITY, fill, centroids, cw, no_walls(device), e=0.0, mu=0.3,
+                     stats=(wp.from_torch(stats), wp.from_torch(pairs), cap))  # fmt: skip
+        rows[cap] = stats.cpu(), pairs.cpu().view(cap, cap, N_PAIR_STATS)
+    (all4, pairs4), (all2, pairs2) = rows[4], rows[2]
+    assert float(all4[STAT_GATED]) == float(all2[STAT_GATED]) > float(pairs4[0, 1, PAIR_GATED]) > 0
+    assert float(pairs4[:, :, PAIR_GATED].sum()) == float(all4[STAT_GATED]), "every pair below the cap has a row"
+    assert float(pairs2[0, 1, PAIR_GATED]) == float(pairs4[0, 1, PAIR_GATED])
+    torch.testing.assert_close(pairs2[0, 1], pairs4[0, 1], rtol=1e-5, atol=1e-6 * float(pairs4[0, 1].abs().max()))
+
+
 def test_one_box_is_the_shared_field_transfer_walls_included(device, seed):
     """With every particle in fragment 0 the boxes hold one field, and a substep through them (P2G, normalization,
     the domain walls, G2P) is the simulator's shared-field transfer: bitwise on the CPU, where both add the
@@ -339,7 +379,7 @@ def test_a_substep_in_boxes_is_the_slot_storages(device, seed, fragments):
     slots, boxed = sims
     slots.record_contact = True
     slots.transfer()
-    P, K = boxed.particles, boxed.grid.max_fragments
+    P, K = boxed.particles, boxed.grid.pair_fragments
     stats = torch.zeros(N_STATS, device=device)
     stats[STAT_FIRST_T] = NEVER
     pair_stats = torch.zeros(K * K * N_PAIR_STATS, device=device)

@@ -170,7 +170,8 @@ class Diagnostics:
         if sim.latched:
             self._transfer(dev)
             dev.add("stats", sim.grid.contact_stats)
-            K, Kmax = sim.n_fragments, sim.grid.max_fragments  # only the fragments in use: K² of Kmax² rows
+            Kmax = sim.grid.pair_fragments  # only the fragments in use: K² of Kmax² rows
+            K = min(sim.n_fragments, Kmax)
             dev.add("pair_stats", sim.grid.pair_stats.view(Kmax, Kmax, N_PAIR_STATS)[:K, :K])
         planes = self.planes[:1]
         h = dev.read()
@@ -335,7 +336,7 @@ class Diagnostics:
     def _pair_row(self, flat: list) -> dict:
         """Per fragment pair "a-b": first contact time, contact-projection momentum residual over the
         run, deepest fragment-aware penetration/Δx (pairs that touched or overlapped only)."""
-        K = self.sim.n_fragments  # the tracker reads the K × K block of the fragments in use
+        K = min(self.sim.n_fragments, self.sim.grid.pair_fragments)  # the K × K block of the fragments in use
         out = {}
         for k in range(K * K):
             r = flat[k * N_PAIR_STATS : (k + 1) * N_PAIR_STATS]

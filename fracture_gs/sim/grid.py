@@ -28,6 +28,7 @@ from .layout import (
     NEVER,
     OWNER_MASK,
     PAIR_FIRST_T,
+    PAIR_FRAGMENTS,
     STAT_FIRST_T,
     GridView,
     pool_capacity,
@@ -132,7 +133,10 @@ class Grid:
         self.max_fragments = int(max_fragments)
         self.contact_stats = torch.zeros(N_STATS, dtype=torch.float32, device=device)
         self.contact_stats[STAT_FIRST_T] = NEVER
-        self.pair_stats = torch.zeros(self.max_fragments**2 * N_PAIR_STATS, dtype=torch.float32, device=device)
+        # per-pair rows for the first PAIR_FRAGMENTS ids only: contact between higher ids counts in the totals
+        # (max_fragments² rows would be 403 MB at 4,096 fragments, and the tracker reads them every frame)
+        self.pair_fragments = min(self.max_fragments, PAIR_FRAGMENTS)
+        self.pair_stats = torch.zeros(self.pair_fragments**2 * N_PAIR_STATS, dtype=torch.float32, device=device)
         self.pair_stats.view(-1, N_PAIR_STATS)[:, PAIR_FIRST_T] = NEVER
         self.wp = dict(stats=wp.from_torch(self.contact_stats), pair_stats=wp.from_torch(self.pair_stats))
         self.box = (0, 0, 0) + self.shape

@@ -48,6 +48,7 @@ N_STATS = 9
 # per fragment pair (a < b, row a·K + b of Grid.pair_stats)
 PAIR_FIRST_T, PAIR_DPX, PAIR_DPY, PAIR_DPZ, PAIR_PNORM, PAIR_GATED = range(6)
 N_PAIR_STATS = 6
+PAIR_FRAGMENTS = 128  # per-pair statistics for fragments below this id (K² rows: 393 KB, not max_fragments²)
 NEVER = 1e30  # a first-contact time before any contact
 
 

@@ -415,7 +415,7 @@ class Simulator(SlotStorage, FrameLoop):
     def _update_boxes(self) -> None:
         """Every fragment box's normalization, contact where fields meet, boundaries (`box_grid_update`)."""
         g, c = self.grid, self.cfg.contact
-        stats = (g.wp["stats"], g.wp["pair_stats"], g.max_fragments) if self.record_contact else None
+        stats = (g.wp["stats"], g.wp["pair_stats"], g.pair_fragments) if self.record_contact else None
         self.boxes.update(
             self.clock.view, self.eps_m, self._gravity, c.fill * self.node_mass, self.wp["centroids"],
             self.wp["counts"], self.boundaries.colliders, e=float(self.cfg.restitution), mu=float(c.friction),

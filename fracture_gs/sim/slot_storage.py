@@ -92,7 +92,7 @@ class SlotStorage:
             self._gravity,
             self.boundaries.colliders,
         ]
-        record = [int(self.record_contact), g.wp["stats"], g.wp["pair_stats"], g.max_fragments, grad0]
+        record = [int(self.record_contact), g.wp["stats"], g.wp["pair_stats"], g.pair_fragments, grad0]
         inputs = [g.view, self.eps_m, self.eps_b, c.fill * self.node_mass] + gate + law + record
         self._launch(grid_update_pool, g.capacity, inputs)
 
