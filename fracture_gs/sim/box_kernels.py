@@ -110,6 +110,8 @@ def box_p2g_runs(
     b: BoxView,
     run: int,  # consecutive particles per thread
     counts: wp.array(dtype=wp.int32),  # [N_COUNTS]
+    band: wp.array(dtype=wp.int32),  # [N] γ_p ≠ 0: an interface-band particle
+    band_mass: int,  # also add the band particles' w_ip m_p to their field's band mass (latched normals' gate)
 ):
     """Deposits of `run` consecutive particles a thread (`run_kernels.p2g_runs` on boxes): those with the same
     fragment and stencil base are summed in registers and reach their box as one reduction per node (run = 1:
@@ -149,6 +151,12 @@ def box_p2g_runs(
             wp.atomic_add(counts, COUNT_ESCAPED, 1)  # the stencil left its box: the frame is redone
             continue
         m = mass[p]
+        if band_mass != 0:
+            if band[p] != 0:
+                for i in range(3):
+                    for j in range(3):
+                        for l in range(3):  # noqa: E741
+                            wp.atomic_add(b.band, start + (i * rd[1] + j) * rd[2] + l, w[i, 0] * w[j, 1] * w[l, 2] * m)
         vp = v[p]
         Cp = C[p]
         force = -dt * volume[p] * stress[p]

@@ -150,16 +150,19 @@ class FragmentBoxes:
         listed = torch.nonzero(band != 0).flatten().to(torch.int32)
         return listed, wp.from_torch(listed)
 
-    def p2g(self, w: dict, clock, counts, run: int = 0, band=None) -> None:
+    def p2g(self, w: dict, clock, counts, run: int = 0, band=None, band_flags=None) -> None:
         """Every particle's deposit into its fragment's box, which the last `fit` or `clear` emptied. `w`: Warp
         arrays x, v, C, mass, volume, stress, fragment; `counts`: the escape counter's array; `run` > 0: that
         many consecutive particles a thread, summed in registers while they share fragment and stencil base
         (particles sorted by cell); `band` (`band_list`'s Warp view): also each field's band mass from these
-        particles (only the latched normals' gate reads it)."""
+        particles (only the latched normals' gate reads it), in a pass of its own; `band_flags` ([N] int32 Warp
+        array, γ_p ≠ 0): the band masses inside the deposits' pass instead."""
         n = w["x"].shape[0]
         arrays = [w[k] for k in ("x", "v", "C", "mass", "volume", "stress", "fragment")]
         run = max(1, int(run))
-        launch(box_p2g_runs, -(-n // run), arrays + [clock, self.view, run, counts], self.device)
+        flags = w["fragment"] if band_flags is None else band_flags
+        inputs = arrays + [clock, self.view, run, counts, flags, int(band_flags is not None)]
+        launch(box_p2g_runs, -(-n // run), inputs, self.device)
         self.band_mass(w, band)
 
     def band_mass(self, w: dict, band) -> None:

@@ -358,11 +358,8 @@ class Simulator(SlotStorage, FrameLoop):
     def _p2g(self, only_fragment: int = -1, target=None, multifield=None, stress=None, counts=None) -> None:
         g, w = target or self.grid, self.wp
         if self.boxed and target is None and multifield is None and stress is None:
-            if self.normal_mode == NORMAL_LATCHED:  # band masses for the latched gate, beside the deposits
-                with self._beside():
-                    self.boxes.band_mass(w, self.wp["band_list"])
-            self.boxes.p2g(w, self.clock.view, w["counts"] if counts is None else counts, self.p2g_run)
-            self._fork.join()
+            band = w["band"] if self.normal_mode == NORMAL_LATCHED else None  # the latched gate's band masses
+            self.boxes.p2g(w, self.clock.view, w["counts"] if counts is None else counts, self.p2g_run, band_flags=band)
             return
         multi = int(self.multifield if multifield is None else multifield)
         fan = target is None and self._fans_out(multi, only_fragment)
