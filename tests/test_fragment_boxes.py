@@ -205,17 +205,23 @@ def test_contact_where_fields_meet_is_the_reference_and_conserves_momentum(devic
     assert float((momentum(ours) - momentum(v)).abs().max()) <= 1e-5 * scale, "each node's momentum"
 
 
-def test_the_fast_math_grid_update_is_the_exact_one_to_float32_rounding(device, seed):
+@pytest.mark.parametrize("fragments", [2, 4])
+def test_the_fast_math_grid_update_is_the_exact_one_to_float32_rounding(device, seed, fragments):
     """CUDA devices run the grid update compiled with fast math (approximate division and square root): at the
-    four quadrants' fields, contact and friction included, it gives the exact kernel's velocities to float32
-    rounding, so each node's momentum is conserved as before."""
+    quadrants' fields (two halves: pairs only; four quadrants: nodes of three and four fields too), contact and
+    friction included, it gives the exact kernel's velocities to float32 rounding, so each node's momentum is
+    conserved as before."""
     P, w, counts, boxes = state(seed, device)
+    if fragments == 2:
+        P["fragment"].remainder_(2)  # the halves x < 0.5 and x > 0.5
+        boxes.fit(P["x"], P["fragment"])
+    assert boxes.K == fragments
     cw = wp.from_torch(counts)
     c = clock(device)
     boxes.p2g(w, c, cw)
     m = boxes.mp[: boxes.nodes, 3].double().cpu()
     fill = 0.05 * float(m[m > 0].mean())
-    centroids = torch.stack([P["x"][P["fragment"] == k].mean(0) for k in range(4)]).contiguous()
+    centroids = torch.stack([P["x"][P["fragment"] == k].mean(0) for k in range(fragments)]).contiguous()
     centroids = wp.from_torch(centroids, dtype=wp.vec3)
     vel = {}
     for fast in (False, True):
