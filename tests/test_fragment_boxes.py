@@ -83,8 +83,7 @@ def test_each_particle_deposits_into_its_own_fragments_box_only(device, seed, ru
     particles' mass also in the band buffer."""
     P, w, counts, boxes = state(seed, device, sort=run > 0)
     P["band"].copy_(((P["x"][:, 0] - 0.5).abs() < 1.5 / n).to(torch.int32))
-    listed, band = FragmentBoxes.band_list(P["band"])
-    boxes.p2g(w, clock(device), wp.from_torch(counts), run=run, band=band)
+    boxes.p2g(w, clock(device), wp.from_torch(counts), run=run, band_flags=w["band"])
     assert int(counts[COUNT_ESCAPED]) == 0
     gm, gp, _ = reference_fields(P)
     cpu = {k: t.cpu() for k, t in P.items()}
@@ -329,8 +328,7 @@ def test_latched_normal_contact_gated_by_both_band_masses(device, seed):
     boxes.fit(P["x"], P["fragment"])
     cw = wp.from_torch(counts)
     c = clock(device)
-    listed, band = FragmentBoxes.band_list(P["band"])
-    boxes.p2g(w, c, cw, band=band)
+    boxes.p2g(w, c, cw, band_flags=w["band"])
     cpu = {k: t.cpu().clone() for k, t in P.items()}
     gm, gp, gb = ref.p2g(
         cpu["x"], cpu["v"], cpu["C"], cpu["mass"], cpu["volume"], cpu["stress"], cpu["fragment"], 2, (n, n, n),
@@ -393,8 +391,7 @@ def test_a_substep_in_boxes_is_the_slot_storages(device, seed, fragments):
     boxes = FragmentBoxes(boxed.grid.shape, boxed.grid.origin, boxed.grid.dx, device)
     boxes.fit(P.x, P.fragment)
     w, cw, c = boxed.wp, boxed.wp["counts"], boxed.cfg
-    listed, band = FragmentBoxes.band_list(P.band)
-    boxes.p2g(w, boxed.clock.view, cw, band=band)
+    boxes.p2g(w, boxed.clock.view, cw, band_flags=w["band"])
     crowded = crowded_particles(boxes, P.x.cpu(), boxed.eps_m)  # [N] a stencil node holds three fields or more
     boxed.boundaries.colliders.wall_cells = int(c.wall_cells)
     n = tuple(float(a) for a in boxed._normal)

@@ -6,10 +6,10 @@ its own fragment's box: no owner words, claims or pool. Launches cover the buffe
 the boxes has box_of = −1.
 
 - `box_clear`: m, p and the band mass of every field to 0.
-- `box_band_mass`: each field's band mass (its band particles' Σ w_ip m_p), for the latched normals' gate.
 - `box_p2g_runs`: Eq. multifield_p2g, m_i^k += Σ w_ip m_p, p_i^k += Σ w_ip m_p (v_p + C_p(x_i − x_p)) − Δt V⁰ τ_p
   ∇w_ip, for the particles of fragment k into B_k, `run` consecutive particles a thread (a stencil that
-  leaves B_k is counted as an escape and not deposited: the frame is then redone with larger boxes).
+  leaves B_k is counted as an escape and not deposited: the frame is then redone with larger boxes); with the
+  latched normals also each field's band mass Σ w_ip m_p over its band particles (the contact gate).
 - `box_grid_update`: per field node v_i^k = p_i^k / m_i^k + Δt g where m_i^k > ε_m (else 0); where two or
   more fields hold mass at a node, the thread of the lowest fragment id there leads: it projects every pair
   in fragment order (the Gauss–Seidel of `contact.contact_projection`; normals and gate of
@@ -183,31 +183,6 @@ def flush_box(b: BoxView, origin: int, d: wp.vec3i, acc: stencil_sums):
                 atomic_add_vec4(
                     b.mp, origin + (i * d[1] + j) * d[2] + l, wp.vec4(acc[q, 0], acc[q, 1], acc[q, 2], acc[q, 3])
                 )
-
-
-@wp.kernel
-def box_band_mass(
-    x: wp.array(dtype=wp.vec3),  # [N]
-    mass: wp.array(dtype=float),  # [N]
-    fragment: wp.array(dtype=wp.int32),  # [N]
-    listed: wp.array(dtype=wp.int32),  # [B] the interface-band particles (γ_p ≠ 0)
-    b: BoxView,
-):
-    """The band mass of every field, Σ w_ip m_p over its band particles (the latched normals' contact gate):
-    a thread per band particle, in a pass of its own so that P2G carries no band work."""
-    p = listed[wp.tid()]
-    k = wp.max(fragment[p], 0)
-    base, f, w, dw = stencil(x[p], b.origin, b.inv_dx, b.shape)
-    if not stencil_inside(b, k, base):
-        return  # counted by P2G
-    origin = box_index(b, k, base)
-    d = b.dims[k]
-    m = mass[p]
-    for i in range(3):
-        for j in range(3):
-            for l in range(3):  # noqa: E741
-                weight = w[i, 0] * w[j, 1] * w[l, 2]
-                wp.atomic_add(b.band, origin + (i * d[1] + j) * d[2] + l, weight * m)
 
 
 @wp.func

@@ -16,7 +16,6 @@ from ..runtime import ensure_warp, launch
 from .box_kernels import (
     MAX_FIELDS,
     BoxView,
-    box_band_mass,
     box_clear,
     box_g2p,
     box_grid_update,
@@ -143,33 +142,18 @@ class FragmentBoxes:
         v.shape, v.boxes = wp.vec3i(*self.shape), self.K
         self.view = v
 
-    @staticmethod
-    def band_list(band: torch.Tensor):
-        """[B] int32 indices of the band particles (γ_p ≠ 0) of a [N] flag tensor, and its Warp view (keep the
-        tensor alive while the view is used)."""
-        listed = torch.nonzero(band != 0).flatten().to(torch.int32)
-        return listed, wp.from_torch(listed)
-
-    def p2g(self, w: dict, clock, counts, run: int = 0, band=None, band_flags=None) -> None:
+    def p2g(self, w: dict, clock, counts, run: int = 0, band_flags=None) -> None:
         """Every particle's deposit into its fragment's box, which the last `fit` or `clear` emptied. `w`: Warp
         arrays x, v, C, mass, volume, stress, fragment; `counts`: the escape counter's array; `run` > 0: that
         many consecutive particles a thread, summed in registers while they share fragment and stencil base
-        (particles sorted by cell); `band` (`band_list`'s Warp view): also each field's band mass from these
-        particles (only the latched normals' gate reads it), in a pass of its own; `band_flags` ([N] int32 Warp
-        array, γ_p ≠ 0): the band masses inside the deposits' pass instead."""
+        (particles sorted by cell); `band_flags` ([N] int32 Warp array, γ_p ≠ 0): also each field's band mass
+        from its band particles (only the latched normals' gate reads it), in the same pass."""
         n = w["x"].shape[0]
         arrays = [w[k] for k in ("x", "v", "C", "mass", "volume", "stress", "fragment")]
         run = max(1, int(run))
         flags = w["fragment"] if band_flags is None else band_flags
         inputs = arrays + [clock, self.view, run, counts, flags, int(band_flags is not None)]
         launch(box_p2g_runs, -(-n // run), inputs, self.device)
-        self.band_mass(w, band)
-
-    def band_mass(self, w: dict, band) -> None:
-        """Each field's band mass from the particles of `band` (`band_list`'s Warp view; None: nothing), into
-        boxes the last `fit` or `clear` emptied. Independent of `p2g`: it may run beside it."""
-        if band is not None and band.shape[0] > 0:
-            launch(box_band_mass, band.shape[0], [w["x"], w["mass"], w["fragment"], band, self.view], self.device)
 
     def clear(self) -> None:
         """Empty every field (m, p, band mass) for the next P2G. G2P reads only velocities, so this may run

@@ -63,7 +63,7 @@ class FrameLoop:
             self._fan_cap,
             self._run_length(int(self.multifield)),
             self.concurrent,
-            (self.boxes.layout_key, self._band_list.data_ptr(), len(self._band_list)) if self.boxed else None,
+            self.boxes.layout_key if self.boxed else None,
         )
 
     def _frame_substeps_run(self, n: int, dt: float, start: float) -> None:

@@ -516,7 +516,6 @@ class Simulator(SlotStorage, FrameLoop):
         self.pool_rows = max(self.pool_rows, 4 * bands + len(P) // 64)
         self._reset_boxes()  # the routing changed: the next advance() refits the box and the pool
         self.set_solo(None)
-        self._list_band()
         if self.boxed:  # boxes for the new fragments (the next frame's fit adds its travel)
             if self.normal_mode == NORMAL_MASS_GRADIENT:
                 self._update_centroids()
@@ -559,10 +558,4 @@ class Simulator(SlotStorage, FrameLoop):
             self.topology = self.topologies[-1]
         self.p2g_run = P2G_RUN if mode == "cell" and self.device != "cpu" else 0
         self.set_solo(None)  # recomputed for the new order at the next frame
-        self._list_band()
         return order
-
-    def _list_band(self) -> None:
-        """The band particles' indices, for the boxes' band-mass pass (at a latch and after a reorder)."""
-        if self.boxes is not None:
-            self._band_list, self.wp["band_list"] = FragmentBoxes.band_list(self.particles.band)
