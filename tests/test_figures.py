@@ -144,7 +144,7 @@ def test_curves_png(tmp_path):
     assert cv2.imread(str(tmp_path / "curves.png")).shape == (2 * 140, 450, 3)  # figsize (9, 2.8·rows) × dpi
 
 
-def two_blocks(variant="full"):
+def two_blocks(variant="full", storage="auto"):
     """Two blocks 2Δx apart closing at 1 m/s: their fields share support nodes at once."""
     dx = 1 / 16
     xa, vol = accuracy.lattice((0.25, 0.375, 0.375), (0.4375, 0.625, 0.625), dx / 2)
@@ -155,15 +155,21 @@ def two_blocks(variant="full"):
     P = S.Particles(
         x=x.float(), v=v.float(), mass=torch.full((n,), 1000 * vol), volume=torch.full((n,), vol), E=1e4, nu=0.3
     )
-    sim = S.Simulator(S.SimConfig(dx=dx, grid_shape=(16, 16, 16), gravity=(0, 0, 0), variant=variant, dt=1e-3), P)
+    cfg = S.SimConfig(dx=dx, grid_shape=(16, 16, 16), gravity=(0, 0, 0), variant=variant, dt=1e-3, grid_storage=storage)
+    sim = S.Simulator(cfg, P)
     sim.latch(S.Topology.from_plane(sim.particles.x, (0.5, 0.5, 0.5), (1.0, 0.0, 0.0), 2 * dx))
     for _ in range(5):
         sim.substep()
     return sim
 
 
-def test_method_slice_and_figure(tmp_path):
-    sim = two_blocks()
+@pytest.mark.parametrize("storage", ["auto", "boxes"])
+def test_method_slice_and_figure(tmp_path, storage):
+    """The method figure's slice: nodes of one field, of both, and projected; the impulse on field 1 pushes
+    it back. In per-fragment boxes (emptied after every substep) the slice comes from a substep at the end
+    state, whose projected nodes are those a slot storage's next substep would project."""
+    sim = two_blocks(storage=storage)
+    assert sim.boxed == (storage == "boxes")
     d = method_slice(sim)
     assert d is not None and d["axes"] == (0, 1)
     cats = set(d["category"].tolist())
@@ -177,6 +183,22 @@ def test_method_slice_and_figure(tmp_path):
     assert cv2.imread(str(tmp_path / "method.png")).shape == (230, 400, 3)  # figsize (8, 4.6) × 50 dpi
     assert method_slice(two_blocks("stress_zero")) is None  # a single-field variant has no field sets
     json.dumps({k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in d.items()})  # cacheable
+
+
+def test_reading_the_box_fields_leaves_the_run_unchanged():
+    """`Simulator.box_fields` deposits and updates a substep of its own for the method figure: the run that
+    read it goes on bitwise as the one that did not (boxes emptied again, no contact statistics, no escapes
+    counted)."""
+    a, b = two_blocks(storage="boxes"), two_blocks(storage="boxes")
+    stats = a.grid.contact_stats.clone()
+    m, p, v, band = a.box_fields()
+    assert m.shape == (2, 16, 16, 16) and v.shape == (2, 16, 16, 16, 3) and float(m.sum()) > 0
+    assert torch.equal(a.grid.contact_stats, stats) and int(a.counts.sum()) == int(b.counts.sum())
+    for _ in range(3):
+        a.substep()
+        b.substep()
+    for name in ("x", "v", "C", "F"):
+        assert torch.equal(getattr(a.particles, name), getattr(b.particles, name)), name
 
 
 def test_quick_protocol_keeps_the_protocol_frames():

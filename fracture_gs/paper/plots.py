@@ -79,8 +79,9 @@ def method_slice(sim, axis: int = 2, where: Optional[float] = None) -> Optional[
     """A 2D slice of a fragment-conditioned simulation's last substep (real data for the method
     figure): particles within Δx of the slice coloured by fragment and band, the slice's grid
     nodes by the set of active fields, and the contact impulse m¹(v¹₊ − v¹₋) on field 1 at every
-    node the projection acted on (equal and opposite on field 0). None before the latch or for a
-    single-field variant."""
+    node the projection acted on (equal and opposite on field 0). With per-fragment boxes (emptied after
+    every substep) the fields are those of a substep at the current particles (`Simulator.box_fields`).
+    None before the latch or for a single-field variant."""
     if not sim.latched or sim.grid.n_fields < 2:
         return None
     P, g = sim.particles, sim.grid
@@ -96,10 +97,14 @@ def method_slice(sim, axis: int = 2, where: Optional[float] = None) -> Optional[
     idx = [slice(None)] * 3
     idx[axis] = k
     idx = tuple(idx)
-    m = g.mass.detach().double().cpu().numpy()[(slice(None),) + idx]  # [2, A, B]
-    p = g.momentum.detach().double().cpu().numpy()[(slice(None),) + idx]  # [2, A, B, 3]
-    vpost = g.velocity.detach().double().cpu().numpy()[(slice(None),) + idx]
-    mb = g.band_mass.detach().double().cpu().numpy()[(slice(None),) + idx]
+    # the last substep's fields; per-fragment boxes are emptied after each substep: a substep's at the end state
+    mass, momentum, velocity, band_mass = (
+        sim.box_fields() if sim.boxed else (g.mass, g.momentum, g.velocity, g.band_mass)
+    )
+    m = mass.detach().double().cpu().numpy()[(slice(0, 2),) + idx]  # [2, A, B]
+    p = momentum.detach().double().cpu().numpy()[(slice(0, 2),) + idx]  # [2, A, B, 3]
+    vpost = velocity.detach().double().cpu().numpy()[(slice(0, 2),) + idx]
+    mb = band_mass.detach().double().cpu().numpy()[(slice(0, 2),) + idx]
     eps_m, eps_b = sim.eps_m, sim.eps_b
     act = m > eps_m
     grav = np.asarray(sim.cfg.gravity, dtype=np.float64)

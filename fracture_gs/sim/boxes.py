@@ -213,3 +213,20 @@ class FragmentBoxes:
         a, b = int(self.offset[k]), int(self.offset[k + 1])
         d = [int(s) for s in self.dims[k]]
         return self.mp[a:b, 3].reshape(d), self.mp[a:b, :3].reshape(*d, 3), self.vel[a:b].reshape(*d, 3)
+
+    def dense(self, K: int) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+        """Fields 0 … K−1 on the whole grid: mass [K, X, Y, Z], momentum [K, X, Y, Z, 3], velocity [K, X, Y, Z, 3]
+        and band mass [K, X, Y, Z], zero outside each box (what the slot storage's grid views give)."""
+        shape = self.shape
+        m = torch.zeros((K, *shape), dtype=torch.float32, device=self.device)
+        p = torch.zeros((K, *shape, 3), dtype=torch.float32, device=self.device)
+        v = torch.zeros_like(p)
+        band = torch.zeros_like(m)
+        for k in range(min(K, self.K)):
+            lo = [int(a) for a in self.lo[k]]
+            a, b = int(self.offset[k]), int(self.offset[k + 1])
+            d = [int(s) for s in self.dims[k]]
+            at = (k, *(slice(lo[i], lo[i] + d[i]) for i in range(3)))
+            m[at], p[at], v[at] = self.field(k)
+            band[at] = self.band[a:b].reshape(d)
+        return m, p, v, band

@@ -276,6 +276,25 @@ class Simulator(SlotStorage, FrameLoop):
             return False
         return self.cfg.grid_storage == "boxes" or self.normal_mode == NORMAL_MASS_GRADIENT
 
+    def box_fields(self) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+        """With the boxes: a substep's fields at the current particles, as the slot storage's grid views give
+        them after a substep (mass [K, X, Y, Z], momentum and velocity [K, X, Y, Z, 3], band mass [K, X, Y, Z]).
+        The boxes are emptied right after each substep, so this deposits the particles again and runs the grid
+        update (no G2P, no contact statistics, escapes counted apart), reads the fields and empties the boxes."""
+        if not self.boxed:
+            raise SimulationError("box_fields needs the fields in per-fragment boxes (after a latch, boxed storage)")
+        record, self.record_contact = self.record_contact, False
+        try:
+            with self._stream_scope():
+                scratch = torch.zeros_like(self.counts)  # escapes here are not the frame's
+                self._p2g(counts=wp.from_torch(scratch))
+                self._update_boxes()
+                fields = self.boxes.dense(self.n_fragments)
+                self.boxes.clear()
+        finally:
+            self.record_contact = record
+        return fields
+
     @property
     def grid_nbytes(self) -> int:
         """Bytes of the grid buffers this simulator holds: the grid (dense, with slots and pool) and, when the
