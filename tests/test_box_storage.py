@@ -107,6 +107,7 @@ def test_more_fields_than_slots_are_counted_and_keep_their_mass(device, seed):
     tracker = sim.diagnostics_tracker()
     sim.advance(FRAME)
     assert tracker.history[-1]["slot_overflow"] > 0
+    assert tracker.history[-1]["pool_rows"] == 0, "boxes keep no pool of multi-field nodes"
     P = sim.particles
     total = float(P.mass.double().sum())
     assert abs(deposited_mass(sim) - total) <= 1e-5 * total

@@ -189,7 +189,8 @@ class Diagnostics:
             "kinetic_energy": h["kinetic_energy"][0],
         }
         if sim.latched:
-            row.update(fragments=sim.n_fragments, slot_overflow=sim.slot_overflow, pool_rows=sim.pool_rows)
+            pool_rows = 0 if sim.boxed else sim.pool_rows  # per-fragment boxes have no pool of multi-field nodes
+            row.update(fragments=sim.n_fragments, slot_overflow=sim.slot_overflow, pool_rows=pool_rows)
             row.update(self._transfer_row(h))
             row.update(self._interface_row(h))
             row.update(self._contact_row(h))
