@@ -60,7 +60,6 @@ class BoxView:
     dx: float
     inv_dx: float
     shape: wp.vec3i  # the grid's nodes per axis (stencils are clamped into it, as on the dense grid)
-    boxes: int  # K in use
 
 
 @wp.func
@@ -324,7 +323,6 @@ box_grid_update_fast = wp.kernel(
     name="box_grid_update_fast",
     module="unique",
     module_options={"fast_math": True, "enable_backward": False},
-    enable_backward=False,
 )
 """`box_grid_update` compiled with fast math, for CUDA devices: its cost is the contact leaders' chains of
 dependent arithmetic, and approximate division and square root shorten them (19.2 → 16.0 µs at K = 16,

@@ -46,6 +46,8 @@ class FragmentBoxes:
         self.K = 0
         self.view = None
         self._no_stats = wp.zeros(1, dtype=float, device=device)  # the statistics' arrays when none are kept
+        self._origin = torch.tensor(self.origin, dtype=torch.float64, device=device)  # for `fit`, made once
+        self._top = torch.tensor(self.shape, device=device) - 1  # the grid's last node per axis
 
     def _grow_overlaps(self, n: int) -> None:
         """Room for n entries of the overlap lists (their number follows the overlapping pairs, O(K), not
@@ -69,14 +71,15 @@ class FragmentBoxes:
 
     def fit(self, x: torch.Tensor, fragment: torch.Tensor, slack: int = 1, K: int = 0) -> bool:  # [N, 3], [N]
         """Box k: the bounding box of fragment k's stencils plus `slack` nodes each way, inside the grid, for
-        k < K (default: the largest id + 1). Device work and one host read (the node total); returns whether
-        the buffers grew (recorded launches must then be recorded again)."""
+        k < K (default: the largest id + 1, a host read). Device work and two host reads (the node total, and
+        the overlap lists' length in `nonzero`); returns whether the buffers grew (recorded launches must then
+        be recorded again)."""
         dev = x.device
         k = fragment.long().clamp_min(0)
         K = max(int(K), 1) if K else (int(k.max()) + 1 if k.numel() else 1)
         if K > self.max_fragments:
             raise ValueError(f"{K} fragments do not fit {self.max_fragments} boxes")
-        base = torch.floor((x.double() - torch.tensor(self.origin, dtype=torch.float64, device=dev)) / self.dx - 0.5)
+        base = torch.floor((x.double() - self._origin.to(dev)) / self.dx - 0.5)
         base = base.long()
         idx = k[:, None].expand(-1, 3)
         big = 1 << 30
@@ -84,7 +87,7 @@ class FragmentBoxes:
         hi = torch.full((K, 3), -big, dtype=torch.long, device=dev).scatter_reduce_(0, idx, base + 2, "amax")
         empty = (lo[:, 0] == big)[:, None]
         lo, hi = torch.where(empty, 0, lo), torch.where(empty, 0, hi)
-        top = torch.tensor(self.shape, device=dev) - 1
+        top = self._top.to(dev)
         lo = (lo - slack).clamp_min(0).minimum(top)
         hi = torch.maximum((hi + slack).minimum(top), lo)
         dims = hi - lo + 1  # [K, 3]
@@ -116,7 +119,7 @@ class FragmentBoxes:
         self.over_dims[: len(pairs)].copy_(dims[pairs])
         self.over_off[: len(pairs)].copy_(offset[pairs])
         where = torch.arange(self.capacity, device=self.device)
-        box = torch.searchsorted(offset[1:].to(self.device), where, right=True)
+        box = torch.searchsorted(offset[1:], where, right=True)
         self.box_of.copy_(torch.where(box < K, box, -1))
         self.mp.zero_()  # the boxes moved: P2G starts from empty fields (afterwards `clear` empties them)
         self.band.zero_()
@@ -139,7 +142,7 @@ class FragmentBoxes:
         v.mp, v.vel = wp.from_torch(self.mp, dtype=wp.vec4), wp.from_torch(self.vel, dtype=wp.vec3)
         v.band = wp.from_torch(self.band)
         v.origin, v.dx, v.inv_dx = wp.vec3(*self.origin), self.dx, 1.0 / self.dx
-        v.shape, v.boxes = wp.vec3i(*self.shape), self.K
+        v.shape = wp.vec3i(*self.shape)
         self.view = v
 
     def p2g(self, w: dict, clock, counts, run: int = 0, band_flags=None) -> None:

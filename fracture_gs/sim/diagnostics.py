@@ -337,7 +337,7 @@ class Diagnostics:
     def _pair_row(self, flat: list) -> dict:
         """Per fragment pair "a-b": first contact time, contact-projection momentum residual over the
         run, deepest fragment-aware penetration/Δx (pairs that touched or overlapped only)."""
-        K = min(self.sim.n_fragments, self.sim.grid.pair_fragments)  # the K × K block of the fragments in use
+        K = math.isqrt(len(flat) // N_PAIR_STATS)  # the K × K block of the fragments in use, as read
         out = {}
         for k in range(K * K):
             r = flat[k * N_PAIR_STATS : (k + 1) * N_PAIR_STATS]
