@@ -76,6 +76,33 @@ def boxed(boxes, k, dense):  # the region of box k in a dense [n, n, n, ...] fie
     return dense[lo[0] : lo[0] + d[0], lo[1] : lo[1] + d[1], lo[2] : lo[2] + d[2]]
 
 
+@pytest.mark.parametrize("sort", [False, True])
+def test_each_box_is_its_fragments_stencils_plus_the_slack(device, seed, sort):
+    """`fit` gives box k the nodes from the lowest to the highest stencil node of fragment k's particles,
+    base = ⌊(x − origin)/Δx − ½⌋ in float64, widened by the slack and clamped into the grid; a fragment without
+    particles gets a box of (slack + 1)³ nodes at the grid's first corner, which no particle reaches. The
+    bounds are reduced a few particles at a time on the device, so the particles in any order (random, or
+    sorted by cell as the solver keeps them) give the same boxes."""
+    P, _, _, boxes = state(seed, device, sort=sort)
+    fragment = P["fragment"].clone()
+    fragment[fragment == 2] = 4  # fragment 2 has no particles; 4 is the largest id
+    x = P["x"].clone()
+    x[0] = torch.tensor([0.01, 0.5, 0.98])  # a particle near the grid's faces: its box is clamped there
+    for slack in (1, 3):
+        boxes.fit(x, fragment, slack=slack, K=6)
+        base = torch.floor(x.double().cpu() / (1.0 / n) - 0.5).long()  # origin 0, Δx = 1/n
+        for k in range(6):
+            mine = fragment.cpu() == k
+            lo, dims = boxes.lo[k].cpu().long(), boxes.dims[k].cpu().long()
+            if not bool(mine.any()):
+                assert lo.tolist() == [0, 0, 0] and dims.tolist() == [slack + 1] * 3, f"empty fragment {k}"
+                continue
+            want_lo = (base[mine].amin(0) - slack).clamp(0, n - 1)
+            want_hi = (base[mine].amax(0) + 2 + slack).clamp(max=n - 1)
+            assert lo.tolist() == want_lo.tolist(), (k, slack)
+            assert (lo + dims - 1).tolist() == want_hi.tolist(), (k, slack)
+
+
 @pytest.mark.parametrize("run", [0, 8])
 def test_each_particle_deposits_into_its_own_fragments_box_only(device, seed, run):
     """One particle a thread, or runs of 8 consecutive particles summed in registers (sorted by cell, so runs

@@ -90,6 +90,49 @@ def stencil_inside(b: BoxView, k: int, base: wp.vec3i):
 
 
 @wp.kernel
+def fragment_bounds(
+    x: wp.array(dtype=wp.vec3),  # [N]
+    fragment: wp.array(dtype=wp.int32),  # [N]
+    origin: wp.vec3d,
+    dx: wp.float64,
+    run: int,  # consecutive particles a thread
+    lo: wp.array2d(dtype=wp.int32),  # [K, 3] in: a large value; out: the lowest stencil base of fragment k
+    hi: wp.array2d(dtype=wp.int32),  # [K, 3] in: a small value; out: the highest stencil base + 2
+):
+    """Each fragment's range of stencil nodes, base = ⌊(x − origin)/Δx − ½⌋ in float64 (as `FragmentBoxes.fit`
+    had it from torch). A thread keeps the bounds of `run` consecutive particles while their fragment stays the
+    same and reduces them once per change: particles sorted by cell mostly share their neighbours' fragment,
+    so the few bounds of K boxes are not hit by one atomic per particle (torch's scatter_reduce took 1.9 ms at
+    183k particles and K = 2 on an H200)."""
+    t = wp.tid()
+    k = int(-1)  # noqa: UP018 (a dynamic Warp variable)
+    a = wp.vec3i(0, 0, 0)
+    c = wp.vec3i(0, 0, 0)
+    for p in range(t * run, wp.min(t * run + run, x.shape[0])):
+        kp = wp.max(fragment[p], 0)
+        xp = x[p]
+        base = wp.vec3i(0, 0, 0)
+        for d in range(3):
+            base[d] = int(wp.floor((wp.float64(xp[d]) - origin[d]) / dx - wp.float64(0.5)))
+        if kp != k:
+            if k >= 0:
+                for d in range(3):
+                    wp.atomic_min(lo, k, d, a[d])
+                    wp.atomic_max(hi, k, d, c[d] + 2)
+            k = kp
+            a = base
+            c = base
+        else:
+            for d in range(3):
+                a[d] = wp.min(a[d], base[d])
+                c[d] = wp.max(c[d], base[d])
+    if k >= 0:
+        for d in range(3):
+            wp.atomic_min(lo, k, d, a[d])
+            wp.atomic_max(hi, k, d, c[d] + 2)
+
+
+@wp.kernel
 def box_clear(b: BoxView):
     t = wp.tid()
     b.mp[t] = wp.vec4(0.0)

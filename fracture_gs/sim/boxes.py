@@ -21,10 +21,12 @@ from .box_kernels import (
     box_grid_update,
     box_grid_update_fast,
     box_p2g_runs,
+    fragment_bounds,
 )
 from .contact import NORMAL_LATCHED, NORMAL_MASS_GRADIENT
 
 GROWTH = 1.25  # capacity headroom when the boxes outgrow the buffer
+BOUNDS_RUN = 32  # consecutive particles a thread of `fragment_bounds` reduces before its atomics
 
 
 class FragmentBoxes:
@@ -46,7 +48,6 @@ class FragmentBoxes:
         self.K = 0
         self.view = None
         self._no_stats = wp.zeros(1, dtype=float, device=device)  # the statistics' arrays when none are kept
-        self._origin = torch.tensor(self.origin, dtype=torch.float64, device=device)  # for `fit`, made once
         self._top = torch.tensor(self.shape, device=device) - 1  # the grid's last node per axis
 
     def _grow_overlaps(self, n: int) -> None:
@@ -75,16 +76,18 @@ class FragmentBoxes:
         the overlap lists' length in `nonzero`); returns whether the buffers grew (recorded launches must then
         be recorded again)."""
         dev = x.device
-        k = fragment.long().clamp_min(0)
-        K = max(int(K), 1) if K else (int(k.max()) + 1 if k.numel() else 1)
+        K = max(int(K), 1) if K else (int(fragment.max().clamp_min(0)) + 1 if fragment.numel() else 1)
         if K > self.max_fragments:
             raise ValueError(f"{K} fragments do not fit {self.max_fragments} boxes")
-        base = torch.floor((x.double() - self._origin.to(dev)) / self.dx - 0.5)
-        base = base.long()
-        idx = k[:, None].expand(-1, 3)
         big = 1 << 30
-        lo = torch.full((K, 3), big, dtype=torch.long, device=dev).scatter_reduce_(0, idx, base, "amin")
-        hi = torch.full((K, 3), -big, dtype=torch.long, device=dev).scatter_reduce_(0, idx, base + 2, "amax")
+        lo = torch.full((K, 3), big, dtype=torch.int32, device=dev)
+        hi = torch.full((K, 3), -big, dtype=torch.int32, device=dev)
+        if len(x):
+            xs = wp.from_torch(x.contiguous(), dtype=wp.vec3)
+            ks = wp.from_torch(fragment.to(torch.int32).contiguous())
+            inputs = [xs, ks, wp.vec3d(*self.origin), self.dx, BOUNDS_RUN, wp.from_torch(lo), wp.from_torch(hi)]
+            launch(fragment_bounds, -(-len(x) // BOUNDS_RUN), inputs, self.device)
+        lo, hi = lo.long(), hi.long()
         empty = (lo[:, 0] == big)[:, None]
         lo, hi = torch.where(empty, 0, lo), torch.where(empty, 0, hi)
         top = self._top.to(dev)
