@@ -218,8 +218,8 @@ class SimConfig:
     grid_storage: GridStorage = "auto"
     """Where the fragment fields live after a latch (multi-field variants): `slots` (one dense grid plus a pool
     of extra slots at nodes two fragments reach), `boxes` (a dense box per fragment, fitted every frame;
-    DESIGN.md "Grid storage: per-fragment boxes") or `auto` (boxes once contact takes mass-gradient normals,
-    i.e. many pieces or repeated fracture; slots for one plane cut into two, the paper's setting)."""
+    DESIGN.md "Grid storage: per-fragment boxes") or `auto` (the boxes, for one plane cut as for many pieces:
+    the faster storage on a GPU, the same trajectories on the CPU)."""
     contact: ContactConfig = field(default_factory=ContactConfig)
     """Fragment–fragment contact: friction and normals."""
     max_grid_cells: int = 16_777_216

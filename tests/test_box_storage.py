@@ -11,6 +11,7 @@ import pytest
 import torch
 from test_transfer_launch import slab
 
+from fracture_gs.sim.contact import NORMAL_LATCHED
 from fracture_gs.sim.layout import N_PAIR_STATS, PAIR_GATED, STAT_FIRST_T, STAT_GATED
 from fracture_gs.sim.topology import FractureEvent
 
@@ -158,16 +159,17 @@ def test_local_multifield_in_boxes_detects_what_the_slots_detect_and_projects_no
     assert float((full.particles.v - boxes.particles.v).abs().max()) > 1e-3, "FractureFields projects"
 
 
-def test_auto_storage_moves_to_boxes_when_a_second_latch_makes_a_third_piece(device, seed):
-    """`grid_storage = "auto"`: a plane cut into two pieces runs in the slots (latched normal); a later latch
-    that splits one piece again (three pieces: mass-gradient normals) moves the fields into boxes. The latch is
-    impulse-free (x, v, C, F unchanged to the bit), and the boxes then hold every particle's mass."""
+def test_auto_storage_keeps_boxes_when_a_second_latch_makes_a_third_piece(device, seed):
+    """`grid_storage = "auto"`: a plane cut into two pieces runs in per-fragment boxes (latched normal); a later
+    latch that splits one piece again (three pieces: mass-gradient normals) keeps them, with a box for the new
+    piece. The latch is impulse-free (x, v, C, F unchanged to the bit), and the boxes then hold every particle's
+    mass."""
     sim, topo = slab(seed, device, 2, storage="auto")
     sim.latch(topo)
     P = sim.particles
     P.v.copy_(0.5 * (0.5 - P.x))
     sim.advance(FRAME)
-    assert not sim.boxed
+    assert sim.boxed and sim.boxes.K == 2 and sim.normal_mode == NORMAL_LATCHED
     fragment = topo.fragment.clone()
     fragment[(topo.fragment == 1) & (P.x[:, 1].cpu() > 0.5)] = 2  # the second piece cut along y
     cut = FractureEvent("plane", sim.time, sim.frame, (1,), (2,), (0.5, 0.5, 0.5), (0.0, 1.0, 0.0))

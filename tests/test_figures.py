@@ -163,13 +163,13 @@ def two_blocks(variant="full", storage="auto"):
     return sim
 
 
-@pytest.mark.parametrize("storage", ["auto", "boxes"])
+@pytest.mark.parametrize("storage", ["auto", "slots", "boxes"])
 def test_method_slice_and_figure(tmp_path, storage):
     """The method figure's slice: nodes of one field, of both, and projected; the impulse on field 1 pushes
     it back. In per-fragment boxes (emptied after every substep) the slice comes from a substep at the end
     state, whose projected nodes are those a slot storage's next substep would project."""
     sim = two_blocks(storage=storage)
-    assert sim.boxed == (storage == "boxes")
+    assert sim.boxed == (storage != "slots")
     d = method_slice(sim)
     assert d is not None and d["axes"] == (0, 1)
     cats = set(d["category"].tolist())

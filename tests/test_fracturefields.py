@@ -14,7 +14,7 @@ from fracture_gs.sim.diagnostics import SEPARATION, reapproach_ratio
 N = 3000
 
 
-def split_state(seed, device, variant, plane_x=0.5, band_all=False, boundaries=()):
+def split_state(seed, device, variant, plane_x=0.5, band_all=False, boundaries=(), storage="auto"):
     """Random particles in a box straddling the plane x = plane_x (so fragments share support)."""
     g = torch.Generator().manual_seed(seed)
     x = 0.3 + 0.4 * torch.rand(N, 3, generator=g)
@@ -31,6 +31,7 @@ def split_state(seed, device, variant, plane_x=0.5, band_all=False, boundaries=(
         nu=0.3,
     )
     cfg = config(32, variant=variant, gravity=(0.0, 0.0, -9.8), dt=1e-3, boundaries=list(boundaries))
+    cfg.grid_storage = storage
     sim = S.Simulator(cfg, P, device=device)
     topo = S.Topology.from_plane(sim.particles.x, (plane_x, 0.5, 0.5), (1.0, 0.0, 0.0), 0.05 if not band_all else 1.0)
     return sim, topo
@@ -42,7 +43,7 @@ def test_two_field_transfer_matches_reference(device, seed, fitted):
     field-aware G2P equal their float64 references (dense fields), read back from the slot storage
     (slot 0 dense, fragment 1 in pool rows where both fragments meet); fitted, the grid work shrinks
     to the particles' box and the pool holds only nodes near the interface."""
-    sim, topo = split_state(seed, device, "full")
+    sim, topo = split_state(seed, device, "full", storage="slots")
     sim.latch(topo)
     P, g, dt = sim.particles, sim.grid, 1e-3
     sim.cfg.wall_cells = 0
@@ -145,6 +146,7 @@ def contact_grid(device, slots=2, friction=0.0, normal="latched", n=(1.0, 0.0, 0
         wall_cells=0,
         field_slots=max(slots, 2),
         contact=S.ContactConfig(friction=friction, normal=normal),
+        grid_storage="slots",  # the tests write the fields into the slots
     )
     sim = S.Simulator(cfg, particles(x, vol), device=device)
     sim.latch(S.Topology.from_plane(sim.particles.x, (0.5, 0.5, 0.5), tuple(n), 0.0))
@@ -300,10 +302,11 @@ def test_escaping_particles_redo_the_frame(seed):
 @pytest.mark.parametrize("variant", ["baseline", "full"])
 def test_active_box_skips_only_empty_nodes(seed, variant):
     """Restricting grid work to each field's box (plus stencil and travel) gives exactly the
-    full-grid update (CPU, bitwise): the skipped nodes hold no mass."""
+    full-grid update (CPU, bitwise): the skipped nodes hold no mass (the dense grid's box: shared field, or
+    the slot storage)."""
     runs = []
     for fit in (False, True):
-        sim, topo = split_state(seed, "cpu", variant, plane_x=0.45)
+        sim, topo = split_state(seed, "cpu", variant, plane_x=0.45, storage="slots")
         sim.latch(topo)
         if fit:
             sim.fit_active_box(0.01)
@@ -317,8 +320,8 @@ def test_active_box_skips_only_empty_nodes(seed, variant):
 
 def test_table2_bench_times_every_build_of_every_branch():
     """fracture_gs.paper.bench's Table 2: every branch is built `placements` times and each build is timed
-    in every trial (round-robin), on the same latched state; FractureFields' second field costs
-    memory only on the shared box."""
+    in every trial (round-robin), on the same latched state; FractureFields keeps the dense grid (for the time
+    before a latch) and adds a box per fragment: more memory than Shared, less than twice."""
     from fracture_gs.paper.bench import BRANCHES, bench_state, time_branches
 
     cfg, P, topo = bench_state(3000, "cpu", n=32)
@@ -329,7 +332,7 @@ def test_table2_bench_times_every_build_of_every_branch():
         assert r["min_ms"] <= r["median_ms"] <= r["max_ms"]
     assert rows[0]["relative"] == 1.0
     by = {r["variant"]: r for r in rows}
-    assert by["stress_zero"]["grid_mib"] < by["full"]["grid_mib"] < 1.5 * by["stress_zero"]["grid_mib"]
+    assert by["stress_zero"]["grid_mib"] < by["full"]["grid_mib"] < 2.0 * by["stress_zero"]["grid_mib"]
     assert by["full"]["kernels_us"] is None, "the CUDA profiler cannot see CPU kernels"
 
 

@@ -447,7 +447,8 @@ def test_solo_particles_skip_slot_claims_bitwise():
     runs = []
     for solo in (True, False):
         x, vol = block((0.15, 0.4, 0.4), (0.85, 0.55, 0.55), 1 / 96)
-        sim = S.Simulator(config(64, variant="full", dt=1e-3, gravity=(0.0, 0.0, -9.8)), particles(x, vol, E=1e4))
+        cfg = config(64, variant="full", dt=1e-3, gravity=(0.0, 0.0, -9.8), grid_storage="slots")
+        sim = S.Simulator(cfg, particles(x, vol, E=1e4))
         sim.latch(S.Topology.from_plane(sim.particles.x, (0.5, 0.5, 0.5), (1.0, 0.0, 0.0), 1 / 64))
         if not solo:
             sim._update_solo = lambda travel, sim=sim: sim.set_solo(None)

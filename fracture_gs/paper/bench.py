@@ -36,8 +36,8 @@ from ..sim import Particles, Simulator, Topology
 
 WHOLE = [  # issue 13: FractureFields' whole substep after the cut against the baseline's, the same builds
     ("baseline", "baseline", "1/1/0"),
-    ("FractureFields", "full", "1/1/0"),
-    ("FractureFields (boxes)", "full", "1/1/0", "boxes"),  # sim.grid_storage = "boxes"
+    ("FractureFields", "full", "1/1/0"),  # sim.grid_storage = "auto": per-fragment boxes
+    ("FractureFields (slots)", "full", "1/1/0", "slots"),  # the slot storage, for comparison
 ]
 BRANCHES = [  # (label, variant, passes P2G/G2P/frag[, sim.grid_storage])
     ("Shared Field", "stress_zero", "1/1/0"),

@@ -93,7 +93,7 @@ class Simulator(SlotStorage, FrameLoop):
         origin, dx, shape = fit_grid(cfg, self.particles.x)
         check_inside(self.particles.x, origin, dx, shape)
         storage = cfg.grid_storage if self.spec.multifield else "none"  # one field: neither slots nor boxes
-        slots = cfg.field_slots if storage in ("auto", "slots") else 1
+        slots = cfg.field_slots if storage == "slots" else 1  # boxes (auto) keep no slots, owner words or pool
         self.grid = Grid(origin, dx, shape, self.device, slots, cfg.max_fragments)
         # the fragment fields after a latch in dense boxes, one per fragment (`boxes.py`), instead of slots
         boxed = storage in ("auto", "boxes")
@@ -270,11 +270,8 @@ class Simulator(SlotStorage, FrameLoop):
 
     @property
     def boxed(self) -> bool:
-        """The fragment fields are in per-fragment boxes (after the latch: `sim.grid_storage = "boxes"`, or
-        `auto` with mass-gradient normals)."""
-        if self.boxes is None or not self.multifield:
-            return False
-        return self.cfg.grid_storage == "boxes" or self.normal_mode == NORMAL_MASS_GRADIENT
+        """The fragment fields are in per-fragment boxes (after the latch, unless `sim.grid_storage = "slots"`)."""
+        return self.boxes is not None and self.multifield
 
     def box_fields(self) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
         """With the boxes: a substep's fields at the current particles, as the slot storage's grid views give
