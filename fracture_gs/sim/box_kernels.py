@@ -5,6 +5,7 @@ offset_k + (i·dims_y + j)·dims_z + l of one buffer for all boxes. Every partic
 its own fragment's box: no owner words, claims or pool. Launches cover the buffer's capacity; an index past
 the boxes has box_of = −1.
 
+- `fragment_bounds`: each fragment's range of stencil nodes, what `FragmentBoxes.fit` sizes the boxes from.
 - `box_clear`: m, p and the band mass of every field to 0.
 - `box_p2g_runs`: Eq. multifield_p2g, m_i^k += Σ w_ip m_p, p_i^k += Σ w_ip m_p (v_p + C_p(x_i − x_p)) − Δt V⁰ τ_p
   ∇w_ip, for the particles of fragment k into B_k, `run` consecutive particles a thread (a stencil that
@@ -16,8 +17,9 @@ the boxes has box_of = −1.
   `contact.contact_normal`: the fields' mass gradients, central differences inside each box, with
   m_a + m_b ≥ fill_mass, or the latched normal with both band masses > ε_b), then applies the boundaries to
   every field there. It only looks for other fields in the boxes that overlap its own (`over`, made per fit).
-  Fields beyond the first `slots` at a node keep their own velocity (no contact) and are counted. On CUDA
-  devices the same kernel compiled with fast math runs (`box_grid_update_fast`).
+  Fields beyond the first `slots` at a node keep their own velocity (no contact) and are counted. A node of
+  exactly two fields takes the same arithmetic from registers (`two_fields`); three or more, the sweep
+  (`sweep`). On CUDA devices the same kernel compiled with fast math runs (`box_grid_update_fast`).
 - `box_g2p`: Eqs. field_g2p / field_apic / field_deformation from the particle's own box.
 Twins: `reference.p2g`, `reference.grid_update`, `reference.contact_fields`, `reference.g2p` on K dense
 fields (tests/test_fragment_boxes.py).
