@@ -200,7 +200,8 @@ def build_parser() -> argparse.ArgumentParser:
         formatter_class=fmt,
         description="Benchmark the transfer branches of the paper's Table 2: speed "
         "and grid memory, then the whole substep (stress + transfer) of the baseline and of FractureFields "
-        "after the cut; with --accuracy, error against wall time on cases with known answers.",
+        "after the cut (in its default per-fragment boxes, and in the slot storage for comparison); with "
+        "--accuracy, error against wall time on cases with known answers.",
         epilog=_BENCH_EPILOG,
     )
     p.add_argument(
