@@ -18,8 +18,9 @@ the boxes has box_of = −1.
   m_a + m_b ≥ fill_mass, or the latched normal with both band masses > ε_b), then applies the boundaries to
   every field there. It only looks for other fields in the boxes that overlap its own (`over`, made per fit).
   Fields beyond the first `slots` at a node keep their own velocity (no contact) and are counted. A node of
-  exactly two fields takes the same arithmetic from registers (`two_fields`); three or more, the sweep
-  (`sweep`). On CUDA devices the same kernel compiled with fast math runs (`box_grid_update_fast`).
+  exactly two fields takes the same arithmetic from registers; three or more, the sweep (`sweep`); each pair
+  goes through `pair_contact` (contact settings: `BoxContact`). On CUDA devices the same kernel compiled with
+  fast math runs (`box_grid_update_fast`).
 - `box_g2p`: Eqs. field_g2p / field_apic / field_deformation from the particle's own box.
 Twins: `reference.p2g`, `reference.grid_update`, `reference.contact_fields`, `reference.g2p` on K dense
 fields (tests/test_fragment_boxes.py).
@@ -62,6 +63,24 @@ class BoxView:
     dx: float
     inv_dx: float
     shape: wp.vec3i  # the grid's nodes per axis (stencils are clamped into it, as on the dense grid)
+
+
+@wp.struct
+class BoxContact:
+    """What the grid update's contact reads (`boxes.FragmentBoxes.update` fills it)."""
+
+    eps_b: float  # latched normals: two fields touch where both band masses exceed this [kg]
+    fill_mass: float  # mass-gradient normals: two fields touch where m_a + m_b ≥ this [kg]
+    normal_mode: int  # contact.NORMAL_LATCHED or NORMAL_MASS_GRADIENT
+    latched: wp.vec3  # n_Π of the first event (the mass-gradient normals' last fallback)
+    centroids: wp.array(dtype=wp.vec3)  # [K] fragment centroids (normal fallback)
+    restitution: float
+    friction: float
+    project: int  # apply the projection (FractureFields; 0: Local Multi-Field, detection only)
+    record: int  # accumulate the contact statistics
+    stats: wp.array(dtype=float)  # [N_STATS]
+    pair_stats: wp.array(dtype=float)  # [K·K·N_PAIR_STATS]
+    n_fragments: int  # K (pair rows of pair_stats)
 
 
 @wp.func
@@ -320,6 +339,7 @@ def meeting_fields(
 @wp.func
 def sweep(
     b: BoxView,
+    c: BoxContact,
     t: int,
     k: int,
     q: wp.vec4,
@@ -329,22 +349,10 @@ def sweep(
     idx: vec_fi,
     frag: vec_fi,
     eps_m: float,
-    eps_b: float,
-    fill_mass: float,
-    normal_mode: int,
-    latched: wp.vec3,
-    centroids: wp.array(dtype=wp.vec3),
-    restitution: float,
-    friction: float,
-    project: int,
-    record: int,
     dt: float,
     gravity: wp.vec3,
     time: float,
     colliders: Colliders,
-    stats: wp.array(dtype=float),
-    pair_stats: wp.array(dtype=float),
-    n_fragments: int,
 ):
     """A node of n + 1 fields led by buffer index t (fragment k, (p, m) q), the others at idx[:n] of fragments
     frag[:n]: every field normalized, every pair projected in fragment order (Gauss–Seidel), then each field's
@@ -359,96 +367,56 @@ def sweep(
             ia = idx[a - 1]
             ka = frag[a - 1]
         ma = b.mp[ia][3]
-        ga = wp.vec3(0.0)
-        for c in range(a, n):
-            ic = idx[c]
-            mc = b.mp[ic][3]
-            touching = ma + mc >= fill_mass
-            if normal_mode != NORMAL_MASS_GRADIENT:
-                touching = b.band[ia] > eps_b and b.band[ic] > eps_b
-            if touching:
-                gc = wp.vec3(0.0)
-                if normal_mode == NORMAL_MASS_GRADIENT:
-                    ga = box_mass_gradient(b, ka, ia, node)
-                    gc = box_mass_gradient(b, frag[c], ic, node)
-                nrm = contact_normal(normal_mode, latched, ga, gc, centroids[ka], centroids[frag[c]])
-                w0, w1 = contact_pair(
-                    b.vel[ia], b.vel[ic], ma, mc, nrm, restitution, friction, project, record, stats, pair_stats,
-                    ka, frag[c], n_fragments, time,
-                )  # fmt: skip
-                b.vel[ia] = w0
-                b.vel[ic] = w1
+        for e in range(a, n):
+            ie = idx[e]
+            w0, w1 = pair_contact(b, c, ia, ie, ka, frag[e], b.vel[ia], b.vel[ie], ma, b.mp[ie][3], node, time)
+            b.vel[ia] = w0
+            b.vel[ie] = w1
         b.vel[ia] = apply_boundaries(b.vel[ia], node, xi, time, colliders)
 
 
 @wp.func
-def two_fields(
+def pair_contact(
     b: BoxView,
+    c: BoxContact,
     i0: int,
     i1: int,
     k0: int,
     k1: int,
-    q0: wp.vec4,
-    q1: wp.vec4,
+    v0: wp.vec3,
+    v1: wp.vec3,
+    m0: float,
+    m1: float,
     node: wp.vec3i,
-    eps_m: float,
-    eps_b: float,
-    fill_mass: float,
-    normal_mode: int,
-    latched: wp.vec3,
-    centroids: wp.array(dtype=wp.vec3),
-    restitution: float,
-    friction: float,
-    project: int,
-    record: int,
-    dt: float,
-    gravity: wp.vec3,
-    stats: wp.array(dtype=float),
-    pair_stats: wp.array(dtype=float),
-    n_fragments: int,
     time: float,
 ):
-    """The velocities of a node's only two fields (buffer indices i0, i1 of fragments k0 < k1, (p, m) q0, q1)
-    after their contact, before the boundaries: the grid update's sweep for one pair, with every value it reads
-    loaded once up front instead of stored and read back (the leader's chain of dependent loads was the grid
-    update's critical path where two fields meet: 7.7 → 5.9 µs at K = 2; BENCHMARKS.md)."""
-    v0 = normalized(q0, eps_m, dt, gravity)
-    v1 = normalized(q1, eps_m, dt, gravity)
-    nrm = latched
-    if normal_mode == NORMAL_MASS_GRADIENT:
-        if not (q0[3] + q1[3] >= fill_mass):
+    """Fields i0, i1 (fragments k0 < k1, velocities v0, v1, masses m0, m1) at `node` after their contact: the
+    gate (both band masses > ε_b with the latched normal, m0 + m1 ≥ fill_mass with mass gradients), the
+    normal, then `contact.contact_pair` (projection and statistics)."""
+    nrm = c.latched
+    if c.normal_mode == NORMAL_MASS_GRADIENT:
+        if not (m0 + m1 >= c.fill_mass):
             return v0, v1
         g0 = box_mass_gradient(b, k0, i0, node)
         g1 = box_mass_gradient(b, k1, i1, node)
-        nrm = contact_normal(normal_mode, latched, g0, g1, centroids[k0], centroids[k1])
-    elif not (b.band[i0] > eps_b and b.band[i1] > eps_b):
+        nrm = contact_normal(c.normal_mode, c.latched, g0, g1, c.centroids[k0], c.centroids[k1])
+    elif not (b.band[i0] > c.eps_b and b.band[i1] > c.eps_b):
         return v0, v1
     return contact_pair(
-        v0, v1, q0[3], q1[3], nrm, restitution, friction, project, record, stats, pair_stats, k0, k1, n_fragments,
-        time,
+        v0, v1, m0, m1, nrm, c.restitution, c.friction, c.project, c.record, c.stats, c.pair_stats, k0, k1,
+        c.n_fragments, time,
     )  # fmt: skip
 
 
 @wp.kernel
 def box_grid_update(
     b: BoxView,
+    c: BoxContact,
     eps_m: float,
-    eps_b: float,  # latched normals: two fields touch where both band masses exceed this [kg]
-    fill_mass: float,  # mass-gradient normals: two fields touch where m_a + m_b ≥ this [kg]
-    normal_mode: int,  # contact.NORMAL_LATCHED or NORMAL_MASS_GRADIENT
-    latched: wp.vec3,  # n_Π of the first event (the mass-gradient normals' last fallback)
-    centroids: wp.array(dtype=wp.vec3),  # [K] fragment centroids (normal fallback)
-    restitution: float,
-    friction: float,
-    project: int,  # apply the projection (FractureFields; 0: Local Multi-Field, detection only)
-    record: int,  # accumulate the contact statistics
     slots: int,  # fields a leader projects (≤ MAX_FIELDS); more are counted as slot overflows
     clock: Clock,  # Δt and t
     gravity: wp.vec3,
     colliders: Colliders,
-    stats: wp.array(dtype=float),  # [N_STATS]
-    pair_stats: wp.array(dtype=float),  # [K·K·N_PAIR_STATS]
-    n_fragments: int,  # K (pair rows of pair_stats)
     counts: wp.array(dtype=wp.int32),
 ):
     """One thread per buffer index: normalization and boundaries of its field, or, where fields meet, the
@@ -471,19 +439,16 @@ def box_grid_update(
         b.vel[t] = apply_boundaries(normalized(q, eps_m, dt, gravity), node, xi, time, colliders)
         return
     if n > 1:
-        sweep(
-            b, t, k, q, node, xi, n, idx, frag, eps_m, eps_b, fill_mass, normal_mode, latched, centroids, restitution,
-            friction, project, record, dt, gravity, time, colliders, stats, pair_stats, n_fragments,
-        )  # fmt: skip
+        sweep(b, c, t, k, q, node, xi, n, idx, frag, eps_m, dt, gravity, time, colliders)
         return
-    # two fields, the most common meeting: the sweep's one pair with every value it reads loaded once, in
-    # registers, instead of stored and read back (that chain of dependent loads was the critical path)
+    # two fields, the most common meeting: the sweep's one pair from values loaded once, both boundaries
+    # applied before either velocity is stored (the sweep's stores and reloads were the critical path here:
+    # 7.7 → 5.9 µs at K = 2; BENCHMARKS.md)
     i1 = idx[0]
     q1 = b.mp[i1]
-    w0, w1 = two_fields(
-        b, t, i1, k, frag[0], q, q1, node, eps_m, eps_b, fill_mass, normal_mode, latched, centroids, restitution,
-        friction, project, record, dt, gravity, stats, pair_stats, n_fragments, time,
-    )  # fmt: skip
+    v0 = normalized(q, eps_m, dt, gravity)
+    v1 = normalized(q1, eps_m, dt, gravity)
+    w0, w1 = pair_contact(b, c, t, i1, k, frag[0], v0, v1, q[3], q1[3], node, time)
     w0 = apply_boundaries(w0, node, xi, time, colliders)
     w1 = apply_boundaries(w1, node, xi, time, colliders)
     b.vel[t] = w0

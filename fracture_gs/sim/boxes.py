@@ -15,6 +15,7 @@ import warp as wp
 from ..runtime import ensure_warp, launch
 from .box_kernels import (
     MAX_FIELDS,
+    BoxContact,
     BoxView,
     box_clear,
     box_g2p,
@@ -201,9 +202,11 @@ class FragmentBoxes:
         n = wp.vec3(*(latched if latched is not None else (0.0, 0.0, 1.0)))
         if stats is None:
             stats = (self._no_stats, self._no_stats, 0)
-        inputs = [self.view, float(eps_m), float(eps_b), float(fill_mass), mode, n, centroids, float(e), float(mu)]
-        inputs += [int(project), int(stats[2] > 0), int(slots), clock, wp.vec3(*gravity), colliders]
-        inputs += [stats[0], stats[1], int(stats[2]), counts]
+        c = BoxContact()
+        c.eps_b, c.fill_mass, c.normal_mode, c.latched, c.centroids = float(eps_b), float(fill_mass), mode, n, centroids
+        c.restitution, c.friction, c.project, c.record = float(e), float(mu), int(project), int(stats[2] > 0)
+        c.stats, c.pair_stats, c.n_fragments = stats[0], stats[1], int(stats[2])
+        inputs = [self.view, c, float(eps_m), int(slots), clock, wp.vec3(*gravity), colliders, counts]
         fast = self.device != "cpu" if fast_math is None else fast_math
         kernel = box_grid_update_fast if fast else box_grid_update
         launch(kernel, self.capacity, inputs, self.device)
