@@ -336,6 +336,19 @@ def test_table2_bench_times_every_build_of_every_branch():
     assert by["full"]["kernels_us"] is None, "the CUDA profiler cannot see CPU kernels"
 
 
+def test_every_box_transfer_kernel_has_a_table2_phase():
+    """Table 2's kernel columns sum the CUDA profiler's kernel times by phase; FractureFields runs in
+    per-fragment boxes by default, so each kernel a boxed transfer launches must map to its phase (an unmapped
+    kernel would read 0 µs in the table)."""
+    from fracture_gs.paper.bench import KERNEL_PHASES
+    from fracture_gs.sim import box_kernels as bk
+
+    phases = {bk.box_clear: "reset", bk.box_p2g_runs: "p2g", bk.box_grid_update: "grid", bk.box_g2p: "g2p"}
+    phases[bk.box_grid_update_fast] = "grid"
+    for kernel, phase in phases.items():
+        assert KERNEL_PHASES.get(kernel.key) == phase, kernel.key
+
+
 def test_reapproach_is_relative_to_a_real_opening():
     """Re-approach is the drop below the running maximum over that maximum once the interface has
     opened; below the separation threshold the maximum is floored, so noise cannot be amplified."""

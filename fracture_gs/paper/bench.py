@@ -159,8 +159,14 @@ KERNEL_PHASES = {
     "pool_mass_gradients": "grid",
     "g2p": "g2p",
     "g2p_fanout": "g2p",
+    "box_clear": "reset",
+    "box_p2g_runs": "p2g",
+    "box_grid_update": "grid",
+    "box_grid_update_fast": "grid",
+    "box_g2p": "g2p",
 }
-"""Warp kernel name -> Table 2 phase (the transfer kernels of sim/transfer_kernels.py)."""
+"""Warp kernel name -> Table 2 phase (the transfer kernels of sim/transfer_kernels.py, run_kernels.py,
+fanout_kernels.py and, for the per-fragment boxes, box_kernels.py)."""
 
 
 def kernel_times(sim: Simulator, dt: float, steps: int = 50) -> dict | None:
