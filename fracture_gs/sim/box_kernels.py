@@ -367,12 +367,12 @@ def sweep(
             ia = idx[a - 1]
             ka = frag[a - 1]
         ma = b.mp[ia][3]
+        va = b.vel[ia]  # final after the pairs with lower fields; kept in registers through its own pairs
         for e in range(a, n):
             ie = idx[e]
-            w0, w1 = pair_contact(b, c, ia, ie, ka, frag[e], b.vel[ia], b.vel[ie], ma, b.mp[ie][3], node, time)
-            b.vel[ia] = w0
+            va, w1 = pair_contact(b, c, ia, ie, ka, frag[e], va, b.vel[ie], ma, b.mp[ie][3], node, time)
             b.vel[ie] = w1
-        b.vel[ia] = apply_boundaries(b.vel[ia], node, xi, time, colliders)
+        b.vel[ia] = apply_boundaries(va, node, xi, time, colliders)
 
 
 @wp.func
