@@ -118,7 +118,8 @@ class FrameLoop:
         stencil left its box (P2G counts it) or the pool of multi-fragment nodes filled up, the frame is
         rolled back and redone: with more box slack (the second escape runs on the whole grid, where
         nothing can escape; per-fragment boxes only grow their slack) or with a pool twice as large. One
-        host read per try. On CUDA the frame runs on the simulator's own stream (graphs are recorded on a
+        host read per try for the active box and one for the frame's check (per-fragment boxes add the fit's
+        two). On CUDA the frame runs on the simulator's own stream (graphs are recorded on a
         non-default stream), ordered after the caller's current stream and before it again at the end."""
         if not self.device.startswith("cuda"):
             return self._advance(frame_dt)

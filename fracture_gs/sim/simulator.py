@@ -235,8 +235,9 @@ class Simulator(SlotStorage, FrameLoop):
         box = tuple(lo) + tuple(hi)
         if self.multifield and self.normal_mode == NORMAL_MASS_GRADIENT:
             self._update_centroids()
-        if self.boxed:  # each fragment's box: its stencils plus the travel and the slack (the frame's second read);
-            # the dense grid's active box stays put (no box launch reads it, and it is in the graph key)
+        if self.boxed:  # each fragment's box: its stencils plus the travel and the slack (`fit` reads the node
+            # total and the overlap lists' length); the dense grid's active box stays put (no box launch reads it,
+            # and it is in the graph key)
             self.boxes.fit(P.x, P.fragment, 1 + math.ceil(travel / g.dx) + self.box_slack, self.n_fragments)
             return vmax
         moved = g.ensure_pool(self.pool_rows) if self.multifield else False
