@@ -300,6 +300,42 @@ def test_per_pair_statistics_cover_the_first_ids_and_the_totals_every_pair(devic
     torch.testing.assert_close(pairs2[0, 1], pairs4[0, 1], rtol=1e-5, atol=1e-6 * float(pairs4[0, 1].abs().max()))
 
 
+@pytest.mark.parametrize("fast", [False, True])
+def test_recording_the_contact_statistics_changes_no_velocity(device, seed, fast):
+    """The grid update is built with the contact statistics compiled in (when a run keeps them) or out (fewer
+    registers, no atomics between the leaders' loads): at the quadrants' fields, nodes of two to four fields with
+    friction, both builds give the same velocities (bitwise on the CPU; to float32 rounding with CUDA's
+    compiler), and only the recording build writes statistics."""
+    from fracture_gs.sim.layout import N_PAIR_STATS, N_STATS, NEVER, PAIR_FIRST_T, STAT_GATED
+
+    P, w, counts, boxes = state(seed, device)
+    cw = wp.from_torch(counts)
+    c = clock(device)
+    boxes.p2g(w, c, cw)
+    m = boxes.mp[: boxes.nodes, 3].double().cpu()
+    fill = 0.05 * float(m[m > 0].mean())
+    centroids = torch.stack([P["x"][P["fragment"] == k].mean(0) for k in range(4)]).contiguous()
+    centroids = wp.from_torch(centroids, dtype=wp.vec3)
+    stats = torch.zeros(N_STATS, device=device)
+    pairs = torch.zeros(4 * 4 * N_PAIR_STATS, device=device)
+    pairs.view(-1, N_PAIR_STATS)[:, PAIR_FIRST_T] = NEVER
+    vel = {}
+    for record in (False, True):
+        kept = (wp.from_torch(stats), wp.from_torch(pairs), 4) if record else None
+        boxes.update(c, EPS_M, GRAVITY, fill, centroids, cw, no_walls(device), e=0.0, mu=0.3, stats=kept,
+                     fast_math=fast)  # fmt: skip
+        vel[record] = boxes.vel[: boxes.nodes].clone()
+        if not record:
+            assert float(stats.abs().sum()) == 0.0, "the quiet build writes no statistics"
+    assert float(stats[STAT_GATED]) > 0, "the recording build counts the gated pairs"
+    live = (m > EPS_M).to(device)
+    assert float(vel[True][live].norm(dim=1).max()) > 0
+    if device == "cpu":
+        assert torch.equal(vel[True], vel[False])
+    else:
+        torch.testing.assert_close(vel[False][live], vel[True][live], rtol=1e-6, atol=1e-7)
+
+
 def test_one_box_is_the_shared_field_transfer_walls_included(device, seed):
     """With every particle in fragment 0 the boxes hold one field, and a substep through them (P2G, normalization,
     the domain walls, G2P) is the simulator's shared-field transfer: bitwise on the CPU, where both add the

@@ -162,7 +162,9 @@ KERNEL_PHASES = {
     "box_clear": "reset",
     "box_p2g_runs": "p2g",
     "box_grid_update": "grid",
+    "box_grid_update_quiet": "grid",
     "box_grid_update_fast": "grid",
+    "box_grid_update_fast_quiet": "grid",
     "box_g2p": "g2p",
 }
 """Warp kernel name -> Table 2 phase (the transfer kernels of sim/transfer_kernels.py, run_kernels.py,

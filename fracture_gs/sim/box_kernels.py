@@ -19,8 +19,8 @@ the boxes has box_of = −1.
   every field there. It only looks for other fields in the boxes that overlap its own (`over`, made per fit).
   Fields beyond the first `slots` at a node keep their own velocity (no contact) and are counted. A node of
   exactly two fields takes the same arithmetic from registers; three or more, the sweep (`sweep`); each pair
-  goes through `pair_contact` (contact settings: `BoxContact`). On CUDA devices the same kernel compiled with
-  fast math runs (`box_grid_update_fast`).
+  goes through `pair_contact` (contact settings: `BoxContact`). Four builds (`GRID_UPDATES`): the contact
+  statistics compiled in or out, exact or (on CUDA devices) with fast math.
 - `box_g2p`: Eqs. field_g2p / field_apic / field_deformation from the particle's own box.
 Twins: `reference.p2g`, `reference.grid_update`, `reference.contact_fields`, `reference.g2p` on K dense
 fields (tests/test_fragment_boxes.py).
@@ -77,7 +77,6 @@ class BoxContact:
     restitution: float
     friction: float
     project: int  # apply the projection (FractureFields; 0: Local Multi-Field, detection only)
-    record: int  # accumulate the contact statistics
     stats: wp.array(dtype=float)  # [N_STATS]
     pair_stats: wp.array(dtype=float)  # [K·K·N_PAIR_STATS]
     n_fragments: int  # K (pair rows of pair_stats)
@@ -340,6 +339,7 @@ def meeting_fields(
 def sweep(
     b: BoxView,
     c: BoxContact,
+    record: int,
     t: int,
     k: int,
     q: wp.vec4,
@@ -370,7 +370,7 @@ def sweep(
         va = b.vel[ia]  # final after the pairs with lower fields; kept in registers through its own pairs
         for e in range(a, n):
             ie = idx[e]
-            va, w1 = pair_contact(b, c, ia, ie, ka, frag[e], va, b.vel[ie], ma, b.mp[ie][3], node, time)
+            va, w1 = pair_contact(b, c, record, ia, ie, ka, frag[e], va, b.vel[ie], ma, b.mp[ie][3], node, time)
             b.vel[ie] = w1
         b.vel[ia] = apply_boundaries(va, node, xi, time, colliders)
 
@@ -379,6 +379,7 @@ def sweep(
 def pair_contact(
     b: BoxView,
     c: BoxContact,
+    record: int,
     i0: int,
     i1: int,
     k0: int,
@@ -403,68 +404,78 @@ def pair_contact(
     elif not (b.band[i0] > c.eps_b and b.band[i1] > c.eps_b):
         return v0, v1
     return contact_pair(
-        v0, v1, m0, m1, nrm, c.restitution, c.friction, c.project, c.record, c.stats, c.pair_stats, k0, k1,
+        v0, v1, m0, m1, nrm, c.restitution, c.friction, c.project, record, c.stats, c.pair_stats, k0, k1,
         c.n_fragments, time,
     )  # fmt: skip
 
 
-@wp.kernel
-def box_grid_update(
-    b: BoxView,
-    c: BoxContact,
-    eps_m: float,
-    slots: int,  # fields a leader projects (≤ MAX_FIELDS); more are counted as slot overflows
-    clock: Clock,  # Δt and t
-    gravity: wp.vec3,
-    colliders: Colliders,
-    counts: wp.array(dtype=wp.int32),
-):
-    """One thread per buffer index: normalization and boundaries of its field, or, where fields meet, the
-    lowest fragment's thread does the whole node (normalization, contact, boundaries) and the others skip it."""
-    t = wp.tid()
-    k = b.box_of[t]
-    q = b.mp[t]  # loaded beside the box id, not after it: an index past the boxes holds m = 0
-    if k < 0 or q[3] <= eps_m:
-        if k >= 0 and q[3] > 0.0:  # a node no particle reached (m = 0) is read by no G2P: no write
-            b.vel[t] = wp.vec3(0.0)
-        return
-    dt = clock_dt(clock)
-    time = clock_time(clock)
-    node = box_node(b, k, t)
-    xi = b.origin + wp.vec3(float(node[0]), float(node[1]), float(node[2])) * b.dx
-    n, idx, frag = meeting_fields(b, t, k, node, xi, slots, eps_m, dt, gravity, time, colliders, counts)
-    if n < 0:
-        return  # a lower fragment has mass here: its thread leads
-    if n == 0:
-        b.vel[t] = apply_boundaries(normalized(q, eps_m, dt, gravity), node, xi, time, colliders)
-        return
-    if n > 1:
-        sweep(b, c, t, k, q, node, xi, n, idx, frag, eps_m, dt, gravity, time, colliders)
-        return
-    # two fields, the most common meeting: the sweep's one pair from values loaded once, both boundaries
-    # applied before either velocity is stored (the sweep's stores and reloads were the critical path here:
-    # 7.7 → 5.9 µs at K = 2; BENCHMARKS.md)
-    i1 = idx[0]
-    q1 = b.mp[i1]
-    v0 = normalized(q, eps_m, dt, gravity)
-    v1 = normalized(q1, eps_m, dt, gravity)
-    w0, w1 = pair_contact(b, c, t, i1, k, frag[0], v0, v1, q[3], q1[3], node, time)
-    w0 = apply_boundaries(w0, node, xi, time, colliders)
-    w1 = apply_boundaries(w1, node, xi, time, colliders)
-    b.vel[t] = w0
-    b.vel[i1] = w1
+def _grid_update(record: bool, fast: bool) -> wp.Kernel:
+    """`box_grid_update` with the contact statistics compiled in (`record`) or out, exact or with fast math
+    (`fast`). Out (timing runs, `Simulator.record_contact = False`), no atomic stands between the leaders' loads
+    (the compiler must assume an atomic may write what a later load reads) and the kernel takes 64 registers
+    instead of 70 on sm_90 (four blocks a multiprocessor instead of three): K = 16 0.0794 → 0.0782 ms, 1.19 →
+    1.17× Shared, while the plane cut's grid update reads 6.3 → 6.9 µs (BENCHMARKS.md, ninth session). Fast math
+    shortens the leaders' chains of dependent arithmetic (approximate division and square root: 19.2 → 16.0 µs at
+    K = 16, velocities within 2e-7 relative); the CPU keeps the exact kernels (Warp would build a fast-math kernel
+    with fast math on the CPU too), so the CPU's bitwise equalities with the slot storage hold."""
+    RECORD = int(record)  # noqa: N806 (a compile-time constant of the kernel, read by wp.static)
+
+    def box_grid_update(
+        b: BoxView,
+        c: BoxContact,
+        eps_m: float,
+        slots: int,  # fields a leader projects (≤ MAX_FIELDS); more are counted as slot overflows
+        clock: Clock,  # Δt and t
+        gravity: wp.vec3,
+        colliders: Colliders,
+        counts: wp.array(dtype=wp.int32),
+    ):
+        """One thread per buffer index: normalization and boundaries of its field, or, where fields meet, the
+        lowest fragment's thread does the whole node (normalization, contact, boundaries) and the others skip it."""
+        t = wp.tid()
+        k = b.box_of[t]
+        q = b.mp[t]  # loaded beside the box id, not after it: an index past the boxes holds m = 0
+        if k < 0 or q[3] <= eps_m:
+            if k >= 0 and q[3] > 0.0:  # a node no particle reached (m = 0) is read by no G2P: no write
+                b.vel[t] = wp.vec3(0.0)
+            return
+        dt = clock_dt(clock)
+        time = clock_time(clock)
+        node = box_node(b, k, t)
+        xi = b.origin + wp.vec3(float(node[0]), float(node[1]), float(node[2])) * b.dx
+        n, idx, frag = meeting_fields(b, t, k, node, xi, slots, eps_m, dt, gravity, time, colliders, counts)
+        if n < 0:
+            return  # a lower fragment has mass here: its thread leads
+        if n == 0:
+            b.vel[t] = apply_boundaries(normalized(q, eps_m, dt, gravity), node, xi, time, colliders)
+            return
+        if n > 1:
+            sweep(b, c, wp.static(RECORD), t, k, q, node, xi, n, idx, frag, eps_m, dt, gravity, time, colliders)
+            return
+        # two fields, the most common meeting: the sweep's one pair from values loaded once, both boundaries
+        # applied before either velocity is stored (the sweep's stores and reloads were the critical path here:
+        # 7.7 → 5.9 µs at K = 2; BENCHMARKS.md)
+        i1 = idx[0]
+        q1 = b.mp[i1]
+        v0 = normalized(q, eps_m, dt, gravity)
+        v1 = normalized(q1, eps_m, dt, gravity)
+        w0, w1 = pair_contact(b, c, wp.static(RECORD), t, i1, k, frag[0], v0, v1, q[3], q1[3], node, time)
+        w0 = apply_boundaries(w0, node, xi, time, colliders)
+        w1 = apply_boundaries(w1, node, xi, time, colliders)
+        b.vel[t] = w0
+        b.vel[i1] = w1
+
+    name = "box_grid_update" + ("_fast" if fast else "") + ("" if record else "_quiet")
+    if not fast:  # the exact kernels build with the rest of this module
+        return wp.kernel(box_grid_update, name=name)
+    return wp.kernel(
+        box_grid_update, name=name, module="unique", module_options={"fast_math": True, "enable_backward": False}
+    )
 
 
-box_grid_update_fast = wp.kernel(
-    box_grid_update.func,
-    name="box_grid_update_fast",
-    module="unique",
-    module_options={"fast_math": True, "enable_backward": False},
-)
-"""`box_grid_update` compiled with fast math, for CUDA devices: its cost is the contact leaders' chains of
-dependent arithmetic, and approximate division and square root shorten them (19.2 → 16.0 µs at K = 16,
-velocities within 2e-7 relative; BENCHMARKS.md). The CPU keeps the exact kernel (Warp would build this one with
-fast math on the CPU too), so the CPU's bitwise equalities with the slot storage hold."""
+GRID_UPDATES = {(record, fast): _grid_update(record, fast) for record in (True, False) for fast in (False, True)}
+"""The grid update by (record the contact statistics, fast math)."""
+box_grid_update = GRID_UPDATES[True, False]
 
 
 @wp.kernel

@@ -14,13 +14,12 @@ import warp as wp
 
 from ..runtime import ensure_warp, launch
 from .box_kernels import (
+    GRID_UPDATES,
     MAX_FIELDS,
     BoxContact,
     BoxView,
     box_clear,
     box_g2p,
-    box_grid_update,
-    box_grid_update_fast,
     box_p2g_runs,
     fragment_bounds,
 )
@@ -204,11 +203,11 @@ class FragmentBoxes:
             stats = (self._no_stats, self._no_stats, 0)
         c = BoxContact()
         c.eps_b, c.fill_mass, c.normal_mode, c.latched, c.centroids = float(eps_b), float(fill_mass), mode, n, centroids
-        c.restitution, c.friction, c.project, c.record = float(e), float(mu), int(project), int(stats[2] > 0)
+        c.restitution, c.friction, c.project = float(e), float(mu), int(project)
         c.stats, c.pair_stats, c.n_fragments = stats[0], stats[1], int(stats[2])
         inputs = [self.view, c, float(eps_m), int(slots), clock, wp.vec3(*gravity), colliders, counts]
         fast = self.device != "cpu" if fast_math is None else fast_math
-        kernel = box_grid_update_fast if fast else box_grid_update
+        kernel = GRID_UPDATES[bool(stats[2] > 0), fast]  # the statistics compiled in only where they are kept
         launch(kernel, self.capacity, inputs, self.device)
 
     def g2p(self, w: dict, clock, lower, upper, counts, a: int = 0, b: int = -1) -> None:
