@@ -412,9 +412,9 @@ def pair_contact(
 def _grid_update(record: bool, fast: bool) -> wp.Kernel:
     """`box_grid_update` with the contact statistics compiled in (`record`) or out, exact or with fast math
     (`fast`). Out (timing runs, `Simulator.record_contact = False`), no atomic stands between the leaders' loads
-    (the compiler must assume an atomic may write what a later load reads) and the kernel takes 64 registers
-    instead of 70 on sm_90 (four blocks a multiprocessor instead of three): K = 16 0.0794 → 0.0782 ms, 1.19 →
-    1.17× Shared, while the plane cut's grid update reads 6.3 → 6.9 µs (BENCHMARKS.md, ninth session). Fast math
+    (the compiler must assume an atomic may write what a later load reads; the fast-math builds take 64 registers
+    either way on sm_90): K = 16 0.0794 → 0.0782 ms, 1.19 → 1.17× Shared, while the plane cut's grid update reads
+    6.3 → 6.9 µs (BENCHMARKS.md, ninth session). Fast math
     shortens the leaders' chains of dependent arithmetic (approximate division and square root: 19.2 → 16.0 µs at
     K = 16, velocities within 2e-7 relative); the CPU keeps the exact kernels (Warp would build a fast-math kernel
     with fast math on the CPU too), so the CPU's bitwise equalities with the slot storage hold."""
