@@ -79,6 +79,8 @@ def cmd_render_sim(args: argparse.Namespace) -> int:
         cfg.particles = args.particles
     if getattr(args, "load", None):
         cfg.capture.load = args.load
+    if getattr(args, "particle_order", None):
+        cfg.sim.particle_order = args.particle_order
     print(
         f"render-sim: {cfg.name} ({cfg.scene}, preset {cfg.preset}), {cfg.frames} frames, "
         f"variants {', '.join(cfg.variants)}, device {device} -> {out_dir}"

@@ -58,6 +58,8 @@ def validate_sim_config(cfg: SimConfig) -> None:
         raise SimulationError(f"sim.field_slots = {cfg.field_slots} must lie in [2, {MAX_SLOTS}]")
     if cfg.grid_storage not in ("auto", "slots", "boxes"):
         raise SimulationError(f"sim.grid_storage '{cfg.grid_storage}' is unknown; use auto, slots or boxes")
+    if cfg.particle_order not in ("scene", "cell"):
+        raise SimulationError(f"sim.particle_order '{cfg.particle_order}' is unknown; use scene or cell")
     if not 2 <= cfg.max_fragments <= 4096:
         raise SimulationError(f"sim.max_fragments = {cfg.max_fragments} must lie in [2, 4096]")
     if not (cfg.contact.friction >= 0 and math.isfinite(cfg.contact.friction)):
@@ -132,8 +134,9 @@ class Simulator(SlotStorage, FrameLoop):
         self.g2p_fanout_max = 1.0 / 16
         # P2G of the dense-path particles in runs of `p2g_run` consecutive particles, summed in registers while
         # they share a cell (`run_kernels`): on (runs of P2G_RUN) for particles sorted by cell on a GPU
-        # (`sort_particles("cell")`), where it saves global reductions; 0: one thread per particle
-        self.p2g_run = 0
+        # (`sort_particles("cell")`, or `sim.particle_order = "cell"`: the caller sorted them), where it saves
+        # global reductions; 0: one thread per particle (runs are correct in any order, only slower out of it)
+        self.p2g_run = P2G_RUN if cfg.particle_order == "cell" and self.device != "cpu" else 0
         self._slow = n
         self._fan_cap = 0
         # buffer index of every (listed particle, stencil node) that P2G's fan-out deposited into, read back
