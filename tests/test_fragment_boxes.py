@@ -231,6 +231,18 @@ def test_contact_where_fields_meet_is_the_reference_and_conserves_momentum(devic
     assert float((momentum(ours) - momentum(v)).abs().max()) <= 1e-5 * scale, "each node's momentum"
 
 
+def deposited(P, w, counts, boxes, device):
+    """P2G into the boxes: the counters' Warp view, the clock, the box masses (CPU, float64), a fill mass of 5 %
+    of the mean occupied node's and the fragments' centroids (the mass-gradient normals' fallback)."""
+    cw = wp.from_torch(counts)
+    c = clock(device)
+    boxes.p2g(w, c, cw)
+    m = boxes.mp[: boxes.nodes, 3].double().cpu()
+    fill = 0.05 * float(m[m > 0].mean())
+    centroids = torch.stack([P["x"][P["fragment"] == k].mean(0) for k in range(boxes.K)]).contiguous()
+    return cw, c, m, fill, wp.from_torch(centroids, dtype=wp.vec3)
+
+
 @pytest.mark.parametrize("fragments", [2, 4])
 def test_the_fast_math_grid_update_is_the_exact_one_to_float32_rounding(device, seed, fragments):
     """CUDA devices run the grid update compiled with fast math (approximate division and square root): at the
@@ -242,13 +254,7 @@ def test_the_fast_math_grid_update_is_the_exact_one_to_float32_rounding(device, 
         P["fragment"].remainder_(2)  # the halves x < 0.5 and x > 0.5
         boxes.fit(P["x"], P["fragment"])
     assert boxes.K == fragments
-    cw = wp.from_torch(counts)
-    c = clock(device)
-    boxes.p2g(w, c, cw)
-    m = boxes.mp[: boxes.nodes, 3].double().cpu()
-    fill = 0.05 * float(m[m > 0].mean())
-    centroids = torch.stack([P["x"][P["fragment"] == k].mean(0) for k in range(fragments)]).contiguous()
-    centroids = wp.from_torch(centroids, dtype=wp.vec3)
+    cw, c, m, fill, centroids = deposited(P, w, counts, boxes, device)
     vel = {}
     for fast in (False, True):
         boxes.update(c, EPS_M, GRAVITY, fill, centroids, cw, no_walls(device), e=0.0, mu=0.3, fast_math=fast)
@@ -278,13 +284,7 @@ def test_per_pair_statistics_cover_the_first_ids_and_the_totals_every_pair(devic
     big = Grid((0.0, 0.0, 0.0), 1.0 / n, (n, n, n), device, max_fragments=4096)
     assert big.pair_fragments == PAIR_FRAGMENTS and big.pair_stats.numel() == PAIR_FRAGMENTS**2 * N_PAIR_STATS
     P, w, counts, boxes = state(seed, device)
-    cw = wp.from_torch(counts)
-    c = clock(device)
-    boxes.p2g(w, c, cw)
-    m = boxes.mp[: boxes.nodes, 3].double()
-    fill = 0.05 * float(m[m > 0].mean())
-    centroids = torch.stack([P["x"][P["fragment"] == k].mean(0) for k in range(4)]).contiguous()
-    centroids = wp.from_torch(centroids, dtype=wp.vec3)
+    cw, c, _, fill, centroids = deposited(P, w, counts, boxes, device)
     rows = {}
     for cap in (4, 2):
         stats = torch.zeros(N_STATS, device=device)
@@ -309,13 +309,7 @@ def test_recording_the_contact_statistics_changes_no_velocity(device, seed, fast
     from fracture_gs.sim.layout import N_PAIR_STATS, N_STATS, NEVER, PAIR_FIRST_T, STAT_GATED
 
     P, w, counts, boxes = state(seed, device)
-    cw = wp.from_torch(counts)
-    c = clock(device)
-    boxes.p2g(w, c, cw)
-    m = boxes.mp[: boxes.nodes, 3].double().cpu()
-    fill = 0.05 * float(m[m > 0].mean())
-    centroids = torch.stack([P["x"][P["fragment"] == k].mean(0) for k in range(4)]).contiguous()
-    centroids = wp.from_torch(centroids, dtype=wp.vec3)
+    cw, c, m, fill, centroids = deposited(P, w, counts, boxes, device)
     stats = torch.zeros(N_STATS, device=device)
     pairs = torch.zeros(4 * 4 * N_PAIR_STATS, device=device)
     pairs.view(-1, N_PAIR_STATS)[:, PAIR_FIRST_T] = NEVER

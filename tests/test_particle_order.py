@@ -9,7 +9,7 @@ import torch
 
 from fracture_gs.io.config import load_config
 from fracture_gs.pipeline import make_simulator, prepare_scene
-from fracture_gs.sim import SimulationError, Simulator
+from fracture_gs.sim import Particles, SimulationError, Simulator
 from fracture_gs.sim.grid import fit_grid
 from fracture_gs.sim.neighbourhood import cell_order
 from fracture_gs.sim.simulator import P2G_RUN
@@ -63,7 +63,6 @@ def test_a_run_in_cell_order_moves_like_the_scene_order_run(device):
 
 
 def test_an_unknown_particle_order_is_one_sentence():
-    cfg = bread("random").sim
-    P = make_simulator(bread("scene"), prepare_scene(bread("scene")).gaussians, "baseline", "cpu").particles
+    P = Particles.from_gaussians(prepare_scene(bread("scene")).gaussians, bread("scene"))
     with pytest.raises(SimulationError, match="sim.particle_order 'random' is unknown; use scene or cell"):
-        Simulator(cfg, P)
+        Simulator(bread("random").sim, P)

@@ -414,10 +414,10 @@ def _grid_update(record: bool, fast: bool) -> wp.Kernel:
     (`fast`). Out (timing runs, `Simulator.record_contact = False`), no atomic stands between the leaders' loads
     (the compiler must assume an atomic may write what a later load reads; the fast-math builds take 64 registers
     either way on sm_90): K = 16 0.0794 → 0.0782 ms, 1.19 → 1.17× Shared, while the plane cut's grid update reads
-    6.3 → 6.9 µs (BENCHMARKS.md, ninth session). Fast math
-    shortens the leaders' chains of dependent arithmetic (approximate division and square root: 19.2 → 16.0 µs at
-    K = 16, velocities within 2e-7 relative); the CPU keeps the exact kernels (Warp would build a fast-math kernel
-    with fast math on the CPU too), so the CPU's bitwise equalities with the slot storage hold."""
+    6.3 → 6.9 µs (BENCHMARKS.md, ninth session). Fast math shortens the leaders' chains of dependent arithmetic
+    (approximate division and square root: 19.2 → 16.0 µs at K = 16, velocities within 2e-7 relative); the CPU
+    keeps the exact kernels (Warp would build a fast-math kernel with fast math on the CPU too), so the CPU's
+    bitwise equalities with the slot storage hold."""
     RECORD = int(record)  # noqa: N806 (a compile-time constant of the kernel, read by wp.static)
 
     def box_grid_update(
@@ -475,7 +475,6 @@ def _grid_update(record: bool, fast: bool) -> wp.Kernel:
 
 GRID_UPDATES = {(record, fast): _grid_update(record, fast) for record in (True, False) for fast in (False, True)}
 """The grid update by (record the contact statistics, fast math)."""
-box_grid_update = GRID_UPDATES[True, False]
 
 
 @wp.kernel
