@@ -10,7 +10,10 @@ stress, diagnostics or rendering). The state is `fracture_gs.paper.fragments`' (
 normals for every K: Voronoi faces have no one latched plane). FractureFields runs in each grid storage of
 `--storage` (the simulator's `sim.grid_storage`: slots, boxes). Each branch runs on its own copy of one
 latched state; on CUDA the substep is a recorded graph timed with CUDA events (medians over `--steps` after
-warm-up, builds round-robin over `--placements` fresh allocations, trials round-robin). Memory: the grid
+warm-up). Every branch is built `--placements` times on fresh memory shifted by a random pad, and every trial
+times all builds of all branches round-robin, so a host drifting during the run moves Shared and FractureFields
+alike (until the tenth session each branch was timed in a block of its own, and the K = 16 ratio moved with
+the host between the blocks: BENCHMARKS.md). Memory: the grid
 buffers as allocated (slots: dense slot 0, owner words, the pool of multi-fragment nodes sized for the state,
 and beside them the slot cache of the GPU's fan-out, a buffer index per (particle that is not solo, stencil
 node); boxes: the dense grid the simulator keeps for the time before a latch plus the boxes' buffers).
@@ -56,7 +59,10 @@ def build(cfg, P, topo, variant, device, sort="cell", storage="slots"):
     return sim
 
 
-def time_builds(sims: list, steps: int, warmup: int, trials: int) -> list[float]:
+def time_builds(sims: list, steps: int, warmup: int, trials: int) -> list[list[float]]:
+    """Median ms of a transfer for each build in `sims`, per trial: every trial times all builds round-robin
+    (every branch's placements interleaved), so a host or clock drifting during the run moves every branch alike
+    and not only the one timed last."""
     cuda = sims[0].device.startswith("cuda")
     graphs = []
     for sim in sims:
@@ -72,9 +78,9 @@ def time_builds(sims: list, steps: int, warmup: int, trials: int) -> list[float]
             graphs.append(cap.graph)
         else:
             graphs.append(None)
-    samples = []
+    samples = [[] for _ in sims]
     for _ in range(trials):
-        for sim, graph in zip(sims, graphs):
+        for sim, graph, out in zip(sims, graphs, samples):
             gc.disable()
             try:
                 ms = []
@@ -91,7 +97,7 @@ def time_builds(sims: list, steps: int, warmup: int, trials: int) -> list[float]
                         t = time.perf_counter()
                         sim.transfer()
                         ms.append(1e3 * (time.perf_counter() - t))
-                samples.append(statistics.median(ms))
+                out.append(statistics.median(ms))
             finally:
                 gc.enable()
     return samples
@@ -126,44 +132,61 @@ def main(argv=None) -> int:
         topo = topology(P, K, cfg.sim.dx)
         out = {"K": K}
         storages = a.storage.split(",")
-        for label, variant, storage in BRANCHES:
-            if variant == "full" and storage not in storages:
-                continue
-            sims = [build(cfg, P, topo, variant, a.device, a.sort, storage) for _ in range(a.placements)]
-            ms = time_builds(sims, a.steps, a.warmup, a.trials)
+        branches = [b for b in BRANCHES if b[1] != "full" or b[2] in storages]
+        rng = torch.Generator().manual_seed(0)
+        labels, sims, pads = [], [], []
+        for _ in range(a.placements):  # each build on fresh memory, shifted by a random pad (paper.bench's way)
+            for label, variant, storage in branches:
+                if a.device.startswith("cuda"):
+                    n_pad = int(torch.randint(1, 64, (), generator=rng)) << 20
+                    pads.append(torch.empty(n_pad, dtype=torch.uint8, device=a.device))
+                labels.append(label)
+                sims.append(build(cfg, P, topo, variant, a.device, a.sort, storage))
+        samples = time_builds(sims, a.steps, a.warmup, a.trials)
+        for label, _variant, storage in branches:
+            mine = [i for i, name in enumerate(labels) if name == label]
+            ms = [m for i in mine for m in samples[i]]
+            first = sims[mine[0]]
+            first.counts.zero_()  # the overflow and escape counts of one substep
+            with first._stream_scope():
+                first.transfer()
             out[label] = {
                 "median_ms": statistics.median(ms),
                 "min_ms": min(ms),
                 "max_ms": max(ms),
-                "grid_mib": sims[0].grid_nbytes / 2**20,
+                "samples_ms": ms,  # placement-major: placement j's trials, then placement j + 1's
+                "grid_mib": first.grid_nbytes / 2**20,
                 # the slot storage's fan-out cache beside its grid (boxes have none)
-                "slot_cache_mib": sims[0]._slot_cache.numel() * 4 / 2**20
-                if sims[0].fanout and storage == "slots"
-                else 0.0,
-                "pool_rows": int(sims[0].grid.rows_used()),
-                "slot_overflow": int(sims[0].counts[COUNT_SLOT_OVERFLOW]),
-                "escaped": int(sims[0].counts[COUNT_ESCAPED]),
+                "slot_cache_mib": first._slot_cache.numel() * 4 / 2**20 if first.fanout and storage == "slots" else 0.0,
+                "pool_rows": int(first.grid.rows_used()),
+                "slot_overflow": int(first.counts[COUNT_SLOT_OVERFLOW]),
+                "escaped": int(first.counts[COUNT_ESCAPED]),
             }
-            del sims
+        del sims, pads
         for label in ("FractureFields", "Boxes"):
             if label in out:
                 ff = out[label]
                 out[label]["time_ratio"] = ff["median_ms"] / out["Shared"]["median_ms"]
                 out[label]["memory_ratio"] = (ff["grid_mib"] + ff["slot_cache_mib"]) / out["Shared"]["grid_mib"]
+                # each sample over the Shared sample timed just before it (same trial, same placement)
+                out[label]["paired_ratio"] = statistics.median(
+                    f / s for f, s in zip(ff["samples_ms"], out["Shared"]["samples_ms"])
+                )
         rows.append(out)
         print(json.dumps(out), flush=True)
     dev = torch.cuda.get_device_name(a.device) if a.device.startswith("cuda") else "cpu"
     print(f"\n### K fragments ({dev}, {len(P)} particles, {a.n}³, {a.sort} order)\n")
-    print("| K | Shared ms | FractureFields storage | ms | × Shared | MiB (with slot cache) | × Shared's | escaped | "
-          "overflow |")  # fmt: skip
-    print("|---|---|---|---|---|---|---|---|---|")
+    print("| K | Shared ms | FractureFields storage | ms | × Shared | × Shared, paired | MiB (with slot cache) | "
+          "× Shared's | escaped / substep | overflow / substep |")  # fmt: skip
+    print("|---|---|---|---|---|---|---|---|---|---|")
     for r in rows:
         for label, storage in (("FractureFields", "slots"), ("Boxes", "boxes")):
             if label in r:
                 f = r[label]
                 print(
                     f"| {r['K']} | {r['Shared']['median_ms']:.4f} | {storage} | {f['median_ms']:.4f} | "
-                    f"{f['time_ratio']:.3f} | {f['grid_mib'] + f['slot_cache_mib']:.1f} | {f['memory_ratio']:.3f} | "
+                    f"{f['time_ratio']:.3f} | {f['paired_ratio']:.3f} | "
+                    f"{f['grid_mib'] + f['slot_cache_mib']:.1f} | {f['memory_ratio']:.3f} | "
                     f"{f['escaped']} | {f['slot_overflow']} |"
                 )
     return 0

@@ -161,6 +161,7 @@ KERNEL_PHASES = {
     "g2p_fanout": "g2p",
     "box_clear": "reset",
     "box_p2g_runs": "p2g",
+    "box_p2g_runs_band": "p2g",
     "box_grid_update": "grid",
     "box_grid_update_quiet": "grid",
     "box_grid_update_fast": "grid",

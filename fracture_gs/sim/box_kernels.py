@@ -10,7 +10,8 @@ the boxes has box_of = −1.
 - `box_p2g_runs`: Eq. multifield_p2g, m_i^k += Σ w_ip m_p, p_i^k += Σ w_ip m_p (v_p + C_p(x_i − x_p)) − Δt V⁰ τ_p
   ∇w_ip, for the particles of fragment k into B_k, `run` consecutive particles a thread (a stencil that
   leaves B_k is counted as an escape and not deposited: the frame is then redone with larger boxes); with the
-  latched normals also each field's band mass Σ w_ip m_p over its band particles (the contact gate).
+  latched normals also each field's band mass Σ w_ip m_p over its band particles (the contact gate). Two
+  builds (`BOX_P2G`): with and without the band masses.
 - `box_grid_update`: per field node v_i^k = p_i^k / m_i^k + Δt g where m_i^k > ε_m (else 0); where two or
   more fields hold mass at a node, the thread of the lowest fragment id there leads: it projects every pair
   in fragment order (the Gauss–Seidel of `contact.contact_projection`; normals and gate of
@@ -159,81 +160,6 @@ def box_clear(b: BoxView):
     b.band[t] = 0.0
 
 
-@wp.kernel
-def box_p2g_runs(
-    x: wp.array(dtype=wp.vec3),  # [N]
-    v: wp.array(dtype=wp.vec3),  # [N]
-    C: wp.array(dtype=wp.mat33),  # [N]
-    mass: wp.array(dtype=float),  # [N]
-    volume: wp.array(dtype=float),  # [N] rest volume V⁰
-    stress: wp.array(dtype=wp.mat33),  # [N] Kirchhoff τ
-    fragment: wp.array(dtype=wp.int32),  # [N] the particle's box
-    clock: Clock,  # Δt
-    b: BoxView,
-    run: int,  # consecutive particles per thread
-    counts: wp.array(dtype=wp.int32),  # [N_COUNTS]
-    band: wp.array(dtype=wp.int32),  # [N] γ_p ≠ 0: an interface-band particle
-    band_mass: int,  # also add the band particles' w_ip m_p to their field's band mass (latched normals' gate)
-):
-    """Deposits of `run` consecutive particles a thread (`run_kernels.p2g_runs` on boxes): those with the same
-    fragment and stencil base are summed in registers and reach their box as one reduction per node (run = 1:
-    one particle a thread). The box's bounds are loaded when the fragment changes and the stencil is checked
-    against its box when the run changes, not per particle (the check cost 1.8 µs of 31 at K = 16)."""
-    t = wp.tid()
-    dt = clock_dt(clock)
-    acc = stencil_sums()
-    cur = wp.vec3i(-1, -1, -1)
-    ck = int(-1)  # noqa: UP018 (a dynamic Warp variable)
-    bk = int(-1)  # noqa: UP018 (the fragment whose box bounds are loaded)
-    blo = wp.vec3i(0, 0, 0)
-    bd = wp.vec3i(0, 0, 0)
-    boff = int(0)  # noqa: UP018
-    start = int(-1)  # noqa: UP018 (buffer index of the current run's stencil origin; −1: it left its box)
-    rd = wp.vec3i(0, 0, 0)  # and its box's dims
-    for p in range(t * run, wp.min(t * run + run, x.shape[0])):
-        k = wp.max(fragment[p], 0)
-        if k != bk:
-            blo = b.lo[k]
-            bd = b.dims[k]
-            boff = b.offset[k]
-            bk = k
-        base, f, w, dw = stencil(x[p], b.origin, b.inv_dx, b.shape)
-        if k != ck or base[0] != cur[0] or base[1] != cur[1] or base[2] != cur[2]:
-            # a new run: flush the last one, and check once whether this stencil lies in its box
-            if start >= 0:
-                flush_box(b, start, rd, acc)
-            acc = stencil_sums()
-            cur = base
-            ck = k
-            start = index_in(blo, bd, boff, base)
-            if index_in(blo, bd, boff, base + wp.vec3i(2, 2, 2)) < 0:
-                start = -1
-            rd = bd
-        if start < 0:
-            wp.atomic_add(counts, COUNT_ESCAPED, 1)  # the stencil left its box: the frame is redone
-            continue
-        m = mass[p]
-        if band_mass != 0:
-            if band[p] != 0:
-                for i in range(3):
-                    for j in range(3):
-                        for l in range(3):  # noqa: E741
-                            wp.atomic_add(b.band, start + (i * rd[1] + j) * rd[2] + l, w[i, 0] * w[j, 1] * w[l, 2] * m)
-        vp = v[p]
-        Cp = C[p]
-        force = -dt * volume[p] * stress[p]
-        for i in range(3):
-            for j in range(3):
-                for l in range(3):  # noqa: E741
-                    q = 9 * i + 3 * j + l
-                    weight, grad, dpos = node_terms(i, j, l, f, w, dw, b.dx, b.inv_dx)
-                    dep = deposit(weight, grad, dpos, m, vp, Cp, force)
-                    for c in range(4):
-                        acc[q, c] = acc[q, c] + dep[c]
-    if start >= 0:
-        flush_box(b, start, rd, acc)
-
-
 @wp.func
 def flush_box(b: BoxView, origin: int, d: wp.vec3i, acc: stencil_sums):
     """Add a run's 27 node sums to its box (stencil origin at buffer index `origin`, box dims d): one reduction
@@ -245,6 +171,93 @@ def flush_box(b: BoxView, origin: int, d: wp.vec3i, acc: stencil_sums):
                 atomic_add_vec4(
                     b.mp, origin + (i * d[1] + j) * d[2] + l, wp.vec4(acc[q, 0], acc[q, 1], acc[q, 2], acc[q, 3])
                 )
+
+
+def _box_p2g(band: bool) -> wp.Kernel:
+    """`box_p2g_runs` with the band masses of the latched normals' gate compiled in (`band`) or out. Out, no
+    atomic on the band buffer stands between one particle's loads and the next's (the compiler must assume it may
+    write what they read), and the kernel is smaller."""
+    BAND = int(band)  # noqa: N806 (a compile-time constant of the kernel, read by wp.static)
+
+    def box_p2g_runs(
+        x: wp.array(dtype=wp.vec3),  # [N]
+        v: wp.array(dtype=wp.vec3),  # [N]
+        C: wp.array(dtype=wp.mat33),  # [N]
+        mass: wp.array(dtype=float),  # [N]
+        volume: wp.array(dtype=float),  # [N] rest volume V⁰
+        stress: wp.array(dtype=wp.mat33),  # [N] Kirchhoff τ
+        fragment: wp.array(dtype=wp.int32),  # [N] the particle's box
+        clock: Clock,  # Δt
+        b: BoxView,
+        run: int,  # consecutive particles per thread
+        counts: wp.array(dtype=wp.int32),  # [N_COUNTS]
+        band: wp.array(dtype=wp.int32),  # [N] γ_p ≠ 0: an interface-band particle (read by the band build only)
+    ):
+        """Deposits of `run` consecutive particles a thread (`run_kernels.p2g_runs` on boxes): those with the
+        same fragment and stencil base are summed in registers and reach their box as one reduction per node
+        (run = 1: one particle a thread). The box's bounds are loaded when the fragment changes and the stencil
+        is checked against its box when the run changes, not per particle (the check cost 1.8 µs of 31 at
+        K = 16). The band build also adds the band particles' w_ip m_p to their field's band mass."""
+        t = wp.tid()
+        dt = clock_dt(clock)
+        acc = stencil_sums()
+        cur = wp.vec3i(-1, -1, -1)
+        ck = int(-1)  # noqa: UP018 (a dynamic Warp variable)
+        bk = int(-1)  # noqa: UP018 (the fragment whose box bounds are loaded)
+        blo = wp.vec3i(0, 0, 0)
+        bd = wp.vec3i(0, 0, 0)
+        boff = int(0)  # noqa: UP018
+        start = int(-1)  # noqa: UP018 (buffer index of the current run's stencil origin; −1: it left its box)
+        rd = wp.vec3i(0, 0, 0)  # and its box's dims
+        for p in range(t * run, wp.min(t * run + run, x.shape[0])):
+            k = wp.max(fragment[p], 0)
+            if k != bk:
+                blo = b.lo[k]
+                bd = b.dims[k]
+                boff = b.offset[k]
+                bk = k
+            base, f, w, dw = stencil(x[p], b.origin, b.inv_dx, b.shape)
+            if k != ck or base[0] != cur[0] or base[1] != cur[1] or base[2] != cur[2]:
+                # a new run: flush the last one, and check once whether this stencil lies in its box
+                if start >= 0:
+                    flush_box(b, start, rd, acc)
+                acc = stencil_sums()
+                cur = base
+                ck = k
+                start = index_in(blo, bd, boff, base)
+                if index_in(blo, bd, boff, base + wp.vec3i(2, 2, 2)) < 0:
+                    start = -1
+                rd = bd
+            if start < 0:
+                wp.atomic_add(counts, COUNT_ESCAPED, 1)  # the stencil left its box: the frame is redone
+                continue
+            m = mass[p]
+            if wp.static(BAND):
+                if band[p] != 0:
+                    for i in range(3):
+                        for j in range(3):
+                            for l in range(3):  # noqa: E741
+                                q = start + (i * rd[1] + j) * rd[2] + l
+                                wp.atomic_add(b.band, q, w[i, 0] * w[j, 1] * w[l, 2] * m)
+            vp = v[p]
+            Cp = C[p]
+            force = -dt * volume[p] * stress[p]
+            for i in range(3):
+                for j in range(3):
+                    for l in range(3):  # noqa: E741
+                        q = 9 * i + 3 * j + l
+                        weight, grad, dpos = node_terms(i, j, l, f, w, dw, b.dx, b.inv_dx)
+                        dep = deposit(weight, grad, dpos, m, vp, Cp, force)
+                        for c in range(4):
+                            acc[q, c] = acc[q, c] + dep[c]
+        if start >= 0:
+            flush_box(b, start, rd, acc)
+
+    return wp.kernel(box_p2g_runs, name="box_p2g_runs" + ("_band" if band else ""))
+
+
+BOX_P2G = {band: _box_p2g(band) for band in (False, True)}
+"""The box P2G by (add the band masses)."""
 
 
 @wp.func

@@ -14,13 +14,13 @@ import warp as wp
 
 from ..runtime import ensure_warp, launch
 from .box_kernels import (
+    BOX_P2G,
     GRID_UPDATES,
     MAX_FIELDS,
     BoxContact,
     BoxView,
     box_clear,
     box_g2p,
-    box_p2g_runs,
     fragment_bounds,
 )
 from .contact import NORMAL_LATCHED, NORMAL_MASS_GRADIENT
@@ -158,8 +158,8 @@ class FragmentBoxes:
         arrays = [w[k] for k in ("x", "v", "C", "mass", "volume", "stress", "fragment")]
         run = max(1, int(run))
         flags = w["fragment"] if band_flags is None else band_flags
-        inputs = arrays + [clock, self.view, run, counts, flags, int(band_flags is not None)]
-        launch(box_p2g_runs, -(-n // run), inputs, self.device)
+        inputs = arrays + [clock, self.view, run, counts, flags]
+        launch(BOX_P2G[band_flags is not None], -(-n // run), inputs, self.device)
 
     def clear(self) -> None:
         """Empty every field (m, p, band mass) for the next P2G. G2P reads only velocities, so this may run
