@@ -345,7 +345,7 @@ def test_every_box_transfer_kernel_has_a_table2_phase():
 
     phases = {bk.box_clear: "reset", bk.box_g2p: "g2p"}
     phases.update({kernel: "p2g" for kernel in bk.BOX_P2G.values()})
-    phases.update({kernel: "grid" for kernel in bk.GRID_UPDATES.values()})
+    phases.update({kernel: "grid" for kernel in (*bk.GRID_UPDATES.values(), *bk.GRID_UPDATES_LATCHED.values())})
     for kernel, phase in phases.items():
         assert KERNEL_PHASES.get(kernel.key) == phase, kernel.key
 

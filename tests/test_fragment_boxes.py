@@ -373,10 +373,12 @@ def test_one_box_is_the_shared_field_transfer_walls_included(device, seed):
             assert rel_err(b, a) <= 1e-5, f"{name} (seed {seed})"
 
 
-def test_latched_normal_contact_gated_by_both_band_masses(device, seed):
+@pytest.mark.parametrize("fast", [False, True])
+def test_latched_normal_contact_gated_by_both_band_masses(device, seed, fast):
     """The paper's contact for a plane cut: two fields, the latched normal n_Π, projected only where both
     fields' band masses exceed ε_b (band particles deposit their mass there too), as
-    `reference.contact_fields` with its default band gate; approach-only, momentum conserving."""
+    `reference.contact_fields` with its default band gate; approach-only, momentum conserving. Also the build
+    CUDA devices run for it: fast math with the latched normals compiled in (`GRID_UPDATES_LATCHED`)."""
     P, w, counts, boxes = state(seed, device)
     x = P["x"]
     P["fragment"].copy_((x[:, 0] > 0.5).to(torch.int32))
@@ -394,7 +396,7 @@ def test_latched_normal_contact_gated_by_both_band_masses(device, seed):
     eps_b = 0.01 * float(gm[gm > 0].mean())
     none = wp.zeros(2, dtype=wp.vec3, device=device)
     boxes.update(c, EPS_M, GRAVITY, 0.0, none, cw, no_walls(device), e=0.0, mu=0.2, latched=(1.0, 0.0, 0.0),
-                 eps_b=eps_b)  # fmt: skip
+                 eps_b=eps_b, fast_math=fast)  # fmt: skip
     gv = ref.grid_update(gm, gp, gb, EPS_M, eps_b, DT, GRAVITY)
     both = (gm > EPS_M).all(0)
     i, j, l = torch.nonzero(both).unbind(1)

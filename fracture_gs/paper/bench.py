@@ -166,6 +166,8 @@ KERNEL_PHASES = {
     "box_grid_update_quiet": "grid",
     "box_grid_update_fast": "grid",
     "box_grid_update_fast_quiet": "grid",
+    "box_grid_update_fast_n0": "grid",
+    "box_grid_update_fast_quiet_n0": "grid",
     "box_g2p": "g2p",
 }
 """Warp kernel name -> Table 2 phase (the transfer kernels of sim/transfer_kernels.py, run_kernels.py,

@@ -21,7 +21,8 @@ the boxes has box_of = −1.
   Fields beyond the first `slots` at a node keep their own velocity (no contact) and are counted. A node of
   exactly two fields takes the same arithmetic from registers; three or more, the sweep (`sweep`); each pair
   goes through `pair_contact` (contact settings: `BoxContact`). Four builds (`GRID_UPDATES`): the contact
-  statistics compiled in or out, exact or (on CUDA devices) with fast math.
+  statistics compiled in or out, exact or (on CUDA devices) with fast math; and the fast ones with the latched
+  normals compiled in (`GRID_UPDATES_LATCHED`, the plane cut's).
 - `box_g2p`: Eqs. field_g2p / field_apic / field_deformation from the particle's own box.
 Twins: `reference.p2g`, `reference.grid_update`, `reference.contact_fields`, `reference.g2p` on K dense
 fields (tests/test_fragment_boxes.py).
@@ -33,7 +34,7 @@ import warp as wp
 
 from .boundary import Colliders, apply_boundaries
 from .clock import Clock, clock_dt, clock_time
-from .contact import NORMAL_MASS_GRADIENT, contact_normal, contact_pair
+from .contact import NORMAL_LATCHED, NORMAL_MASS_GRADIENT, contact_normal, contact_pair
 from .layout import COUNT_ESCAPED, COUNT_SLOT_OVERFLOW, MAX_SLOTS
 from .run_kernels import stencil_sums
 from .transfer_kernels import atomic_add_vec4, deposit, finish_g2p, gather, node_terms, normalized, stencil
@@ -353,6 +354,7 @@ def sweep(
     b: BoxView,
     c: BoxContact,
     record: int,
+    mode: int,
     t: int,
     k: int,
     q: wp.vec4,
@@ -383,7 +385,7 @@ def sweep(
         va = b.vel[ia]  # final after the pairs with lower fields; kept in registers through its own pairs
         for e in range(a, n):
             ie = idx[e]
-            va, w1 = pair_contact(b, c, record, ia, ie, ka, frag[e], va, b.vel[ie], ma, b.mp[ie][3], node, time)
+            va, w1 = pair_contact(b, c, record, mode, ia, ie, ka, frag[e], va, b.vel[ie], ma, b.mp[ie][3], node, time)
             b.vel[ie] = w1
         b.vel[ia] = apply_boundaries(va, node, xi, time, colliders)
 
@@ -393,6 +395,7 @@ def pair_contact(
     b: BoxView,
     c: BoxContact,
     record: int,
+    mode: int,
     i0: int,
     i1: int,
     k0: int,
@@ -408,12 +411,12 @@ def pair_contact(
     gate (both band masses > ε_b with the latched normal, m0 + m1 ≥ fill_mass with mass gradients), the
     normal, then `contact.contact_pair` (projection and statistics)."""
     nrm = c.latched
-    if c.normal_mode == NORMAL_MASS_GRADIENT:
+    if mode == NORMAL_MASS_GRADIENT:
         if not (m0 + m1 >= c.fill_mass):
             return v0, v1
         g0 = box_mass_gradient(b, k0, i0, node)
         g1 = box_mass_gradient(b, k1, i1, node)
-        nrm = contact_normal(c.normal_mode, c.latched, g0, g1, c.centroids[k0], c.centroids[k1])
+        nrm = contact_normal(mode, c.latched, g0, g1, c.centroids, k0, k1)
     elif not (b.band[i0] > c.eps_b and b.band[i1] > c.eps_b):
         return v0, v1
     return contact_pair(
@@ -422,16 +425,18 @@ def pair_contact(
     )  # fmt: skip
 
 
-def _grid_update(record: bool, fast: bool) -> wp.Kernel:
+def _grid_update(record: bool, fast: bool, mode: int = -1) -> wp.Kernel:
     """`box_grid_update` with the contact statistics compiled in (`record`) or out, exact or with fast math
-    (`fast`). Out (timing runs, `Simulator.record_contact = False`), no atomic stands between the leaders' loads
-    (the compiler must assume an atomic may write what a later load reads; the fast-math builds take 64 registers
-    either way on sm_90): K = 16 0.0794 → 0.0782 ms, 1.19 → 1.17× Shared, while the plane cut's grid update reads
-    6.3 → 6.9 µs (BENCHMARKS.md, ninth session). Fast math shortens the leaders' chains of dependent arithmetic
-    (approximate division and square root: 19.2 → 16.0 µs at K = 16, velocities within 2e-7 relative); the CPU
-    keeps the exact kernels (Warp would build a fast-math kernel with fast math on the CPU too), so the CPU's
-    bitwise equalities with the slot storage hold."""
+    (`fast`), the normals' mode (`contact.NORMAL_*`) compiled in or (−1) read from the contact settings. Out
+    (timing runs, `Simulator.record_contact = False`), no atomic stands between the leaders' loads (the compiler
+    must assume an atomic may write what a later load reads; the fast-math builds take 64 registers either way on
+    sm_90): K = 16 0.0794 → 0.0782 ms, 1.19 → 1.17× Shared, while the plane cut's grid update reads 6.3 → 6.9 µs
+    (BENCHMARKS.md, ninth session). Fast math shortens the leaders' chains of dependent arithmetic (approximate
+    division and square root: 19.2 → 16.0 µs at K = 16, velocities within 2e-7 relative); the CPU keeps the exact
+    kernels (Warp would build a fast-math kernel with fast math on the CPU too), so the CPU's bitwise equalities
+    with the slot storage hold."""
     RECORD = int(record)  # noqa: N806 (a compile-time constant of the kernel, read by wp.static)
+    MODE = int(mode)  # noqa: N806 (the normals' mode compiled in; −1: read from the contact settings)
 
     def box_grid_update(
         b: BoxView,
@@ -457,13 +462,16 @@ def _grid_update(record: bool, fast: bool) -> wp.Kernel:
         node = box_node(b, k, t)
         xi = b.origin + wp.vec3(float(node[0]), float(node[1]), float(node[2])) * b.dx
         n, idx, frag = meeting_fields(b, t, k, node, xi, slots, eps_m, dt, gravity, time, colliders, counts)
+        mode = c.normal_mode
+        if wp.static(MODE >= 0):
+            mode = wp.static(MODE)
         if n < 0:
             return  # a lower fragment has mass here: its thread leads
         if n == 0:
             b.vel[t] = apply_boundaries(normalized(q, eps_m, dt, gravity), node, xi, time, colliders)
             return
         if n > 1:
-            sweep(b, c, wp.static(RECORD), t, k, q, node, xi, n, idx, frag, eps_m, dt, gravity, time, colliders)
+            sweep(b, c, wp.static(RECORD), mode, t, k, q, node, xi, n, idx, frag, eps_m, dt, gravity, time, colliders)
             return
         # two fields, the most common meeting: the sweep's one pair from values loaded once, both boundaries
         # applied before either velocity is stored (the sweep's stores and reloads were the critical path here:
@@ -472,13 +480,14 @@ def _grid_update(record: bool, fast: bool) -> wp.Kernel:
         q1 = b.mp[i1]
         v0 = normalized(q, eps_m, dt, gravity)
         v1 = normalized(q1, eps_m, dt, gravity)
-        w0, w1 = pair_contact(b, c, wp.static(RECORD), t, i1, k, frag[0], v0, v1, q[3], q1[3], node, time)
+        w0, w1 = pair_contact(b, c, wp.static(RECORD), mode, t, i1, k, frag[0], v0, v1, q[3], q1[3], node, time)
         w0 = apply_boundaries(w0, node, xi, time, colliders)
         w1 = apply_boundaries(w1, node, xi, time, colliders)
         b.vel[t] = w0
         b.vel[i1] = w1
 
     name = "box_grid_update" + ("_fast" if fast else "") + ("" if record else "_quiet")
+    name += "" if mode < 0 else f"_n{mode}"
     if not fast:  # the exact kernels build with the rest of this module
         return wp.kernel(box_grid_update, name=name)
     return wp.kernel(
@@ -487,6 +496,10 @@ def _grid_update(record: bool, fast: bool) -> wp.Kernel:
 
 
 GRID_UPDATES = {(record, fast): _grid_update(record, fast) for record in (True, False) for fast in (False, True)}
+GRID_UPDATES_LATCHED = {record: _grid_update(record, True, NORMAL_LATCHED) for record in (True, False)}
+"""The fast-math grid update with the latched normals compiled in, by (record): the plane cut's grid update on an H200
+6.0 → 5.2 µs. The mass-gradient normals keep the build that reads the mode: compiled in, K = 16's read 15.3 →
+15.7–16.0 µs (BENCHMARKS.md, tenth session)."""
 """The grid update by (record the contact statistics, fast math)."""
 
 

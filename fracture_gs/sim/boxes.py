@@ -16,6 +16,7 @@ from ..runtime import ensure_warp, launch
 from .box_kernels import (
     BOX_P2G,
     GRID_UPDATES,
+    GRID_UPDATES_LATCHED,
     MAX_FIELDS,
     BoxContact,
     BoxView,
@@ -208,6 +209,8 @@ class FragmentBoxes:
         inputs = [self.view, c, float(eps_m), int(slots), clock, wp.vec3(*gravity), colliders, counts]
         fast = self.device != "cpu" if fast_math is None else fast_math
         kernel = GRID_UPDATES[bool(stats[2] > 0), fast]  # the statistics compiled in only where they are kept
+        if fast and mode == NORMAL_LATCHED:
+            kernel = GRID_UPDATES_LATCHED[bool(stats[2] > 0)]
         launch(kernel, self.capacity, inputs, self.device)
 
     def g2p(self, w: dict, clock, lower, upper, counts, a: int = 0, b: int = -1) -> None:

@@ -42,14 +42,23 @@ NORMAL_MASS_GRADIENT = 1
 
 
 @wp.func
-def contact_normal(mode: int, latched: wp.vec3, g_a: wp.vec3, g_b: wp.vec3, c_a: wp.vec3, c_b: wp.vec3):
-    """Unit normal from field a into field b."""
+def contact_normal(
+    mode: int,
+    latched: wp.vec3,
+    g_a: wp.vec3,
+    g_b: wp.vec3,
+    centroids: wp.array(dtype=wp.vec3),  # [K]
+    k_a: int,
+    k_b: int,
+):
+    """Unit normal from field a (fragment k_a, mass gradient g_a) into field b. The centroids are read only
+    where the gradients are degenerate (their loads stood on every pair's path when passed as values)."""
     if mode == NORMAL_LATCHED:
         return latched
     d = g_b - g_a
     if wp.length(d) > 1e-6 * (wp.length(g_a) + wp.length(g_b)) + 1e-30:
         return wp.normalize(d)
-    e = c_b - c_a
+    e = centroids[k_b] - centroids[k_a]
     if wp.length(e) > 0.0:
         return wp.normalize(e)
     return latched

@@ -425,7 +425,7 @@ def grid_update_pool(
                     if frag[c] < frag[a]:
                         lo = c
                         hi = a
-                    nrm = contact_normal(normal_mode, latched, G[lo], G[hi], centroids[frag[lo]], centroids[frag[hi]])
+                    nrm = contact_normal(normal_mode, latched, G[lo], G[hi], centroids, frag[lo], frag[hi])
                     w0, w1 = contact_pair(
                         V[lo], V[hi], m[lo], m[hi], nrm, restitution, friction, project, record, stats, pair_stats,
                         frag[lo], frag[hi], n_fragments, t,
