@@ -168,16 +168,24 @@ class StreamFork:
         self._scope = None
         self.forks = 0  # forks opened so far (CUDA): tests check that launches went beside
 
+    def open(self) -> None:
+        """Fork here: what goes beside later (before the join) waits only for what was issued before this call,
+        so launches issued on the current stream in between run beside it too, and are issued first."""
+        if not self.device.startswith("cuda") or self._main is not None:
+            return
+        import torch
+
+        self._main = torch.cuda.current_stream(self.device)
+        self._fork = side_stream(self.device, "fork")
+        self._fork.wait_stream(self._main)
+        self.forks += 1
+
     def __enter__(self) -> StreamFork:
         if not self.device.startswith("cuda"):
             return self
         import torch
 
-        if self._main is None:
-            self._main = torch.cuda.current_stream(self.device)
-            self._fork = side_stream(self.device, "fork")
-            self._fork.wait_stream(self._main)
-            self.forks += 1
+        self.open()
         self._scope = torch.cuda.stream(self._fork)
         self._scope.__enter__()
         return self

@@ -446,9 +446,11 @@ class Simulator(SlotStorage, FrameLoop):
         g, w = self.grid, self.wp
         if self.boxed and only_fragment < 0:
             lo, hi = self._lower, self._upper
-            with self._beside():  # the next P2G's empty boxes, beside this G2P (which reads only velocities)
-                self.boxes.clear()
+            if self.concurrent:
+                self._fork.open()  # the next P2G's empty boxes go beside this G2P (which reads only velocities),
             self._g2p_ranges(lambda a, b, c: self.boxes.g2p(w, self.clock.view, lo, hi, c, a, b), False)
+            with self._beside():  # issued after it, so G2P's blocks take the SMs first and the clear fills its tail
+                self.boxes.clear()
             self._fork.join()
             return
         arrays = [w["x"], w["v"], w["C"], w["F"], w["fragment"], w["solo"]]
