@@ -69,3 +69,43 @@ def test_a_fork_waits_for_what_came_before_and_the_join_for_the_fork(device):
                     t.zero_()
                 wp.capture_launch(capture.graph, stream=warp_stream(device))
                 assert (tensors[3].cpu() == 4.0).all(), "the recorded graph keeps both edges"
+
+
+def test_a_fork_opened_early_waits_only_for_what_came_before_it(device):
+    """`fork.open()` marks the fork point; a launch issued on the current stream after it and a launch inside the
+    fork issued later still start from that point (the simulator issues G2P first and the next P2G's clear beside
+    it): the fork sees what came before the mark, the join makes later launches wait for both."""
+    ensure_warp()
+    n = 4096
+    tensors = [torch.zeros(n, device=device) for _ in range(4)]
+    a, b, c, d = (wp.from_torch(t) for t in tensors)
+    fork = StreamFork(device)
+    streams = {}
+
+    def launch(kernel, inputs):
+        wp.launch(kernel, dim=n, inputs=inputs, device=device, stream=warp_stream(device))
+
+    def launches():
+        launch(slow_fill, [a, 1.0, SPINS])
+        fork.open()
+        streams["main"] = warp_stream(device)
+        launch(slow_fill, [c, 2.0, SPINS])  # issued first, on the current stream
+        with fork:
+            streams["fork"] = warp_stream(device)
+            launch(plus_one, [a, b])  # needs a, from before the mark
+        fork.join()
+        launch(add, [b, c, d])  # needs b and c
+
+    scope = torch.cuda.stream(side_stream(device)) if device.startswith("cuda") else contextlib.nullcontext()
+    with scope:
+        launches()
+        assert (tensors[3].cpu() == 4.0).all()
+        if device.startswith("cuda"):
+            assert streams["fork"] is not streams["main"] and fork.forks == 1
+            with wp.ScopedCapture(device=device, stream=warp_stream(device), force_module_load=False) as capture:
+                launches()
+            for _ in range(3):
+                for t in tensors:
+                    t.zero_()
+                wp.capture_launch(capture.graph, stream=warp_stream(device))
+                assert (tensors[3].cpu() == 4.0).all(), "the recorded graph keeps both edges"
