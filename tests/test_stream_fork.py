@@ -34,27 +34,19 @@ def add(a: wp.array(dtype=float), b: wp.array(dtype=float), out: wp.array(dtype=
     out[i] = a[i] + b[i]
 
 
-def test_a_fork_waits_for_what_came_before_and_the_join_for_the_fork(device):
+def _arrays(device, n=4096):
     ensure_warp()
-    n = 4096
     tensors = [torch.zeros(n, device=device) for _ in range(4)]
-    a, b, c, d = (wp.from_torch(t) for t in tensors)
-    fork = StreamFork(device)
-    streams = {}
+    return tensors, [wp.from_torch(t) for t in tensors]
 
-    def launch(kernel, inputs):
-        wp.launch(kernel, dim=n, inputs=inputs, device=device, stream=warp_stream(device))
 
-    def launches():
-        launch(slow_fill, [a, 1.0, SPINS])
-        with fork:
-            streams["fork"] = warp_stream(device)
-            launch(plus_one, [a, b])  # needs a: the fork's edge
-        streams["main"] = warp_stream(device)
-        launch(slow_fill, [c, 2.0, SPINS])  # beside it
-        fork.join()
-        launch(add, [b, c, d])  # needs b: the join's edge
+def _launch(device, kernel, inputs, n=4096):
+    wp.launch(kernel, dim=n, inputs=inputs, device=device, stream=warp_stream(device))
 
+
+def _check_eagerly_and_recorded(device, launches, tensors, streams):
+    """`launches()` ends with d = b + c = 4 everywhere, run eagerly and (CUDA) recorded once and replayed, where
+    the fork's launches went to a stream of their own."""
     scope = torch.cuda.stream(side_stream(device)) if device.startswith("cuda") else contextlib.nullcontext()
     with scope:  # graphs record a non-default stream
         launches()
@@ -71,41 +63,42 @@ def test_a_fork_waits_for_what_came_before_and_the_join_for_the_fork(device):
                 assert (tensors[3].cpu() == 4.0).all(), "the recorded graph keeps both edges"
 
 
+def test_a_fork_waits_for_what_came_before_and_the_join_for_the_fork(device):
+    tensors, (a, b, c, d) = _arrays(device)
+    fork = StreamFork(device)
+    streams = {}
+
+    def launches():
+        _launch(device, slow_fill, [a, 1.0, SPINS])
+        with fork:
+            streams["fork"] = warp_stream(device)
+            _launch(device, plus_one, [a, b])  # needs a: the fork's edge
+        streams["main"] = warp_stream(device)
+        _launch(device, slow_fill, [c, 2.0, SPINS])  # beside it
+        fork.join()
+        _launch(device, add, [b, c, d])  # needs b: the join's edge
+
+    _check_eagerly_and_recorded(device, launches, tensors, streams)
+
+
 def test_a_fork_opened_early_waits_only_for_what_came_before_it(device):
     """`fork.open()` marks the fork point; a launch issued on the current stream after it and a launch inside the
     fork issued later still start from that point (the simulator issues G2P first and the next P2G's clear beside
     it): the fork sees what came before the mark, the join makes later launches wait for both."""
-    ensure_warp()
-    n = 4096
-    tensors = [torch.zeros(n, device=device) for _ in range(4)]
-    a, b, c, d = (wp.from_torch(t) for t in tensors)
+    tensors, (a, b, c, d) = _arrays(device)
     fork = StreamFork(device)
     streams = {}
 
-    def launch(kernel, inputs):
-        wp.launch(kernel, dim=n, inputs=inputs, device=device, stream=warp_stream(device))
-
     def launches():
-        launch(slow_fill, [a, 1.0, SPINS])
+        _launch(device, slow_fill, [a, 1.0, SPINS])
         fork.open()
         streams["main"] = warp_stream(device)
-        launch(slow_fill, [c, 2.0, SPINS])  # issued first, on the current stream
+        _launch(device, slow_fill, [c, 2.0, SPINS])  # issued first, on the current stream
         with fork:
             streams["fork"] = warp_stream(device)
-            launch(plus_one, [a, b])  # needs a, from before the mark
+            _launch(device, plus_one, [a, b])  # needs a, from before the mark
         fork.join()
-        launch(add, [b, c, d])  # needs b and c
+        _launch(device, add, [b, c, d])  # needs b and c
 
-    scope = torch.cuda.stream(side_stream(device)) if device.startswith("cuda") else contextlib.nullcontext()
-    with scope:
-        launches()
-        assert (tensors[3].cpu() == 4.0).all()
-        if device.startswith("cuda"):
-            assert streams["fork"] is not streams["main"] and fork.forks == 1
-            with wp.ScopedCapture(device=device, stream=warp_stream(device), force_module_load=False) as capture:
-                launches()
-            for _ in range(3):
-                for t in tensors:
-                    t.zero_()
-                wp.capture_launch(capture.graph, stream=warp_stream(device))
-                assert (tensors[3].cpu() == 4.0).all(), "the recorded graph keeps both edges"
+    _check_eagerly_and_recorded(device, launches, tensors, streams)
+    assert fork.forks == (2 if device.startswith("cuda") else 0), "one fork eagerly, one recorded"

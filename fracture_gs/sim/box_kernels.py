@@ -36,8 +36,8 @@ from .boundary import Colliders, apply_boundaries
 from .clock import Clock, clock_dt, clock_time
 from .contact import NORMAL_LATCHED, NORMAL_MASS_GRADIENT, contact_normal, contact_pair
 from .layout import COUNT_ESCAPED, COUNT_SLOT_OVERFLOW, MAX_SLOTS
-from .run_kernels import stencil_sums
-from .transfer_kernels import atomic_add_vec4, deposit, finish_g2p, gather, node_terms, normalized, stencil
+from .run_kernels import add_particle, stencil_sums
+from .transfer_kernels import atomic_add_vec4, finish_g2p, gather, normalized, stencil
 
 wp.set_module_options({"enable_backward": False})
 
@@ -240,17 +240,8 @@ def _box_p2g(band: bool) -> wp.Kernel:
                             for l in range(3):  # noqa: E741
                                 q = start + (i * rd[1] + j) * rd[2] + l
                                 wp.atomic_add(b.band, q, w[i, 0] * w[j, 1] * w[l, 2] * m)
-            vp = v[p]
-            Cp = C[p]
             force = -dt * volume[p] * stress[p]
-            for i in range(3):
-                for j in range(3):
-                    for l in range(3):  # noqa: E741
-                        q = 9 * i + 3 * j + l
-                        weight, grad, dpos = node_terms(i, j, l, f, w, dw, b.dx, b.inv_dx)
-                        dep = deposit(weight, grad, dpos, m, vp, Cp, force)
-                        for c in range(4):
-                            acc[q, c] = acc[q, c] + dep[c]
+            acc = add_particle(acc, f, w, dw, b.dx, b.inv_dx, m, v[p], C[p], force)
         if start >= 0:
             flush_box(b, start, rd, acc)
 

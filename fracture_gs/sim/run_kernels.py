@@ -36,6 +36,25 @@ def flush_run(g: GridView, base: wp.vec3i, acc: stencil_sums):
                 atomic_add_vec4(g.mp, n, wp.vec4(acc[q, 0], acc[q, 1], acc[q, 2], acc[q, 3]))
 
 
+@wp.func
+def add_particle(
+    acc: stencil_sums, f: wp.vec3, w: wp.mat33, dw: wp.mat33, dx: float, inv_dx: float, m: float, vp: wp.vec3,
+    Cp: wp.mat33, force: wp.mat33,
+):  # fmt: skip
+    """`acc` plus one particle's 27 deposits (`transfer_kernels.deposit`: mass m, velocity vp, affine Cp, stress
+    term force = −Δt V⁰ τ), the sums a run keeps in registers."""
+    out = acc
+    for i in range(3):
+        for j in range(3):
+            for l in range(3):  # noqa: E741
+                q = 9 * i + 3 * j + l
+                weight, grad, dpos = node_terms(i, j, l, f, w, dw, dx, inv_dx)
+                d = deposit(weight, grad, dpos, m, vp, Cp, force)
+                for c in range(4):
+                    out[q, c] = out[q, c] + d[c]
+    return out
+
+
 @wp.kernel
 def p2g_runs(
     x: wp.array(dtype=wp.vec3),  # [N]
@@ -69,17 +88,7 @@ def p2g_runs(
                     flush_run(g, cur, acc)
                 acc = stencil_sums()
                 cur = base
-            m = mass[p]
-            vp = v[p]
-            Cp = C[p]
             force = -dt * volume[p] * stress[p]
-            for i in range(3):
-                for j in range(3):
-                    for l in range(3):  # noqa: E741
-                        q = 9 * i + 3 * j + l
-                        weight, grad, dpos = node_terms(i, j, l, f, w, dw, g.dx, g.inv_dx)
-                        d = deposit(weight, grad, dpos, m, vp, Cp, force)
-                        for c in range(4):
-                            acc[q, c] = acc[q, c] + d[c]
+            acc = add_particle(acc, f, w, dw, g.dx, g.inv_dx, mass[p], v[p], C[p], force)
     if cur[0] >= 0:
         flush_run(g, cur, acc)
