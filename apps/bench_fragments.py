@@ -32,6 +32,7 @@ import time
 import torch
 import warp as wp
 
+from fracture_gs.paper.bench import placement_pad
 from fracture_gs.paper.fragments import shattered_state as state
 from fracture_gs.paper.fragments import voronoi_topology as topology
 from fracture_gs.runtime import warp_stream
@@ -138,8 +139,7 @@ def main(argv=None) -> int:
         for _ in range(a.placements):  # each build on fresh memory, shifted by a random pad (paper.bench's way)
             for label, variant, storage in branches:
                 if a.device.startswith("cuda"):
-                    n_pad = int(torch.randint(1, 64, (), generator=rng)) << 20
-                    pads.append(torch.empty(n_pad, dtype=torch.uint8, device=a.device))
+                    pads.append(placement_pad(rng, a.device))
                 labels.append(label)
                 sims.append(build(cfg, P, topo, variant, a.device, a.sort, storage))
         samples = time_builds(sims, a.steps, a.warmup, a.trials)

@@ -92,8 +92,9 @@ def in_particle_order(gs: GaussianSet, cfg: SceneConfig) -> GaussianSet:
     from these Gaussians, so they share one particle order (the topology's labels are per particle)."""
     if cfg.sim.particle_order != "cell" or len(gs) == 0:
         return gs
-    origin, dx, shape = fit_grid(cfg.sim, gs.means.detach().float())
-    return gs.subset(cell_order(gs.means.detach().float(), origin, dx, shape, "cell"))
+    means = gs.means.detach().float()
+    origin, dx, shape = fit_grid(cfg.sim, means)
+    return gs.subset(cell_order(means, origin, dx, shape, "cell"))
 
 
 def load_scene(cfg: SceneConfig, device="cpu") -> GaussianSet:

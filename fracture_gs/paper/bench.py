@@ -200,6 +200,12 @@ def kernel_times(sim: Simulator, dt: float, steps: int = 50) -> dict | None:
     return us
 
 
+def placement_pad(rng: torch.Generator, device: str) -> torch.Tensor:
+    """1–63 MiB of device memory, held while the next build allocates, so that builds of one branch land at
+    different addresses (P2G's atomics resolve in L2, whose slices the address picks)."""
+    return torch.empty(int(torch.randint(1, 64, (), generator=rng)) << 20, dtype=torch.uint8, device=device)
+
+
 def time_branches(
     cfg,
     P,
@@ -233,9 +239,7 @@ def time_branches(
     for rep in range(placements):
         for label, variant, passes, *storage in branches:
             if cuda:  # shift where the next build's buffers land
-                keep.append(
-                    torch.empty(int(torch.randint(1, 64, (), generator=rng)) << 20, dtype=torch.uint8, device=device)
-                )
+                keep.append(placement_pad(rng, device))
             sim = make_sim(cfg, P, topo, variant, device, sort, *storage)
             fn = (lambda s=sim: (s.compute_stress(s.stress, commit=True), s.transfer())) if whole else sim.transfer
             for _ in range(warmup):

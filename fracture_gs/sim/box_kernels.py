@@ -487,11 +487,19 @@ def _grid_update(record: bool, fast: bool, mode: int = -1) -> wp.Kernel:
 
 
 GRID_UPDATES = {(record, fast): _grid_update(record, fast) for record in (True, False) for fast in (False, True)}
+"""The grid update by (record the contact statistics, fast math), reading the normals' mode."""
 GRID_UPDATES_LATCHED = {record: _grid_update(record, True, NORMAL_LATCHED) for record in (True, False)}
 """The fast-math grid update with the latched normals compiled in, by (record): the plane cut's grid update on an H200
 6.0 → 5.2 µs. The mass-gradient normals keep the build that reads the mode: compiled in, K = 16's read 15.3 →
 15.7–16.0 µs (BENCHMARKS.md, tenth session)."""
-"""The grid update by (record the contact statistics, fast math)."""
+
+
+def grid_update_kernel(record: bool, fast: bool, mode: int) -> wp.Kernel:
+    """The build of the grid update a launch takes: statistics compiled in only where they are kept, fast math
+    (CUDA) with the latched normals compiled in for the plane cut, the mode-reading build otherwise."""
+    if fast and mode == NORMAL_LATCHED:
+        return GRID_UPDATES_LATCHED[record]
+    return GRID_UPDATES[record, fast]
 
 
 @wp.kernel

@@ -15,14 +15,13 @@ import warp as wp
 from ..runtime import ensure_warp, launch
 from .box_kernels import (
     BOX_P2G,
-    GRID_UPDATES,
-    GRID_UPDATES_LATCHED,
     MAX_FIELDS,
     BoxContact,
     BoxView,
     box_clear,
     box_g2p,
     fragment_bounds,
+    grid_update_kernel,
 )
 from .contact import NORMAL_LATCHED, NORMAL_MASS_GRADIENT
 
@@ -208,10 +207,7 @@ class FragmentBoxes:
         c.stats, c.pair_stats, c.n_fragments = stats[0], stats[1], int(stats[2])
         inputs = [self.view, c, float(eps_m), int(slots), clock, wp.vec3(*gravity), colliders, counts]
         fast = self.device != "cpu" if fast_math is None else fast_math
-        kernel = GRID_UPDATES[bool(stats[2] > 0), fast]  # the statistics compiled in only where they are kept
-        if fast and mode == NORMAL_LATCHED:
-            kernel = GRID_UPDATES_LATCHED[bool(stats[2] > 0)]
-        launch(kernel, self.capacity, inputs, self.device)
+        launch(grid_update_kernel(bool(stats[2] > 0), fast, mode), self.capacity, inputs, self.device)
 
     def g2p(self, w: dict, clock, lower, upper, counts, a: int = 0, b: int = -1) -> None:
         """Particles [a, b) gather from their own fragment's box (v, C, F, x; clamped into [lower, upper])."""

@@ -11,12 +11,12 @@ from __future__ import annotations
 
 import contextlib
 import math
-from typing import Optional
+from typing import Optional, get_args
 
 import torch
 import warp as wp
 
-from ..config import MATERIALS, SimConfig
+from ..config import MATERIALS, ParticleOrder, SimConfig
 from ..runtime import StreamFork, cpu_ranges, ensure_warp, launch, run_ranges, torch_stream
 from ..variants import VARIANTS, variant_spec
 from .boundary import Boundaries
@@ -58,8 +58,9 @@ def validate_sim_config(cfg: SimConfig) -> None:
         raise SimulationError(f"sim.field_slots = {cfg.field_slots} must lie in [2, {MAX_SLOTS}]")
     if cfg.grid_storage not in ("auto", "slots", "boxes"):
         raise SimulationError(f"sim.grid_storage '{cfg.grid_storage}' is unknown; use auto, slots or boxes")
-    if cfg.particle_order not in ("scene", "cell"):
-        raise SimulationError(f"sim.particle_order '{cfg.particle_order}' is unknown; use scene or cell")
+    if cfg.particle_order not in get_args(ParticleOrder):
+        orders = " or ".join(get_args(ParticleOrder))
+        raise SimulationError(f"sim.particle_order '{cfg.particle_order}' is unknown; use {orders}")
     if not 2 <= cfg.max_fragments <= 4096:
         raise SimulationError(f"sim.max_fragments = {cfg.max_fragments} must lie in [2, 4096]")
     if not (cfg.contact.friction >= 0 and math.isfinite(cfg.contact.friction)):
