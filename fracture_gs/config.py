@@ -32,6 +32,10 @@ UpAxis = Literal["auto", "+x", "-x", "+y", "-y", "+z", "-z"]
 RoiKind = Literal["auto", "box", "sphere", "all"]
 LoadKind = Literal["pull", "drop", "impact", "none"]
 CameraSource = Literal["auto", "trainer", "config"]
+CaptureQuality = Literal["draft", "default", "fine"]
+CaptureMaterial = Literal["ceramic", "wood", "plant", "bread", "config"]
+PanelSize = Literal["auto", "config"]
+InteriorColor = Literal["surface", "material"]
 
 VARIANTS = VARIANT_NAMES
 MATERIALS = get_args(MaterialName)
@@ -334,7 +338,15 @@ class RenderConfig:
     """`appearance` (the Gaussians' own colours) or `fragment` (each fragment in its own colour, shaded by
     the Gaussian's brightness, once the object has broken)."""
     show_exposed_interior: bool = True
-    """Draw interior fill particles once a fracture exposes them (coloured like the nearest surface)."""
+    """Draw interior fill particles once a fracture exposes them."""
+    trim_cracks: bool = False
+    """At each fracture event, shrink the drawn Gaussians that reach across the new surface to their own side,
+    so the opening shows as it opens (`render/crack_faces.py`; on for captured scenes)."""
+    interior_color: InteriorColor = "surface"
+    """Colour of exposed interior: `surface` (the nearest surface Gaussian's) or `material` (the material's
+    own interior colour, `interior_rgb`)."""
+    interior_rgb: Vec3 = (0.85, 0.82, 0.76)
+    """Interior colour for interior_color = "material", RGB in [0, 1] (a capture's material preset sets it)."""
     inset_radius: int = 40
     """Radius of the circular fracture inset [px]."""
     inset_zoom: float = 2.5
@@ -375,8 +387,20 @@ class CaptureConfig:
     """Auto ROI: per-axis bounds at this percentile and its complement (robust to stray Gaussians) [%]."""
     size: float = 0.5
     """Length of the object's longest side after the fit [m] (materials and loads are tuned at this scale)."""
-    cells_across: int = 24
-    """Grid cells across the object's longest side: Δx = size / cells_across."""
+    cells_across: Optional[int] = None
+    """Grid cells across the object's longest side: Δx = size / cells_across (None = automatic: from the
+    thickness of the object's thinnest parts, within `quality`'s budget for the device)."""
+    quality: CaptureQuality = "default"
+    """Resolution budget for the automatic Δx: `draft`, `default` or `fine` (cells across and simulated
+    particles per device; the CPU's `default` keeps a 40-frame, three-variant run of a 150k-Gaussian capture
+    within a few minutes)."""
+    material: CaptureMaterial = "ceramic"
+    """Material preset of the object: `ceramic` (stiff, brittle: shards), `wood`, `plant` (bends, then snaps),
+    `bread` (soft, tears) or `config` ([material] as written). Stiffness is the stiffest each time step
+    affords (see `capture/materials.py`); Δt follows from its CFL bound."""
+    panel: PanelSize = "auto"
+    """Video panel size: `auto` (640×480 on the CPU, 1280×720 on a GPU) or `config` ([render] width and
+    height as written; `--resolution` sets them)."""
     max_particles: int = 20000
     """Budget of interior fill particles (the fill spacing grows to respect it)."""
     fill_threshold: float = 0.2

@@ -16,6 +16,7 @@ import torch
 from . import assets
 from .config import SceneConfig
 from .io import GaussianSet
+from .io.gaussian_set import Carrier
 from .profiling import phases
 from .render.gaussians import deform_covariances, polar_rotation
 from .sim import Particles, SimulationError, Simulator, Topology
@@ -72,7 +73,7 @@ def prepare_scene(cfg: SceneConfig, device="cpu"):
     if cfg.scene in assets.names():
         gs = assets.build(cfg.scene, size=cfg.preset, n=cfg.particles).to(device)
         return Capture(cfg, in_particle_order(gs, cfg), None, None, [])
-    cap = resolve(cfg)
+    cap = resolve(cfg, device)
     gs = cap.gaussians
     if cfg.material_property:
         if cfg.material_property not in gs.extra:
@@ -92,6 +93,10 @@ def in_particle_order(gs: GaussianSet, cfg: SceneConfig) -> GaussianSet:
     from these Gaussians, so they share one particle order (the topology's labels are per particle)."""
     if cfg.sim.particle_order != "cell" or len(gs) == 0:
         return gs
+    if gs.carrier is not None:  # the simulated particles are sorted; the drawn Gaussians keep their order
+        means = gs.carrier.particles.means.detach().float()
+        origin, dx, shape = fit_grid(cfg.sim, means)
+        return gs.replace(carrier=gs.carrier.reordered(cell_order(means, origin, dx, shape, "cell")))
     means = gs.means.detach().float()
     origin, dx, shape = fit_grid(cfg.sim, means)
     return gs.subset(cell_order(means, origin, dx, shape, "cell"))
@@ -144,16 +149,24 @@ def make_simulator(
     return sim
 
 
-def frame_output(sim: Simulator, cov0: torch.Tensor, metrics: dict, substeps: int = 0) -> FrameOutput:
+def frame_output(
+    sim: Simulator, cov0: torch.Tensor, metrics: dict, substeps: int = 0, carrier: Optional[Carrier] = None
+) -> FrameOutput:
+    """The simulator's state as a frame of the drawn Gaussians (through `carrier` when they are carried)."""
     P = sim.particles
+    if carrier is not None:
+        means, F = carrier.carry(P.x, P.F)
+        fragment, band = P.fragment.index_select(0, carrier.index), P.band.index_select(0, carrier.index)
+    else:
+        means, F, fragment, band = P.x.clone(), P.F.clone(), P.fragment.clone(), P.band.clone()
     return FrameOutput(
         frame=sim.frame,
         time=sim.time,
-        means=P.x.clone(),
-        F=P.F.clone(),
+        means=means,
+        F=F,
         cov0=cov0,
-        fragment=P.fragment.clone(),
-        band=P.band.clone(),
+        fragment=fragment,
+        band=band,
         metrics=metrics,
         substeps=substeps,
         topology_version=len(sim.topologies),
@@ -161,17 +174,50 @@ def frame_output(sim: Simulator, cov0: torch.Tensor, metrics: dict, substeps: in
 
 
 def simulate(
-    sim: Simulator, cov0: torch.Tensor, frames: int, frame_dt: float, diagnostics: bool = True
+    sim: Simulator,
+    cov0: torch.Tensor,
+    frames: int,
+    frame_dt: float,
+    diagnostics: bool = True,
+    carrier: Optional[Carrier] = None,
+    crack_faces: bool = False,
 ) -> Iterator[FrameOutput]:
     """Yield frame 0 (initial state), then one FrameOutput per simulated frame. Raises
     `SimulationDiverged` at the frame that diverged (everything yielded before stays valid).
-    Without `diagnostics` nothing is read back to the host but the per-frame divergence check."""
+    Without `diagnostics` nothing is read back to the host but the per-frame divergence check. With a
+    `carrier` the frames hold the carried Gaussians (cov0 is theirs), the metrics the simulated particles.
+    With `crack_faces` the frames' rest covariances are trimmed at each fracture event's surfaces
+    (`render.crack_faces.CrackFaces`)."""
     tracker = sim.diagnostics_tracker() if diagnostics else None
     with phases.section("diagnostics"):
         first = tracker.snapshot() if tracker else {}
-    yield frame_output(sim, cov0, first)
+    out = frame_output(sim, cov0, first, carrier=carrier)
+    trim = _CrackTrim(out, sim, cov0, carrier) if crack_faces else None
+    yield out
     for _ in range(frames):
         with phases.section("simulate"):
             n = sim.advance(frame_dt)
-            out = frame_output(sim, cov0, tracker.history[-1] if tracker else {}, n)
+            out = frame_output(sim, cov0, tracker.history[-1] if tracker else {}, n, carrier)
+            if trim is not None:
+                out.cov0 = trim(out, sim)
         yield out
+
+
+class _CrackTrim:
+    """The trimmed rest covariances of a run, recomputed when its topology changes."""
+
+    def __init__(self, first: FrameOutput, sim: Simulator, cov0: torch.Tensor, carrier: Optional[Carrier]):
+        self.means0, self.x0 = first.means.clone(), sim.particles.x.clone()
+        self.cov0, self.carrier = cov0, carrier
+        self.faces, self.version, self.current = None, 0, cov0
+
+    def __call__(self, out: FrameOutput, sim: Simulator) -> torch.Tensor:
+        if out.topology_version != self.version and bool((out.fragment >= 0).any()):
+            from .render.crack_faces import CrackFaces
+
+            if self.faces is None:
+                index = self.carrier.index if self.carrier is not None else None
+                self.faces = CrackFaces(self.means0, self.cov0, self.x0, index)
+            self.current = self.faces.trimmed(sim.particles.fragment)
+            self.version = out.topology_version
+        return self.current

@@ -83,7 +83,12 @@ class Painter:
             return torch.zeros_like(self.interior)
         exposed = self.interior & (out.band != 0)
         count = int(exposed.sum())
-        if count != self.exposed_count and count > 0 and bool((~self.interior).any()):
+        if count != self.exposed_count and count > 0 and self.cfg.interior_color == "material":
+            rgb = torch.tensor(self.cfg.interior_rgb, dtype=torch.float32, device=out.means.device)
+            self.exposed_rgb = rgb.expand(count, 3)  # the material's own colour inside
+            self.exposed_idx = torch.nonzero(exposed).flatten()
+            self.exposed_count = count
+        elif count != self.exposed_count and count > 0 and bool((~self.interior).any()):
             # colour of the nearest surface Gaussian, computed when a fracture exposes new interior
             self.exposed_rgb = exposed_interior_colors(
                 out.means[exposed], out.means[~self.interior], self.surface_dc[~self.interior]
@@ -307,7 +312,9 @@ def run_variant(
     sink = FrameSink(painter.for_variant(), out_dir / f"{variant}.mp4", cfg.render.fps, frames_store)
     interrupted = False
     try:
-        for out in simulate(sim, painter.cov0, cfg.frames, cfg.frame_dt):
+        for out in simulate(
+            sim, painter.cov0, cfg.frames, cfg.frame_dt, carrier=gs.carrier, crack_faces=cfg.render.trim_cracks
+        ):
             with phases.section("io"):
                 metrics_file.write(json.dumps({"variant": variant, **out.metrics}, default=_json_default) + "\n")
                 metrics_file.flush()

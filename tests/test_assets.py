@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-import sys
 import time
 
 import numpy as np
@@ -222,17 +221,6 @@ def test_fill_sphere():
     assert ((add.labels == 1) == (z > 0))[far].float().mean() > 0.97, f"seed={seed}"
     assert add.extra["part"].dtype == torch.int16 and len(add.extra["part"]) == len(add)
     assert torch.isin(add.sh[:, 0], gs.sh[:, 0]).all() and (add.sh[:, 1:] == 0).all()
-
-
-def test_fill_without_scipy_uses_axis_rays(monkeypatch):
-    seed = fresh_seed()
-    gs, _ = sphere_surface(2000, 0.2, (0.5, 0.5, 0.5), seed)
-    monkeypatch.setitem(sys.modules, "scipy", None)  # `from scipy import ...` now fails
-    add = fill_interior(gs, seed=seed)
-    add = add.subset(add.interior)
-    dv = 2 * add.scales[0, 0].item()
-    z = add.means[:, 2] - 0.5
-    assert ((add.labels == 1) == (z > 0))[z.abs() > 2 * dv].float().mean() > 0.97, f"seed={seed}"
 
 
 def test_fill_budget_and_grid():

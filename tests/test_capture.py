@@ -78,13 +78,15 @@ def test_closed_shell_interior_within_20_percent(tmp_path, n):
     filled = int(g.interior.sum()) * spacing**3 / cap.transform.scale**3 / SCENE_SCALE**3
     assert abs(filled / volume - 1) < 0.2, f"filled {filled:.4g} m³ of {volume:.4g} m³"
     assert not any("warning" in note for note in cap.notes)
-    assert any(note.startswith(f"filled {int(g.interior.sum())} interior particles") for note in cap.notes)
+    assert any(note.startswith(f"interior: filled with {int(g.interior.sum())} particles") for note in cap.notes)
 
 
 def test_open_shell_is_reported(tmp_path):
     ply, _ = write_trainer_ply(tmp_path, n=6000, open_shell=True)
     cap = resolve(load_config(ply))
-    assert any("warning: the surface encloses almost nothing" in note for note in cap.notes)
+    opens = [note for note in cap.notes if note.startswith("interior: the surface is open")]
+    assert len(opens) == 1 and "capture.fill_closing" in opens[0], "one line says it is open, with the setting"
+    assert not any(note.startswith("interior: filled") for note in cap.notes), "and no line contradicts it"
 
 
 def test_up_axis_and_camera_from_trainer_cameras(tmp_path):

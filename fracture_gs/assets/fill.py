@@ -15,7 +15,7 @@ A trained 3DGS scene puts its Gaussians on the visible surface; MPM needs mass i
    flooded: the fill then finds almost nothing (`stats["fill_fraction"]` tells);
 4. one particle per inside voxel, uniformly jittered in the voxel (spacing = voxel size), with
    the DC colour, label and extra properties of the owner of the nearest occupied voxel (exact
-   Euclidean feature transform with scipy; without scipy, the nearest along the 6 axis rays).
+   Euclidean feature transform).
 
 Bounds: the grid has at most `max_grid` voxels along its longest axis (default 256: ≤ 16.8 M
 voxels, a few hundred MB of temporaries at most) and at most `max_particles` particles are added
@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import torch
 
 from ..io.gaussian_set import GaussianSet
@@ -129,19 +130,14 @@ def _close(occ: torch.Tensor, steps: int) -> torch.Tensor:  # [X, Y, Z] bool -> 
 
 def _exterior(occ: torch.Tensor) -> torch.Tensor:  # [X, Y, Z] bool -> [X, Y, Z] bool
     """Unoccupied voxels reachable from the grid's border through face neighbours (a flood fill from
-    outside: whatever it cannot reach is enclosed, however the shell folds)."""
-    free = ~occ
-    ext = torch.zeros_like(occ)
-    for axis in range(3):
-        n = occ.shape[axis]
-        ext.narrow(axis, 0, 1).copy_(free.narrow(axis, 0, 1))
-        ext.narrow(axis, n - 1, 1).copy_(free.narrow(axis, n - 1, 1))
-    for i in range(8 * sum(occ.shape)):  # a path through the free voxels is at most this long in practice
-        grown = _dilate6(ext) & free
-        if i % 4 == 3 and torch.equal(grown, ext):
-            break
-        ext = grown
-    return ext
+    outside: whatever it cannot reach is enclosed, however the shell folds): the components of the free
+    voxels (6-connected) that touch the border."""
+    from scipy import ndimage
+
+    labels, _ = ndimage.label(~occ.numpy())
+    border = np.concatenate([labels[[0, -1]].ravel(), labels[:, [0, -1]].ravel(), labels[:, :, [0, -1]].ravel()])
+    outside = np.unique(border[border > 0])
+    return torch.from_numpy(np.isin(labels, outside))
 
 
 def _solid(occ: torch.Tensor, closing: int) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
@@ -155,32 +151,10 @@ def _solid(occ: torch.Tensor, closing: int) -> tuple[torch.Tensor, torch.Tensor,
     return solid & ~_dilate6(ext), solid, solid & ~closed
 
 
-def _axis_nearest(occ: torch.Tensor) -> torch.Tensor:  # [X, Y, Z] bool -> [X, Y, Z] int64 flat
-    """Flat index of the nearest occupied voxel along the 6 axis rays (-1 where none)."""
-    shape = occ.shape
-    strides = [shape[1] * shape[2], shape[2], 1]
-    best = torch.full(shape, 1 << 30, dtype=torch.int32)
-    out = torch.full(shape, -1, dtype=torch.int64)
-    flat = torch.arange(occ.numel()).reshape(shape)
-    for axis in range(3):  # three axes, two directions each
-        i = torch.arange(shape[axis], dtype=torch.int32).reshape([-1 if a == axis else 1 for a in range(3)])
-        prev = torch.where(occ, i, -(1 << 30)).cummax(axis).values  # last occupied at or before
-        nxt = torch.where(occ, i, 1 << 30).flip(axis).cummin(axis).values.flip(axis)
-        for j in (prev, nxt):
-            dist = (j - i).abs()
-            better = dist < best
-            best = torch.where(better, dist, best)
-            out = torch.where(better, flat + (j - i).long() * strides[axis], out)
-    return out
-
-
 def _nearest_occupied(occ: torch.Tensor, idx: torch.Tensor) -> torch.Tensor:  # idx [K, 3]
-    """Flat index of the nearest occupied voxel to each voxel idx: exact Euclidean feature
-    transform (scipy), else the nearest along the 6 axis rays."""
-    try:
-        from scipy import ndimage
-    except ImportError:
-        return _axis_nearest(occ)[idx[:, 0], idx[:, 1], idx[:, 2]]
+    """Flat index of the nearest occupied voxel to each voxel idx (exact Euclidean feature transform)."""
+    from scipy import ndimage
+
     feat = ndimage.distance_transform_edt(~occ.numpy(), return_distances=False, return_indices=True)
     i = idx.numpy()
     near = torch.from_numpy(feat[:, i[:, 0], i[:, 1], i[:, 2]]).long()  # [3, K]
@@ -312,3 +286,19 @@ def fill_interior(
     if stats is not None:
         stats["added"] = len(idx)
     return _concat(gs, _interior_set(src, pts, near, dv))
+
+
+def solid_voxels(
+    gs: GaussianSet, spacing: float, threshold: float = 0.2, min_opacity: float = 0.05, closing: int = 1
+) -> torch.Tensor:  # -> [X, Y, Z] bool
+    """The object as voxels of size `spacing` [m]: its shell and everything the shell encloses (steps 1–3 of
+    the module doc), e.g. to measure how thick its parts are. Empty (0, 0, 0) when no Gaussian is valid."""
+    ok = _valid(gs, min_opacity)
+    if not ok.any():
+        return torch.zeros(0, 0, 0, dtype=torch.bool)
+    src = gs.subset(ok).to("cpu")
+    means = src.means.to(torch.float64)
+    lo, hi = means.min(0).values, means.max(0).values
+    pad = max(3, closing) + 2
+    grid, occ, *_ = _voxelize(src, lo, hi, spacing, pad, 3, threshold, closing)
+    return ~_exterior(_close(occ, closing))

@@ -26,6 +26,9 @@ from .camera import frame_box, trainer_view
 from .clean import clean
 from .fit import auto_roi, detect_up, find_cameras_json, fit_transform, read_cameras, roi_mask, transform_from_config
 from .loads import apply_load, plan_load
+from .materials import apply_material, substep_note
+from .resolution import choose as choose_resolution
+from .sample import sample
 from .transform import SceneTransform
 
 FILL_WARNING = 0.1
@@ -48,9 +51,9 @@ def is_capture(cfg: SceneConfig) -> bool:
     return cfg.scene not in assets.names() and cfg.scene.lower().endswith(".ply")
 
 
-def resolve(cfg: SceneConfig) -> Capture:
-    """See the module doc. Raises SceneError (one sentence naming the file and the fix) for scenes
-    that leave nothing to simulate."""
+def resolve(cfg: SceneConfig, device: str = "cpu") -> Capture:
+    """See the module doc. `device` decides the resolution budget and the panel size. Raises SceneError (one
+    sentence naming the file and the fix) for scenes that leave nothing to simulate."""
     from ..io.ply import load_ply, load_ply_lenient
 
     cfg = copy.deepcopy(cfg)
@@ -100,9 +103,14 @@ def resolve(cfg: SceneConfig) -> Capture:
     obj = fit.gaussians(obj)
     bg = fit.gaussians(bg) if len(bg) else None
     lo, hi = obj.means.min(0).values.double(), obj.means.max(0).values.double()
-    dx = cap.size / cap.cells_across
+    notes.append(apply_material(cfg, cap.size))
+    res = choose_resolution(obj, cap, device)
+    dx, cap.cells_across = res.dx, res.cells
+    notes.append(res.note)
     if cfg.fill_interior:
         obj = _fill(obj, cap, dx, notes)
+    obj, sample_note = sample(obj, 0.5 * dx)
+    notes.append(sample_note)
     duration = cfg.frames * cfg.frame_dt
     if cfg.sim.boundaries and cap.load != "none":  # e.g. extends = "bread": its grips are the load
         plan = plan_load("none", lo, hi, dx, cap.size, 0.0, duration)
@@ -117,9 +125,12 @@ def resolve(cfg: SceneConfig) -> Capture:
     room_lo, room_hi = _room(cap.size, lo, hi, plan, duration)
     if cfg.sim.grid == "auto":
         _grid(cfg, room_lo, room_hi, dx)
-        notes.append(
-            f"grid {'×'.join(map(str, cfg.sim.grid_shape))} at Δx = {dx:.4g} m ({cap.cells_across} cells across)"
-        )
+        notes.append(f"grid {'×'.join(map(str, cfg.sim.grid_shape))} cells of {1e3 * dx:.3g} mm")
+    notes.append(substep_note(cfg))
+    if cap.panel == "auto":
+        r = cfg.render
+        r.width, r.height = (1280, 720) if str(device).startswith("cuda") else (640, 480)
+        cap.panel = "config"
     _camera(cfg, cameras, fit, lo, hi, room_lo, room_hi, notes)
     cfg.sim.max_fragments = max(cfg.sim.max_fragments, 2 * cfg.topology.max_events + 2)
     from ..io.config import validate
@@ -163,16 +174,18 @@ def _fill(obj: GaussianSet, cap, dx: float, notes: list) -> GaussianSet:
         if stats["enclosed_fraction"] >= 0.25:
             break
     filled, stats = best
-    frac, enclosed = stats["fill_fraction"], stats["enclosed_fraction"]
-    notes.append(
-        f"filled {stats['added']} interior particles ({100 * frac:.0f} % of the object's volume, spacing "
-        f"{(stats['spacing'] or 0):.3g} m)"
-    )
+    enclosed, spacing = stats["enclosed_fraction"], 1e3 * (stats["spacing"] or 0)
     if enclosed < FILL_WARNING:
         notes.append(
-            f"warning: the surface encloses almost nothing ({100 * enclosed:.0f} % of its volume): it looks open, "
-            "so the "
-            "object is simulated as a shell; raise capture.fill_closing or lower capture.fill_threshold"
+            f"interior: the surface is open at {spacing:.3g} mm voxels (it encloses {100 * enclosed:.0f} % of the "
+            f"solid it bounds), so the object is simulated as a shell as thick as its Gaussians ({stats['added']} "
+            f"particles added inside that shell); to fill it as a solid, raise capture.fill_closing (now "
+            f"{cap.fill_closing}) or lower capture.fill_threshold (now {cap.fill_threshold:g})"
+        )
+    else:
+        notes.append(
+            f"interior: filled with {stats['added']} particles at {spacing:.3g} mm spacing (the surface encloses "
+            f"{100 * enclosed:.0f} % of the solid it bounds)"
         )
     return filled
 

@@ -25,6 +25,7 @@ class GaussianSet:
     interior: Optional[torch.Tensor] = None  # [N] bool: interior fill particle (not drawn by default)
     labels: Optional[torch.Tensor] = None  # [N] int32 material label (material maps)
     extra: dict = field(default_factory=dict)  # name -> [N] tensor: other per-Gaussian properties
+    carrier: Optional[Carrier] = None  # simulate carrier.particles, these Gaussians follow them (None: 1:1)
 
     def __post_init__(self):
         n = self.means.shape[0]
@@ -45,13 +46,14 @@ class GaussianSet:
         return self.means.device
 
     def to(self, device) -> GaussianSet:
-        moved = {f.name: getattr(self, f.name) for f in fields(self) if f.name != "extra"}
+        moved = {f.name: getattr(self, f.name) for f in fields(self) if f.name not in ("extra", "carrier")}
         moved = {k: v.to(device) if torch.is_tensor(v) else v for k, v in moved.items()}
-        return GaussianSet(**moved, extra={k: v.to(device) for k, v in self.extra.items()})
+        carrier = self.carrier.to(device) if self.carrier is not None else None
+        return GaussianSet(**moved, extra={k: v.to(device) for k, v in self.extra.items()}, carrier=carrier)
 
     def subset(self, mask: torch.Tensor) -> GaussianSet:
-        """The Gaussians selected by a boolean mask or index tensor."""
-        pick = {f.name: getattr(self, f.name)[mask] for f in fields(self) if f.name != "extra"}
+        """The Gaussians selected by a boolean mask or index tensor (without a carrier: its map is per Gaussian)."""
+        pick = {f.name: getattr(self, f.name)[mask] for f in fields(self) if f.name not in ("extra", "carrier")}
         return GaussianSet(**pick, extra={k: v[mask] for k, v in self.extra.items()})
 
     def rotations(self) -> torch.Tensor:  # [N, 3, 3]
@@ -99,3 +101,29 @@ def quat_mul(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:  # [M, 4] × [M,
         ],
         dim=-1,
     )
+
+
+@dataclass
+class Carrier:
+    """Fewer simulated particles than drawn Gaussians: the simulation runs on `particles`, and Gaussian g is
+    carried by particle a = index[g] with that particle's affine motion, x_g = x_a + F_a (x⁰_g − x⁰_a) and
+    F_g = F_a (so Σ_g = F_a Σ⁰_g F_aᵀ), together with its fragment and band. Built by `capture.sample`."""
+
+    particles: GaussianSet  # [P] the simulated set (interior fill included)
+    index: torch.Tensor  # [G] int64: the carrying particle of each Gaussian
+    offset: torch.Tensor  # [G, 3] x⁰_g − x⁰_a [m]
+
+    def to(self, device) -> Carrier:
+        return Carrier(self.particles.to(device), self.index.to(device), self.offset.to(device))
+
+    def reordered(self, order: torch.Tensor) -> Carrier:
+        """The same carrier with its particles permuted to `particles[order]` (e.g. into grid-cell order)."""
+        position = torch.empty_like(order)
+        position[order] = torch.arange(len(order), device=order.device)
+        return Carrier(self.particles.subset(order), position[self.index], self.offset)
+
+    def carry(self, x: torch.Tensor, F: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Particle positions [P, 3] and deformation gradients [P, 3, 3] → each Gaussian's ([G, 3], [G, 3, 3])."""
+        Fg = F.index_select(0, self.index)
+        means = x.index_select(0, self.index) + (Fg @ self.offset.to(F.dtype)[:, :, None])[:, :, 0]
+        return means, Fg

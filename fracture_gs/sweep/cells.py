@@ -135,7 +135,7 @@ def run_scene_cell(cell: Cell, device: str, out_dir: Optional[Path] = None) -> O
     _sync(device)
     t0 = time.perf_counter()
     try:
-        for out in simulate(sim, cov0, cfg.frames, cfg.frame_dt):
+        for out in simulate(sim, cov0, cfg.frames, cfg.frame_dt, carrier=gs.carrier):
             rows.append(out.metrics)
     except SimulationDiverged as err:
         status = f"diverged at frame {err.frame}: {err.cause or err}"
