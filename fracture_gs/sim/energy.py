@@ -49,7 +49,7 @@ def hencky_strain(F: torch.Tensor, J: torch.Tensor) -> torch.Tensor:  # -> [N, 3
     """ε = ln σ of the signed singular values (the smallest carries det F's sign, as the kernels' SVD),
     each stretch clamped to SIGMA_MIN like the kernels (an inverted element stays finite)."""
     s = singular_values(F)  # [N, 3] |σ| descending, float64 Warp kernel
-    sign = torch.where(J < 0, -1.0, 1.0).to(s.dtype)
+    sign = 1 - 2 * (J < 0).to(s.dtype)  # [N] ±1
     s = torch.cat([s[:, :2], s[:, 2:] * sign[:, None]], 1)
     return torch.log(s.clamp_min(SIGMA_MIN))
 
