@@ -23,6 +23,7 @@ from tqdm import tqdm
 
 from .comparison import ComparisonVideo, compose_comparison
 from .config import SceneConfig
+from .energy_report import energy_markdown, energy_summary
 from .io.config import dump_config
 from .io.outputs import output_dir
 from .io.video import VideoWriter, ffmpeg
@@ -142,7 +143,7 @@ def _post(rows: list, key: str):
 
 def summarize(variant: str, rows: list, status: str, seconds: float) -> dict:
     """Run-level numbers: final opening, max re-approach, mean stringing after the latch, mixing
-    mean/max, max mass residual, contact metrics, penetration max, speed."""
+    mean/max, max mass residual, contact metrics, penetration max, speed, energy (`energy_report`)."""
     post = [r for r in rows if r.get("latched")]
     out = {
         "variant": variant,
@@ -154,6 +155,7 @@ def summarize(variant: str, rows: list, status: str, seconds: float) -> dict:
     out["substeps_per_s"] = round(out["substeps"] / seconds, 2) if seconds > 0 else None
     latch = next((r["latch"] for r in rows if "latch" in r), None)
     out["latch"] = latch
+    out["energy"] = energy_summary(rows)
     if post:
         last = post[-1]
         for k in ("mixing_counterfactual", "mixing_realized"):
@@ -532,6 +534,7 @@ def run_render_sim(
     (out_dir / "summary.md").write_text(
         f"# {cfg.name}: {cfg.scene} ({cfg.preset}, {len(gs)} particles, {device})\n\n"
         + summary_markdown(summary["variants"])
+        + energy_markdown(summary["variants"])
     )
     if profile:
         summary["profile"] = phases.report()

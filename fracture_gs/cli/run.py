@@ -100,6 +100,11 @@ def cmd_render_sim(args: argparse.Namespace) -> int:
     )
     if summary.get("profile"):
         print(summary["profile"], end="")
+    from ..energy_report import energy_warning
+
+    warning = energy_warning(summary.get("variants", []))
+    if warning:
+        print(f"fracture-gs: warning: {warning}", file=sys.stderr)
     failed = [f"{v['variant']} {v['status']}" for v in summary.get("variants", []) if v.get("status", "ok") != "ok"]
     if failed:
         print(

@@ -9,6 +9,7 @@ penetration, identity crossing — from interface pairs built at the first latch
 crossings and penetration between the pieces themselves, particles behind a plane collider.
 Contact: the statistics the grid kernels accumulate, also per fragment pair. Fragment–plane: first
 contact per fragment, penetration into the plane, speeds near it, gravity-compensated momentum.
+Energy: kinetic, gravitational, elastic and total (`energy.py`), and whether a driving boundary acted.
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ import warp as wp
 
 from ..config import PlaneBoundary
 from ..profiling import phases
+from . import energy as E
 from . import metrics as M
 from .grid import Grid
 from .layout import (
@@ -109,6 +111,11 @@ class Diagnostics:
         self.pair_penetration: dict = {}  # (a, b) → deepest penetration of a into b so far [Δx]
         self.plane_stats = {"first_contact": [None, None], "penetration": 0.0, "max_vt_near": 0.0, "max_vn_post": 0.0}
         self._n_topologies = 0
+        self.gravity = tuple(float(a) for a in sim.cfg.gravity)
+        g = sim.grid
+        self.energy_reference = E.reference_point(g.origin, g.dx, g.shape, self.gravity)  # the zero of E_g [m]
+        self.models = frozenset(int(m) for m in P.material.unique().tolist())  # fixed for the run: one read
+        self.t_prev = sim.time  # the previous frame's end: the window the drivers are checked in
         if sim.latched:
             self.on_latch()
 
@@ -158,6 +165,7 @@ class Diagnostics:
         stats = self.sim.grid.contact_stats
         stats[:STAT_FIRST_T].zero_()  # per frame; the first contact time stays
         self.history.append(row)
+        self.t_prev = self.sim.time
 
     # ---- the frame's numbers ----------------------------------------------------------------------
     def snapshot(self) -> dict:
@@ -186,8 +194,9 @@ class Diagnostics:
             "clamped": int(h["clamped"][0]),
             "frame_redos": sim.frame_redos,
             "momentum": h["momentum"],
-            "kinetic_energy": h["kinetic_energy"][0],
+            "latches": len(sim.topologies),
         }
+        row.update(self._energy_row(h))
         if sim.latched:
             pool_rows = 0 if sim.boxed else sim.pool_rows  # per-fragment boxes have no pool of multi-field nodes
             row.update(fragments=sim.n_fragments, slot_overflow=sim.slot_overflow, pool_rows=pool_rows)
@@ -199,17 +208,19 @@ class Diagnostics:
         return row
 
     def _particle_numbers(self) -> list[tuple[str, torch.Tensor]]:
-        """(name, device tensor) of the numbers that depend on the particles alone: momentum, kinetic
-        energy, the clamped count, the interface and fragment-aware measures (after the latch), the plane
-        collider's. On CUDA after the latch their ≈ 100 small launches are one recorded CUDA graph replayed
-        each frame (`recorded.py`), recorded again when what it bakes in changes: a latch, the fragment
-        count, the particle buffers. The same kernels: the same numbers."""
+        """(name, device tensor) of the numbers that depend on the particles alone: momentum, the
+        energies (`energy.py`), the clamped count, the interface and fragment-aware measures (after the
+        latch), the plane collider's. On CUDA after the latch their ≈ 100 small launches are one recorded
+        CUDA graph replayed each frame (`recorded.py`), recorded again when what it bakes in changes: a
+        latch, the fragment count, the particle buffers, the band release. The same kernels: the same
+        numbers."""
         sim = self.sim
         if not (sim.latched and sim.use_graphs and self.recorded.records):
             return self._particle_numbers_now()
         P = sim.particles
         key = (len(sim.topologies), sim.n_fragments, sim.counts.data_ptr())
-        key += tuple(getattr(P, k).data_ptr() for k in ("x", "v", "F", "mass", "fragment", "band"))
+        buffers = ("x", "v", "F", "mass", "volume", "E", "nu", "material", "yield_stress", "alpha", "fragment", "band")
+        key += tuple(getattr(P, k).data_ptr() for k in buffers) + (self._release(),)
 
         def flat() -> torch.Tensor:  # run when recording: the parts' places in the output are noted then
             parts = self._particle_numbers_now()
@@ -223,7 +234,8 @@ class Diagnostics:
     def _particle_numbers_now(self) -> list[tuple[str, torch.Tensor]]:
         sim = self.sim
         P = sim.particles
-        out = [("momentum", M.momentum(P)), ("kinetic_energy", M.kinetic_energy(P))]
+        energy = E.energies(P, self.gravity, self.energy_reference, self._release(), self.models)
+        out = [("momentum", M.momentum(P)), ("energy", energy)]
         out.append(("clamped", sim.counts[COUNT_CLAMPED]))
         if sim.latched:
             out += self._interface()
@@ -232,6 +244,25 @@ class Diagnostics:
             state = M.plane_state(P.x, P.v, frag, b, sim.grid.dx, max(2, sim.n_fragments))
             out += [("plane_" + k, t) for k, t in state.items()]
         return out
+
+    def _release(self) -> int:
+        """Band particles of events 1 … this carry no stress (0: none), as `Simulator.compute_stress`."""
+        sim = self.sim
+        return sim.topology.release_events if sim.release else 0
+
+    def _energy_row(self, h: dict) -> dict:
+        """Kinetic, gravitational (zero at the grid corner lowest along g), elastic and total energy [J];
+        `energy_driven`: a boundary that drives motion acted in the frame (`energy.drivers_active`)."""
+        sim = self.sim
+        kinetic, gravity, elastic = h["energy"]
+        return {
+            "kinetic_energy": kinetic,
+            "energy_kinetic": kinetic,
+            "energy_gravity": gravity,
+            "energy_elastic": elastic,
+            "energy_total": kinetic + gravity + elastic,
+            "energy_driven": E.drivers_active(sim.cfg.boundaries, self.t_prev, sim.time, sim.dt),
+        }
 
     def _transfer(self, dev: Packed, rows: int = 0) -> None:
         """Fragment-conditioned P2G of the current state into the shadow grid (its pool at least the
