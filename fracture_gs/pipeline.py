@@ -139,7 +139,8 @@ def make_simulator(
     given, replaces both (variants running side by side on several devices share one live topology)."""
     sim_cfg = copy.deepcopy(cfg.sim)
     sim_cfg.variant = variant
-    particles = Particles.from_gaussians(gs, cfg, dx=sim_cfg.dx)
+    simulated = gs.carrier.particles if gs.carrier is not None else gs  # a carried set simulates its particles
+    particles = Particles.from_gaussians(simulated, cfg, dx=sim_cfg.dx)
     if provider is None and topology is not None:
         provider = ReplayProvider(topology)
     elif provider is None and variant != "baseline":

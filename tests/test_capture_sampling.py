@@ -186,3 +186,24 @@ def test_crack_faces_trim_gaussians_to_their_own_side():
     assert torch.equal(out[far], cov0[far])
     assert faces.trimmed_count == int(near.sum())
     assert torch.equal(faces.trimmed(torch.full_like(frag, -1)), cov0), "no fragments, nothing trimmed"
+
+
+def test_a_carried_capture_simulates_its_particles(tmp_path):
+    """Through the pipeline, a capture with more Gaussians than its grid needs simulates only the carrier's
+    particles, and frame 0 puts every drawn Gaussian exactly where the capture has it."""
+    from trainer_ply import write_trainer_ply
+
+    from fracture_gs.io.config import load_config
+    from fracture_gs.pipeline import make_simulator, prepare_scene, simulate
+
+    ply, _ = write_trainer_ply(tmp_path, n=9000)
+    cfg = load_config(ply)
+    cfg.capture.cells_across, cfg.frames = 12, 1
+    scene = prepare_scene(cfg, "cpu")
+    gs = scene.gaussians
+    assert gs.carrier is not None and len(gs.carrier.particles) < len(gs) / 2
+    sim = make_simulator(scene.cfg, gs, "full", "cpu")
+    assert len(sim.particles) == len(gs.carrier.particles)
+    first = next(iter(simulate(sim, gs.covariances().float(), 1, scene.cfg.frame_dt, carrier=gs.carrier)))
+    assert first.means.shape == gs.means.shape
+    torch.testing.assert_close(first.means, gs.means.float(), atol=1e-6, rtol=0)
