@@ -212,7 +212,7 @@ REFUSED = {
     ),
     "empty.splat": (b"", "empty"),
     "noise.splat": (np.random.default_rng(7).integers(0, 256, 32 * 500, dtype=np.uint8).tobytes(), "binary data"),
-    "notes.splat": (b"x" * 31 + b"\n" + b"plain words, 32 bytes a line ..\n" * 9, "text"),
+    "zeros.splat": (b"0.000,0.000,0.000,0.000,0.00000\n" * 10, "text"),  # ASCII digits pass as .splat rows
     "archive.spz": (gzip.compress(b"not an spz payload at all"), "gzip-compressed data"),
     "scene.ksplat": (_ksplat_header(), "ksplat"),
 }
@@ -366,6 +366,17 @@ def test_each_format_reads_back_within_its_quantisation(source, fmt, tmp_path):
         assert b["sh"].shape == a["sh"].shape
 
 
+@pytest.mark.parametrize("source", ["donut_5k.ply", "luma_seal_5k.splat"])
+def test_compressed_ply_is_written_in_compact_chunks(source, tmp_path):
+    """A compressed PLY quantises each position within its 256-Gaussian chunk's box, so the writer orders
+    the Gaussians along a Z curve: the median chunk box of the written file (read with this file's decoder)
+    is under a quarter of the volume it would have in the source's own order."""
+    gs = read_gaussians(DATA / source)[0]
+    spec = spec_compressed_ply(write_gaussians(gs, tmp_path / "c.compressed.ply", "compressed-ply"))
+    as_given = _chunk_steps(gs.means.double().numpy()) * np.array([2047, 1023, 2047])
+    assert np.median(spec["chunk_range"].prod(1)) < 0.25 * np.median(as_given.prod(1))
+
+
 def test_spz_far_from_the_origin_keeps_its_positions(tmp_path):
     """A capture 5,000 units from the origin does not fit SPZ's 24-bit positions at 12 fractional bits; the
     writer takes 10 bits (5000 · 2^10 < 2^23), so positions come back within half of 1/1024, not clipped."""
@@ -462,3 +473,21 @@ def test_init_reads_a_splat_whose_suffix_lies(tmp_path, capsys):
     text = (tmp_path / "seal.toml").read_text()
     assert "seal.bin" in text
     assert load_config(tmp_path / "seal.toml").scene == str(liar.resolve())
+
+
+def test_capture_without_fit_reads_any_format_as_written(tmp_path):
+    """`capture.fit = false` takes the file's coordinates as they are, for any format: the resolved Gaussians
+    of a .splat are the file's, and its rows with broken values are dropped and reported, not fatal."""
+    from fracture_gs.capture.scene import is_capture, resolve
+    from fracture_gs.io.config import load_config
+
+    raw = bytearray((DATA / "luma_seal_5k.splat").read_bytes())
+    struct.pack_into("<f", raw, 32 * 5 + 4, float("inf"))  # row 5: y
+    (tmp_path / "seal.splat").write_bytes(bytes(raw))
+    cfg = load_config(tmp_path / "seal.splat")
+    cfg.capture.fit, cfg.fill_interior = False, False
+    cap = resolve(cfg)
+    ref = read_gaussians(DATA / "luma_seal_5k.splat")[0]
+    keep = torch.arange(len(ref)) != 5
+    assert is_capture(cfg) and cap.transform is None and torch.equal(cap.gaussians.means, ref.means[keep])
+    assert any("dropped 1 unreadable" in note for note in cap.notes)

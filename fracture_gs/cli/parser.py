@@ -51,12 +51,12 @@ examples:
   fracture-gs render-sim my_scene.toml --out runs/my_scene
   fracture-gs render-sim point_cloud.ply                       a trainer's PLY, automatic settings
   fracture-gs render-sim point_cloud.ply --load drop --export-ply 5
-  fracture-gs render-sim scan.spz --export-ply 5 --export-format spz      frames in the scene's own format
+  fracture-gs render-sim scan.spz --export-ply 5 --export-format spz   frames written as .spz too
   fracture-gs render-sim model.compressed.ply                  .splat, .spz, compressed .ply read too
 
-A captured scene (any 3DGS trainer's .ply, or a .splat, .spz or compressed .ply from a viewer or
-editor; the format is read from the content) goes through the same steps: floaters and outliers are removed,
-the object is fitted into the grid (up axis from the trainer's cameras.json, else -y), its inside
+A captured scene (a 3DGS trainer's .ply, or a .splat, .spz or compressed .ply from a viewer or
+editor; its format is read from the content) is prepared automatically: floaters and outliers are
+removed, the object is fitted into the grid (up axis from the trainer's cameras.json, else -y), its inside
 is filled, a load breaks it (--load pull|drop|impact) and a camera frames it; what was chosen is
 printed and config.toml in --out holds it (`fracture-gs init` writes it with comments).
 
@@ -157,7 +157,11 @@ def build_parser() -> argparse.ArgumentParser:
         description="Simulate a scene config with several transfer variants and render comparison videos.",
         epilog=_RENDER_EPILOG,
     )
-    p.add_argument("config", metavar="CONFIG_OR_SCENE", help="TOML path or built-in name (e.g. bread)")
+    p.add_argument(
+        "config",
+        metavar="CONFIG_OR_SCENE",
+        help="TOML path, built-in name (e.g. bread) or a captured scene (.ply, .compressed.ply, .splat, .spz)",
+    )
     p.add_argument("--variants", metavar="A,B,C", help="comma-separated variants (default: the config's `variants`)")
     p.add_argument(
         "--preset", metavar="small|paper", help="small (dx 1/64, CPU sized) or paper (dx 1/128, paper particle counts)"
@@ -210,7 +214,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="with --export-ply: the frames' file format (default ply). ply: 3DGS PLY, lossless, every viewer; "
         "compressed-ply (.compressed.ply): SuperSplat/PlayCanvas, ~4x smaller, quantised, Gaussians reordered; "
         "splat (.splat): antimatter15, colour without view dependence (SH degree 0), 8-bit colour and rotation; "
-        "spz (.spz): Niantic, ~10x smaller, quantised, SH kept",
+        "spz (.spz): Niantic, the smallest (4-10x smaller than ply), quantised, SH kept",
     )
     p.add_argument(
         "--profile",
