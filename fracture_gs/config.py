@@ -435,7 +435,8 @@ class SceneConfig:
     name: str = "scene"
     """Run name (used for output folders)."""
     scene: str = "bread"
-    """Built-in asset name (bread, ficus, recontact, beam, plane_drop) or a path to a 3DGS .ply."""
+    """Built-in asset name (bread, ficus, recontact, beam, plane_drop) or a path to a captured scene: a 3DGS or
+    compressed .ply, a .splat or a .spz (the format is read from the content)."""
     preset: Preset = "small"
     """Built-in asset size: `small` (≈20k particles, CPU) or `paper` (the paper's counts)."""
     particles: Optional[int] = None

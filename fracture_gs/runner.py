@@ -305,7 +305,7 @@ def run_variant(
     position: int = 0,
 ):
     """Simulate + render one variant; appends frames to `frames_store`; returns (summary, topology).
-    `export`: (every N frames, Capture) to write the frames as 3DGS PLYs in the scene's frame. `provider`:
+    `export`: (every N frames, Capture, format) to write the frames as splat files in the scene's frame. `provider`:
     the event provider to use instead of the config's or the replayed topology's; `stop`: a
     threading or multiprocessing Event that interrupts the variant at its next frame (as Ctrl-C does)."""
     sim = make_simulator(cfg, gs, variant, device, topology=topology, provider=provider)
@@ -325,7 +325,7 @@ def run_variant(
                 raise KeyboardInterrupt
             if export is not None and out.frame % export[0] == 0:
                 with phases.section("io"):
-                    _export(out, painter, export[1], out_dir / "ply" / variant / f"frame_{out.frame:04d}.ply")
+                    _export(out, painter, export, out_dir / "ply" / variant, f"frame_{out.frame:04d}")
             sink.put(out)
             if out.frame > 0:
                 elapsed = time.perf_counter() - t0
@@ -353,12 +353,16 @@ def run_variant(
     return summary, topology
 
 
-def _export(out: FrameOutput, painter: Painter, cap, path: Path) -> None:
+def _export(out: FrameOutput, painter: Painter, export: tuple, folder: Path, stem: str) -> None:
+    """One frame to folder/stem + the format's suffix; export = (every N frames, Capture, format)."""
     from .capture.export import export_ply, frame_gaussians
+    from .io.formats import SUFFIX
 
+    _, cap, fmt = export
     drawn = ~painter.interior | painter._exposed(out)
     gs = frame_gaussians(cap.gaussians, out.means, out.covars, out.rotations, drawn)
-    export_ply(path, gs, cap.background, cap.transform.inverse() if cap.transform is not None else None)
+    to_scene = cap.transform.inverse() if cap.transform is not None else None
+    export_ply(folder / f"{stem}{SUFFIX[fmt]}", gs, cap.background, to_scene, fmt)
 
 
 def progress_bar(total: int, desc: str, position: int = 0) -> tqdm:
@@ -456,13 +460,15 @@ def run_render_sim(
     progress: bool = True,
     profile: bool = False,
     export_ply: Optional[int] = None,
+    export_format: str = "ply",
     devices: Optional[list] = None,
     stop=None,
     schedule: Literal["in_turn", "threads"] = "in_turn",
 ) -> dict:
     """The main job. Returns the summary dict (also written to summary.json / summary.md); with
     `profile`, the time per phase is in summary["profile"] and profile.md; with `export_ply` = N, every
-    N-th frame of every variant also goes to ply/<variant>/frame_NNNN.ply (3DGS, the scene's frame).
+    N-th frame of every variant also goes to ply/<variant>/frame_NNNN.<suffix> in `export_format` (ply,
+    compressed-ply, splat or spz: `io.formats.write_gaussians`; the scene's frame).
     A captured PLY scene is resolved first (capture.resolve): config.toml is the resolved config. With
     `devices` (several), the variants run side by side, one per device (`fracture_gs.parallel`). On one device
     `schedule` says how: "in_turn", one after the other; "threads", at once, a thread each
@@ -483,7 +489,7 @@ def run_render_sim(
             tqdm.write(f"{cfg.name}: {note}")
         painter = Painter(gs, cfg, device, background=scene.background)
     (out_dir / "config.toml").write_text(dump_config(cfg))
-    export = (int(export_ply), scene) if export_ply else None
+    export = (int(export_ply), scene, export_format) if export_ply else None
     # a variant with a provider runs first; its latched topology is replayed by all the others
     order = sorted(variants, key=lambda v: v == "baseline")
     with open(out_dir / "metrics.jsonl", "w") as metrics_file:

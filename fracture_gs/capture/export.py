@@ -1,11 +1,12 @@
-"""Simulated frames as standard 3DGS PLYs (`render-sim --export-ply N`), in the scene's own frame.
+"""Simulated frames as splat files (`render-sim --export-ply N [--export-format F]`), in the scene's own frame.
 
 Each exported Gaussian is a drawn one of the frame: mean x_p, covariance Σ = F Σ⁰ Fᵀ split back
 into a rotation and scales, SH coefficients rotated by R(F) (so a viewer that knows nothing of the
 simulation shows the same colours), opacity unchanged; interior fill particles stay out unless a
 fracture exposed them. The static background is appended, and the inverse of the capture fit takes
 everything back to the trainer's coordinates, so the PLY drops into any splat viewer beside the
-original.
+original. `--export-format` picks the file format (3DGS PLY by default; compressed PLY, .splat or .spz
+through `io.formats.write_gaussians`, which says what each keeps).
 """
 
 from __future__ import annotations
@@ -15,8 +16,8 @@ from typing import Optional
 
 import torch
 
+from ..io.formats import write_gaussians
 from ..io.gaussian_set import GaussianSet
-from ..io.ply import save_ply
 from .transform import SceneTransform, gaussians_from_covariances, rotate_sh
 
 
@@ -40,9 +41,14 @@ def frame_gaussians(
 
 
 def export_ply(
-    path: Path, gs: GaussianSet, background: Optional[GaussianSet], to_scene: Optional[SceneTransform]
+    path: Path,
+    gs: GaussianSet,
+    background: Optional[GaussianSet],
+    to_scene: Optional[SceneTransform],
+    fmt: str = "ply",
 ) -> Path:
-    """Write gs (+ background) as a 3DGS PLY, mapped back to the scene's frame when `to_scene` is given."""
+    """Write gs (+ background) as a splat file in `fmt` (`io.formats.FORMATS`; default a 3DGS PLY), mapped
+    back to the scene's frame when `to_scene` is given."""
     if background is not None and len(background):
         bg = background.to(gs.device)
         gs = GaussianSet(
@@ -55,8 +61,7 @@ def export_ply(
     if to_scene is not None:
         gs = to_scene.gaussians(gs)
     path.parent.mkdir(parents=True, exist_ok=True)
-    save_ply(gs.to("cpu"), path)
-    return path
+    return write_gaussians(gs.to("cpu"), path, fmt)
 
 
 def _pad_sh(sh: torch.Tensor, k: int) -> torch.Tensor:

@@ -47,25 +47,27 @@ class Capture:
 
 
 def is_capture(cfg: SceneConfig) -> bool:
-    """A PLY scene (not a built-in asset name)."""
-    return cfg.scene not in assets.names() and cfg.scene.lower().endswith(".ply")
+    """A splat-file scene (not a built-in asset name): `io.formats.is_splat_file`."""
+    from ..io.formats import is_splat_file
+
+    return cfg.scene not in assets.names() and is_splat_file(cfg.scene)
 
 
 def resolve(cfg: SceneConfig, device: str = "cpu") -> Capture:
     """See the module doc. `device` decides the resolution budget and the panel size. Raises SceneError (one
     sentence naming the file and the fix) for scenes that leave nothing to simulate."""
-    from ..io.ply import load_ply, load_ply_lenient
+    from ..io.formats import read_gaussians
 
     cfg = copy.deepcopy(cfg)
     path = Path(cfg.scene)
     if not path.is_file():
         raise SceneError(
-            f"{path}: no such PLY file; check the path (or use a built-in scene: {', '.join(assets.names())})."
+            f"{path}: no such file; check the path (or use a built-in scene: {', '.join(assets.names())})."
         )
     cap = cfg.capture
+    gs, unreadable, _ = read_gaussians(path)
     if not cap.fit:
-        return _as_written(cfg, load_ply(path))
-    gs, unreadable = load_ply_lenient(path)
+        return _as_written(cfg, gs, unreadable)
     notes = []
     keep, report = clean(gs, cap.min_opacity, cap.outlier_neighbours, cap.outlier_std)
     report.total += unreadable
@@ -142,10 +144,12 @@ def _vec(t: torch.Tensor) -> tuple:
     return tuple(float(v) for v in t)
 
 
-def _as_written(cfg: SceneConfig, gs: GaussianSet) -> Capture:
+def _as_written(cfg: SceneConfig, gs: GaussianSet, unreadable: int = 0) -> Capture:
     """capture.fit = false: the PLY's coordinates are metres in the simulation frame (e.g. a PLY this
     package exported); only the interior fill applies."""
     notes = ["capture.fit = false: coordinates used as written"]
+    if unreadable:
+        notes.append(f"dropped {unreadable} unreadable Gaussians (NaN/inf, degenerate scales or zero rotations)")
     if cfg.fill_interior and not bool(gs.interior.any()):
         stats = {}
         gs = assets.fill_interior(gs, stats=stats)

@@ -7,6 +7,7 @@ import re
 from typing import get_args
 
 from ..config import ParticleOrder
+from ..io.formats import FORMATS
 from .sweep import add_sweep_parser
 
 PROG = "fracture-gs"
@@ -30,13 +31,16 @@ examples:
   fracture-gs validate bread                        check a built-in or your own config
   fracture-gs render-sim bread                      simulate + render the default variants
   fracture-gs render-sim my_capture.ply             your own 3DGS scene, every setting automatic
+  fracture-gs render-sim plant.spz                  .splat, .spz and compressed .ply captures too
   fracture-gs init my_capture.ply --out mine.toml   the same settings as a commented TOML to edit
   fracture-gs render-sim configs/recontact.toml --variants local_multifield,full
   fracture-gs render-sim my_scene.toml --preset paper --device cuda:0 --out runs/mine
   fracture-gs bench --device cuda:0                 transfer timings (paper Table 2)
   fracture-gs figures --out figures/out             every table and figure of the paper
 
-A CONFIG is a path to a TOML file, a built-in name ({names}), or a 3DGS .ply (a captured scene).
+A CONFIG is a path to a TOML file, a built-in name ({names}), or a captured scene: a 3DGS .ply,
+a compressed .ply (SuperSplat/PlayCanvas), a .splat (antimatter15) or a .spz (Niantic), recognised
+by content whatever the file's suffix.
 """
 
 _RENDER_EPILOG = """\
@@ -47,9 +51,12 @@ examples:
   fracture-gs render-sim my_scene.toml --out runs/my_scene
   fracture-gs render-sim point_cloud.ply                       a trainer's PLY, automatic settings
   fracture-gs render-sim point_cloud.ply --load drop --export-ply 5
+  fracture-gs render-sim scan.spz --export-ply 5 --export-format spz   frames written as .spz too
+  fracture-gs render-sim model.compressed.ply                  .splat, .spz, compressed .ply read too
 
-A .ply argument is a captured scene (any 3DGS trainer's output): floaters and outliers are removed,
-the object is fitted into the grid (up axis from the trainer's cameras.json, else -y), its inside
+A captured scene (a 3DGS trainer's .ply, or a .splat, .spz or compressed .ply from a viewer or
+editor; its format is read from the content) is prepared automatically: floaters and outliers are
+removed, the object is fitted into the grid (up axis from the trainer's cameras.json, else -y), its inside
 is filled, a load breaks it (--load pull|drop|impact) and a camera frames it; what was chosen is
 printed and config.toml in --out holds it (`fracture-gs init` writes it with comments).
 
@@ -90,11 +97,12 @@ _INIT_EPILOG = """\
 examples:
   fracture-gs init output/garden/point_cloud/iteration_30000/point_cloud.ply --out garden.toml
   fracture-gs init scan.ply --load drop --out scan.toml && fracture-gs render-sim scan.toml
+  fracture-gs init plant.splat --out plant.toml     .splat, .spz and compressed .ply captures too
 
-Reads the PLY, removes floaters and outliers, finds the up axis (the trainer's cameras.json beside
-it, else -y), picks the region of interest, fits it into the grid, fills its inside, places the
-load and the camera, and writes all of it as plain values with a comment on every key. Edit the
-file and run it with `fracture-gs render-sim FILE`.
+Reads the scene (a 3DGS or compressed .ply, .splat or .spz), removes floaters and outliers, finds
+the up axis (the trainer's cameras.json beside it, else -y), picks the region of interest, fits it
+into the grid, fills its inside, places the load and the camera, and writes all of it as plain
+values with a comment on every key. Edit the file and run it with `fracture-gs render-sim FILE`.
 """
 
 _INFO_EPILOG = """\
@@ -149,7 +157,11 @@ def build_parser() -> argparse.ArgumentParser:
         description="Simulate a scene config with several transfer variants and render comparison videos.",
         epilog=_RENDER_EPILOG,
     )
-    p.add_argument("config", metavar="CONFIG_OR_SCENE", help="TOML path or built-in name (e.g. bread)")
+    p.add_argument(
+        "config",
+        metavar="CONFIG_OR_SCENE",
+        help="TOML path, built-in name (e.g. bread) or a captured scene (.ply, .compressed.ply, .splat, .spz)",
+    )
     p.add_argument("--variants", metavar="A,B,C", help="comma-separated variants (default: the config's `variants`)")
     p.add_argument(
         "--preset", metavar="small|paper", help="small (dx 1/64, CPU sized) or paper (dx 1/128, paper particle counts)"
@@ -165,7 +177,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--load",
         choices=("pull", "drop", "impact", "none"),
-        help="captured (.ply) scenes: what breaks the object (default: the config's capture.load, pull)",
+        help="captured scenes (splat files): what breaks the object (default: the config's capture.load, pull)",
     )
     p.add_argument(
         "--devices",
@@ -193,7 +205,16 @@ def build_parser() -> argparse.ArgumentParser:
         "--export-ply",
         metavar="N",
         type=_positive_int,
-        help="also write every N-th frame of every variant as a 3DGS PLY (ply/<variant>/, the scene's own frame)",
+        help="also write every N-th frame of every variant as a splat file (ply/<variant>/frame_NNNN.*, the scene's "
+        "own coordinates), in --export-format",
+    )
+    p.add_argument(
+        "--export-format",
+        choices=FORMATS,
+        help="with --export-ply: the frames' file format (default ply). ply: 3DGS PLY, lossless, every viewer; "
+        "compressed-ply (.compressed.ply): SuperSplat/PlayCanvas, ~4x smaller, quantised, Gaussians reordered; "
+        "splat (.splat): antimatter15, colour without view dependence (SH degree 0), 8-bit colour and rotation; "
+        "spz (.spz): Niantic, the smallest (4-10x smaller than ply), quantised, SH kept",
     )
     p.add_argument(
         "--profile",
@@ -282,12 +303,14 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser(
         "init",
-        help="write a commented starter config for your own 3DGS scene (.ply)",
+        help="write a commented starter config for your own captured scene (.ply, .splat, .spz)",
         formatter_class=fmt,
         description="Resolve every automatic choice for a captured scene and write them as a commented TOML.",
         epilog=_INIT_EPILOG,
     )
-    p.add_argument("scene", metavar="SCENE_PLY", help="a 3DGS PLY written by any trainer")
+    p.add_argument(
+        "scene", metavar="SCENE", help="a captured scene: 3DGS or compressed .ply, .splat or .spz (read by content)"
+    )
     p.add_argument("--out", metavar="FILE", help="where to write the TOML (default: <scene name>.toml here)")
     p.add_argument("--load", choices=("pull", "drop", "impact", "none"), help="what breaks the object (default pull)")
     p.add_argument("--force", action="store_true", help="overwrite FILE if it exists")

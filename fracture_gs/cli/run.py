@@ -54,6 +54,9 @@ def cmd_render_sim(args: argparse.Namespace) -> int:
     """render-sim: load, override, validate, then hand over to fracture_gs.runner."""
     from ..io.config import apply_overrides, find_config, load_config
 
+    export_format = getattr(args, "export_format", None)
+    if export_format and not getattr(args, "export_ply", None):
+        raise CliError(f"--export-format {export_format} needs --export-ply N (which frames to write in it).")
     path = find_config(args.config)
     cfg = load_config(path)
     device = resolve_device(args.device)
@@ -86,6 +89,8 @@ def cmd_render_sim(args: argparse.Namespace) -> int:
         f"variants {', '.join(cfg.variants)}, device {device} -> {out_dir}"
     )
     extra = {"export_ply": args.export_ply} if getattr(args, "export_ply", None) else {}
+    if export_format:
+        extra["export_format"] = export_format
     if devices and len(devices) > 1:
         extra["devices"] = devices
     if getattr(args, "schedule", "in-turn") != "in-turn":
@@ -189,10 +194,13 @@ def cmd_init(args: argparse.Namespace) -> int:
     from ..capture.scene import resolve
     from ..capture.starter import starter_toml
     from ..io.config import load_config
+    from ..io.formats import READ, is_splat_file
 
     ply = Path(args.scene)
-    if ply.suffix.lower() != ".ply":
-        raise CliError(f"{ply}: init takes a 3DGS .ply file; for a TOML config use `fracture-gs validate {ply}`.")
+    if not is_splat_file(ply):
+        raise CliError(
+            f"{ply}: init takes a captured scene ({READ}); for a TOML config use `fracture-gs validate {ply}`."
+        )
     cfg = load_config(ply)
     if args.load:
         cfg.capture.load = args.load

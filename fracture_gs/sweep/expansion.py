@@ -26,9 +26,11 @@ import math
 from dataclasses import dataclass, field
 from typing import Any, Optional
 
+from ..config import BUILTIN_SCENES
 from ..errors import ConfigError
 from ..io.config import apply_overrides, config_from_dict, config_to_dict, dump_config, find_config
 from ..io.config import load_config as load_scene_config
+from ..io.formats import is_splat_file
 from .spec import SceneBlock, SweepSpec
 
 
@@ -266,7 +268,8 @@ def _sentence(text: str) -> str:
 
 def _apply_cells(d: dict, cells: int, prefix: str, source: str) -> None:
     """Δx = box side / cells for an explicit grid (shape and a fixed dt follow); a PLY's cells_across."""
-    if str(d.get("scene", "")).lower().endswith(".ply"):
+    scene = str(d.get("scene", ""))
+    if scene not in BUILTIN_SCENES and is_splat_file(scene):
         d.setdefault("capture", {})["cells_across"] = cells
         return
     sim = d["sim"]
@@ -274,7 +277,7 @@ def _apply_cells(d: dict, cells: int, prefix: str, source: str) -> None:
         raise ConfigError(
             source,
             f"{prefix}.cells",
-            f'{prefix}.cells needs an explicit grid (sim.grid = "explicit") or a .ply scene; '
+            f'{prefix}.cells needs an explicit grid (sim.grid = "explicit") or a captured scene (a splat file); '
             'remove cells or set sim.grid = "explicit" in the config.',
         )
     dx = float(sim["dx"])

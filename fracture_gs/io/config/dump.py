@@ -7,7 +7,8 @@ import json
 import math
 from typing import Any, Optional
 
-from ...config import BOUNDARY_TYPES, SceneConfig
+from ...config import BOUNDARY_TYPES, BUILTIN_SCENES, SceneConfig
+from ..formats import is_splat_file
 
 
 def to_plain_value(value: Any) -> Any:
@@ -34,9 +35,9 @@ def to_dict(obj: Any) -> dict:
 
 def config_to_dict(cfg: SceneConfig) -> dict:
     """SceneConfig → plain dict shaped like the TOML (inverse of `config_from_dict`). The [capture]
-    table is left out while it holds only defaults and the scene is not a PLY (it would say nothing)."""
+    table is left out while it holds only defaults and the scene is not a splat file (it would say nothing)."""
     out = to_dict(cfg)
-    if not cfg.scene.lower().endswith(".ply") and cfg.capture == type(cfg.capture)():
+    if cfg.capture == type(cfg.capture)() and (cfg.scene in BUILTIN_SCENES or not is_splat_file(cfg.scene)):
         out.pop("capture", None)
     return out
 

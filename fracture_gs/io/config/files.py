@@ -17,6 +17,7 @@ import tomllib
 
 from ...config import SceneConfig
 from ...errors import ConfigError
+from ..formats import is_splat_file
 from .build import build_scene, describe
 from .dump import to_dict
 from .validate import validate
@@ -36,7 +37,9 @@ def find_config(name_or_path: Union[str, os.PathLike]) -> Path:
     """Resolve a config path, a path without `.toml`, or a bare built-in name like `bread`."""
     text = os.fspath(name_or_path)
     if not text.strip():
-        raise ConfigError("", None, "the config name is empty; pass a TOML path, a .ply or a built-in name like bread.")
+        raise ConfigError(
+            "", None, "the config name is empty; pass a TOML path, a splat file or a built-in name like bread."
+        )
     path = Path(text).expanduser()
     if path.is_file():
         return path
@@ -51,8 +54,9 @@ def find_config(name_or_path: Union[str, os.PathLike]) -> Path:
         candidate = CONFIG_DIR / f"{stem}.toml"
         if candidate.is_file():
             return candidate
-    if path.suffix.lower() == ".ply":
-        raise ConfigError(text, None, "no such PLY file; check the path (a .ply argument is a captured 3DGS scene).")
+    if is_splat_file(path):
+        kind = "PLY" if path.suffix.lower() == ".ply" else path.suffix.lower()
+        raise ConfigError(text, None, f"no such {kind} file; check the path (a {kind} argument is a captured scene).")
     names = ", ".join(builtin_configs()) or "none installed"
     raise ConfigError(text, None, f"no such config file; pass a path to a TOML file or a built-in name ({names}).")
 
@@ -102,8 +106,8 @@ def _resolve_extends(value: Any, base_dir: Optional[Path], src: str) -> Path:
                 return candidate
     try:
         found = find_config(value)
-        if found.suffix.lower() == ".ply":
-            raise ConfigError(src, "extends", "a .ply is a scene, not a config")
+        if is_splat_file(found):
+            raise ConfigError(src, "extends", "a splat file is a scene, not a config")
         return found
     except ConfigError:
         names = ", ".join(builtin_configs())
@@ -141,10 +145,11 @@ def _resolve_chain(raw: dict, src: str, base_dir: Optional[Path], seen: tuple[Pa
 
 
 def load_config(path_or_name: Union[str, os.PathLike]) -> SceneConfig:
-    """Load, resolve `extends`, type-check, normalize and validate a TOML config. A `.ply` path is a
-    captured scene with automatic settings: the built-in `capture` config with `scene` = that file."""
+    """Load, resolve `extends`, type-check, normalize and validate a TOML config. A splat file (a 3DGS or
+    compressed .ply, .splat, .spz, recognised by suffix or content: `formats.is_splat_file`) is a captured
+    scene with automatic settings: the built-in `capture` config with `scene` = that file."""
     path = find_config(path_or_name)
-    if path.suffix.lower() == ".ply":
+    if is_splat_file(path):
         return ply_config(path)
     src = _display(path)
     merged = _resolve_chain(_read_toml(path), src, path.parent, (path.resolve(),))
@@ -154,8 +159,9 @@ def load_config(path_or_name: Union[str, os.PathLike]) -> SceneConfig:
 
 
 def ply_config(path: Path) -> SceneConfig:
-    """The config of a bare PLY argument: `extends = "capture"`, the scene, a name from the file."""
-    name = re.sub(r"[^A-Za-z0-9_.-]+", "_", path.stem).strip("._") or "scene"
+    """The config of a bare splat-file argument: `extends = "capture"`, the scene, a name from the file."""
+    stem = path.name[: -len(".compressed.ply")] if path.name.lower().endswith(".compressed.ply") else path.stem
+    name = re.sub(r"[^A-Za-z0-9_.-]+", "_", stem).strip("._") or "scene"
     if name == "point_cloud" and path.parent.name.startswith("iteration_"):  # the reference trainer's layout
         name = re.sub(r"[^A-Za-z0-9_.-]+", "_", path.parent.parent.parent.name) or name
     return config_from_dict({"extends": "capture", "scene": str(path.resolve()), "name": name}, _display(path))

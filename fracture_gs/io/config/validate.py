@@ -30,6 +30,7 @@ from ...config import (
 )
 from ...errors import ConfigError
 from ...variants import variant_spec
+from ..formats import is_splat_file
 
 MAX_FIELD_SLOTS = 8  # sim.layout.MAX_SLOTS (io does not import sim)
 MAX_IMAGE_SIDE = 8192  # pixels; larger frames exceed H.264 levels and the rasterizers' tile budgets
@@ -130,11 +131,11 @@ def _check_scene(c: _Checker, cfg: SceneConfig) -> None:
             f"name = {cfg.name!r} cannot be used as a folder name under runs/",
             "start with a letter, digit or '_' and use letters, digits, '_', '-', '+', '.' or spaces (≤ 128)",
         )
-    if cfg.scene not in BUILTIN_SCENES and not cfg.scene.lower().endswith(".ply"):
+    if cfg.scene not in BUILTIN_SCENES and not is_splat_file(cfg.scene):
         c.fail(
             "scene",
-            f"scene = {cfg.scene!r} is neither a built-in scene nor a .ply path",
-            f"use one of {', '.join(BUILTIN_SCENES)} or a path ending in .ply",
+            f"scene = {cfg.scene!r} is neither a built-in scene nor a splat file",
+            f"use one of {', '.join(BUILTIN_SCENES)} or a path to a .ply, .compressed.ply, .splat or .spz scene",
         )
     c.choice("preset", cfg.preset, list(PRESETS))
     c.within("frames", cfg.frames, 1, MAX_FRAMES, f"simulate 1 to {MAX_FRAMES:,} frames")
