@@ -100,7 +100,7 @@ def cmd_info(args: argparse.Namespace) -> int:
 
 def _describe_boundary(b: Any) -> str:
     """One short phrase per boundary for `validate`."""
-    from ..config import CuboidBoundary, ParticleRegion, PlaneBoundary
+    from ..config import CuboidBoundary, ParticleRegion, PlaneBoundary, SphereBoundary
 
     def v(t: Sequence[float]) -> str:
         return "(" + ", ".join(f"{x:g}" for x in t) + ")"
@@ -109,6 +109,8 @@ def _describe_boundary(b: Any) -> str:
         return f"plane {b.mode} through {v(b.point)} normal {v(b.normal)}"
     if isinstance(b, CuboidBoundary):
         return f"cuboid {v(b.lower)}-{v(b.upper)} velocity {v(b.velocity)}"
+    if isinstance(b, SphereBoundary):
+        return f"sphere r={b.radius:g} at {v(b.center)} velocity {v(b.velocity)} t=[{b.start:g}, {b.end:g}]"
     if isinstance(b, ParticleRegion):
         what = f"delta_v {v(b.delta_v)}" if b.kind == "impulse" else f"velocity {v(b.velocity)}"
         return f"region {b.kind} {v(b.lower)}-{v(b.upper)} {what} t=[{b.start:g}, {b.end:g}]"
