@@ -65,7 +65,9 @@ class PlaneBoundary:
 class CuboidBoundary:
     """Grid nodes inside an axis-aligned box get velocity `velocity`; the box moves with it.
 
-    Used as grips (the bread is pulled apart at both ends) and moving pushers."""
+    Used as grips (the bread is pulled apart at both ends) and moving pushers. With `push` set the box
+    is a one-sided pusher instead (a press plate): it only removes the part of a node's velocity, relative
+    to the box, that runs against `push`, so it drives material ahead of it without holding it."""
 
     lower: Vec3 = (0.0, 0.0, 0.0)
     """Box lower corner at `start` [m]."""
@@ -77,6 +79,9 @@ class CuboidBoundary:
     """Time the region switches on [s]."""
     end: float = 1e30
     """Time the region switches off [s]."""
+    push: Vec3 = (0.0, 0.0, 0.0)
+    """Direction the box pushes along, e.g. [0, 0, -1] for a plate pressing down [unitless, normalized];
+    (0, 0, 0) = sticky: nodes inside take `velocity` whole (grips)."""
 
 
 @dataclass

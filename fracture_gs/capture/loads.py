@@ -110,8 +110,9 @@ def plan_load(kind: str, lo: torch.Tensor, hi: torch.Tensor, dx: float, size: fl
 
 
 def _resting(lo: list, dx: float) -> PlaneBoundary:
-    """A friction floor just under the object (it rests on it from the start)."""
-    return PlaneBoundary(point=(0.0, 0.0, lo[2] - 1.5 * dx), normal=(0.0, 0.0, 1.0), mode="friction", friction=0.4)
+    """A friction floor Δx/2 under the object's lowest particles: the nodes below them are behind it from
+    the start, so the object rests on it instead of falling onto it."""
+    return PlaneBoundary(point=(0.0, 0.0, lo[2] - 0.5 * dx), normal=(0.0, 0.0, 1.0), mode="friction", friction=0.4)
 
 
 def _shoot(lo: list, hi: list, dx: float, size: float, v: float, duration: float) -> LoadPlan:
@@ -148,8 +149,11 @@ def _crush(lo: list, hi: list, dx: float, size: float, v: float) -> LoadPlan:
     face, stop = hi[2] + 0.5 * dx, floor.point[2] + 0.25 * height
     end = (face - stop) / v
     lower, upper = (lo[0] - margin, lo[1] - margin, face), (hi[0] + margin, hi[1] + margin, face + 3 * dx)
-    press = CuboidBoundary(lower=lower, upper=upper, velocity=(0.0, 0.0, -v), start=0.0, end=end)
-    held = CuboidBoundary(lower=(lower[0], lower[1], stop), upper=(upper[0], upper[1], stop + 3 * dx), start=end)
+    down = (0.0, 0.0, -1.0)  # a pusher: it presses, never holds the object up against its own weight
+    press = CuboidBoundary(lower=lower, upper=upper, velocity=(0.0, 0.0, -v), start=0.0, end=end, push=down)
+    held = CuboidBoundary(
+        lower=(lower[0], lower[1], stop), upper=(upper[0], upper[1], stop + 3 * dx), start=end, push=down
+    )
     note = (
         f"load crush: a plate over the whole top presses down at {v:g} m/s onto the object resting on a friction "
         f"floor, and stops {stop - floor.point[2]:.3g} m above the floor (25 % of its height) at t = {end:.3g} s "

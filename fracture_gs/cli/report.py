@@ -108,7 +108,8 @@ def _describe_boundary(b: Any) -> str:
     if isinstance(b, PlaneBoundary):
         return f"plane {b.mode} through {v(b.point)} normal {v(b.normal)}"
     if isinstance(b, CuboidBoundary):
-        return f"cuboid {v(b.lower)}-{v(b.upper)} velocity {v(b.velocity)}"
+        pusher = f" pushing {v(b.push)}" if any(b.push) else ""
+        return f"cuboid {v(b.lower)}-{v(b.upper)} velocity {v(b.velocity)}{pusher}"
     if isinstance(b, SphereBoundary):
         return f"sphere r={b.radius:g} at {v(b.center)} velocity {v(b.velocity)} t=[{b.start:g}, {b.end:g}]"
     if isinstance(b, ParticleRegion):

@@ -41,17 +41,25 @@ def plane_velocity(v: wp.vec3, xi: wp.vec3, point: wp.vec3, n: wp.vec3, mode: in
 
 
 @wp.func
-def cuboid_velocity(v: wp.vec3, xi: wp.vec3, t: float, lower: wp.vec3, upper: wp.vec3, vb: wp.vec3, tw: wp.vec2):
-    """Moving cuboid (corners at time tw[0], velocity vb, active for tw[0] ≤ t ≤ tw[1]): a node inside
-    it takes its velocity."""
+def cuboid_velocity(
+    v: wp.vec3, xi: wp.vec3, t: float, lower: wp.vec3, upper: wp.vec3, vb: wp.vec3, tw: wp.vec2, push: wp.vec3
+):
+    """Moving cuboid (corners at time tw[0], velocity vb, active for tw[0] ≤ t ≤ tw[1]) on a node inside
+    it: sticky (push = 0) the node takes its velocity; a pusher (push a unit direction) removes the part
+    of the node's velocity relative to the box that runs against push, v ← v − min(0, (v − vb)·push) push."""
     if t < tw[0] or t > tw[1]:
         return v
     shift = vb * (t - tw[0])
     lo = lower + shift
     hi = upper + shift
-    if xi[0] >= lo[0] and xi[0] <= hi[0] and xi[1] >= lo[1] and xi[1] <= hi[1] and xi[2] >= lo[2] and xi[2] <= hi[2]:
+    if xi[0] < lo[0] or xi[0] > hi[0] or xi[1] < lo[1] or xi[1] > hi[1] or xi[2] < lo[2] or xi[2] > hi[2]:
+        return v
+    if wp.dot(push, push) == 0.0:
         return vb
-    return v
+    vn = wp.dot(v - vb, push)
+    if vn >= 0.0:
+        return v
+    return v - vn * push
 
 
 @wp.func
@@ -101,6 +109,7 @@ class Colliders:
     box_upper: wp.array(dtype=wp.vec3)
     box_velocity: wp.array(dtype=wp.vec3)
     box_time: wp.array(dtype=wp.vec2)
+    box_push: wp.array(dtype=wp.vec3)
     sphere_centre: wp.array(dtype=wp.vec3)
     sphere_radius: wp.array(dtype=float)
     sphere_velocity: wp.array(dtype=wp.vec3)
@@ -117,7 +126,9 @@ def apply_boundaries(v: wp.vec3, node: wp.vec3i, xi: wp.vec3, t: float, c: Colli
     `diff.kernels.apply_boundaries_unrolled` (the same operators in the same order)."""
     out = v
     for b in range(c.box_lower.shape[0]):
-        out = cuboid_velocity(out, xi, t, c.box_lower[b], c.box_upper[b], c.box_velocity[b], c.box_time[b])
+        out = cuboid_velocity(
+            out, xi, t, c.box_lower[b], c.box_upper[b], c.box_velocity[b], c.box_time[b], c.box_push[b]
+        )
     for b in range(c.sphere_radius.shape[0]):
         vs = c.sphere_velocity[b]
         out = sphere_velocity(out, xi, t, c.sphere_centre[b], c.sphere_radius[b], vs, c.sphere_time[b])
@@ -187,6 +198,8 @@ class Boundaries:
                 raise SimulationError(f"sim.boundaries: plane mode '{b.mode}' is not one of {sorted(PLANE_MODE_IDS)}")
         normals = _vec3([b.normal for b in planes], device)
         normals = normals / normals.norm(dim=1, keepdim=True).clamp_min(1e-12)
+        push = _vec3([b.push for b in boxes], device)
+        push = push / push.norm(dim=1, keepdim=True).clamp_min(1e-12)  # (0, 0, 0) stays: sticky
         self.t = dict(
             plane_point=_vec3([b.point for b in planes], device),
             plane_normal=normals,
@@ -196,6 +209,7 @@ class Boundaries:
             box_upper=_vec3([b.upper for b in boxes], device),
             box_velocity=_vec3([b.velocity for b in boxes], device),
             box_time=_times(boxes, device),
+            box_push=push,
             sphere_centre=_vec3([b.center for b in spheres], device),
             sphere_radius=torch.tensor([float(b.radius) for b in spheres], dtype=torch.float32, device=device),
             sphere_velocity=_vec3([b.velocity for b in spheres], device),
@@ -208,6 +222,7 @@ class Boundaries:
             "box_upper": wp.vec3,
             "box_velocity": wp.vec3,
             "box_time": wp.vec2,
+            "box_push": wp.vec3,
             "sphere_centre": wp.vec3,
             "sphere_velocity": wp.vec3,
             "sphere_time": wp.vec2,

@@ -218,7 +218,9 @@ def apply_boundaries_unrolled(v: wp.vec3, node: wp.vec3i, xi: wp.vec3, t: float,
     out = v
     for b in range(MAX_BOUNDARIES):
         if b < c.box_lower.shape[0]:
-            out = cuboid_velocity(out, xi, t, c.box_lower[b], c.box_upper[b], c.box_velocity[b], c.box_time[b])
+            out = cuboid_velocity(
+                out, xi, t, c.box_lower[b], c.box_upper[b], c.box_velocity[b], c.box_time[b], c.box_push[b]
+            )
     for b in range(MAX_BOUNDARIES):
         if b < c.sphere_radius.shape[0]:
             vs = c.sphere_velocity[b]
