@@ -30,7 +30,7 @@ BandRelease = Literal["first", "all", "none"]
 Preset = Literal["small", "paper"]
 UpAxis = Literal["auto", "+x", "-x", "+y", "-y", "+z", "-z"]
 RoiKind = Literal["auto", "box", "sphere", "all"]
-LoadKind = Literal["pull", "drop", "impact", "none"]
+LoadKind = Literal["pull", "drop", "impact", "shoot", "crush", "none"]
 CameraSource = Literal["auto", "trainer", "config"]
 CaptureQuality = Literal["draft", "default", "fine"]
 CaptureMaterial = Literal["ceramic", "wood", "plant", "bread", "config"]
@@ -69,7 +69,9 @@ class PlaneBoundary:
 class CuboidBoundary:
     """Grid nodes inside an axis-aligned box get velocity `velocity`; the box moves with it.
 
-    Used as grips (the bread is pulled apart at both ends) and moving pushers."""
+    Used as grips (the bread is pulled apart at both ends) and moving pushers. With `push` set the box
+    is a one-sided pusher instead (a press plate): it only removes the part of a node's velocity, relative
+    to the box, that runs against `push`, so it drives material ahead of it without holding it."""
 
     lower: Vec3 = (0.0, 0.0, 0.0)
     """Box lower corner at `start` [m]."""
@@ -81,6 +83,29 @@ class CuboidBoundary:
     """Time the region switches on [s]."""
     end: float = 1e30
     """Time the region switches off [s]."""
+    push: Vec3 = (0.0, 0.0, 0.0)
+    """Direction the box pushes along, e.g. [0, 0, -1] for a plate pressing down [unitless, normalized];
+    (0, 0, 0) = sticky: nodes inside take `velocity` whole (grips)."""
+
+
+@dataclass
+class SphereBoundary:
+    """A kinematic rigid sphere (a projectile) moving at constant velocity, acting on grid nodes.
+
+    At a node inside the sphere the part of the velocity that approaches the sphere's surface relative to
+    the sphere is removed (v_rel = v − velocity, n the outward normal at the node; if v_rel·n < 0 then
+    v ← v − (v_rel·n) n): it pushes material out of its way, never pulls or glues it."""
+
+    center: Vec3 = (0.0, 0.0, 0.0)
+    """Centre at `start` [m]."""
+    radius: float = 0.0
+    """Radius [m] (must be positive)."""
+    velocity: Vec3 = (0.0, 0.0, 0.0)
+    """Velocity; the sphere translates with it while active [m/s]."""
+    start: float = 0.0
+    """Time the sphere appears [s]."""
+    end: float = 1e30
+    """Time the sphere disappears [s]."""
 
 
 @dataclass
@@ -203,7 +228,7 @@ class SimConfig:
     material: MaterialName = "fixed_corotated"
     """Default constitutive model (per-particle ids may override)."""
     boundaries: list = field(default_factory=list)
-    """PlaneBoundary / CuboidBoundary / ParticleRegion instances."""
+    """PlaneBoundary / CuboidBoundary / SphereBoundary / ParticleRegion instances."""
     restitution: float = 0.0
     """Contact projection restitution e in Eq. impulse (0 = perfectly inelastic normal)."""
     eps_mass: float = 1e-9
@@ -409,10 +434,12 @@ class CaptureConfig:
     """Fill: holes narrower than about 2·fill_closing voxels are closed before the flood fill."""
     load: LoadKind = "pull"
     """What breaks the object: `pull` (grips at both ends of its longest axis), `drop` (falls onto a
-    floor), `impact` (a velocity kick at a point on its side) or `none`. Added only to a config without
+    floor), `impact` (a velocity kick at a point on its side), `shoot` (a rigid ball flies into its side),
+    `crush` (a plate presses it onto the floor) or `none`. Added only to a config without
     [[sim.boundaries]] of its own (those are the load then)."""
     load_speed: float = 0.0
-    """Grip speed [m/s] (pull), impact speed (impact) or initial downward speed (drop); 0 = automatic."""
+    """Grip speed [m/s] (pull), impact speed (impact), initial downward speed (drop), ball speed (shoot) or
+    plate speed (crush); 0 = automatic."""
     camera: CameraSource = "auto"
     """`auto` (frames the object), `trainer` (a view of the trainer's cameras.json) or `config`
     ([render.camera] as written)."""
@@ -467,5 +494,10 @@ class SceneConfig:
     """Variants `render-sim` runs side by side by default."""
 
 
-BOUNDARY_TYPES: dict[str, type] = {"plane": PlaneBoundary, "cuboid": CuboidBoundary, "region": ParticleRegion}
+BOUNDARY_TYPES: dict[str, type] = {
+    "plane": PlaneBoundary,
+    "cuboid": CuboidBoundary,
+    "sphere": SphereBoundary,
+    "region": ParticleRegion,
+}
 """Value of a `[[sim.boundaries]]` table's `type` key → boundary class."""

@@ -14,6 +14,20 @@ axis-aligned. The material of `configs/capture.toml` (a soft brittle solid, E = 
 * ``impact`` — the object rests on a floor under gravity; the particles within 0.15·size of the
   middle of its −x end get a kick of v (default 2 m/s) along +x over the first 5 ms, like a hammer blow; the
   stress wave cracks it around the blow (up to 8 events).
+* ``shoot`` — the object rests on a friction floor (Δx/2 under its lowest particles) under gravity; a
+  rigid ball of radius 0.12·size starts 2Δx clear of the middle of its −x side and flies along +x at v
+  (default 3 m/s) until it is past the object's far end. It pushes material out of its way and never
+  pulls it (`SphereBoundary`): the contact stress ρ c v ≈ 4 kPa ≫ σ_R cracks the object where it hits
+  (the first event within ≈ 5 frames on the test ellipsoid) and drives the pieces along +x (up to 8
+  events).
+* ``crush`` — the object rests on the same floor under gravity; a plate (a 3Δx `CuboidBoundary` slab over
+  its whole x–y footprint plus 0.1·size, `push` = −z so it presses without holding the object up) starts
+  on its top and moves down at v (default 0.2 m/s): the compressive strain grows by v/H (1/s for H =
+  0.2 m), so E v t / H passes σ_R within a few frames of contact. It stops, and stays there, when its
+  lower face is 25 % of the object's height above the floor, so it never reaches the floor (up to 8
+  events). Note that the capture material cannot carry its own weight (ρ g H ≈ 600 Pa > σ_R for
+  H = 0.3 m): on this floor under gravity alone the test ellipsoid (0.3 m tall) sags faster than 0.2 m/s
+  and cracks under its weight from frame ≈ 12, before the plate catches up with it.
 """
 
 from __future__ import annotations
@@ -22,16 +36,16 @@ from dataclasses import dataclass, field
 
 import torch
 
-from ..config import CuboidBoundary, ParticleRegion, PlaneBoundary, SceneConfig
+from ..config import CuboidBoundary, ParticleRegion, PlaneBoundary, SceneConfig, SphereBoundary
 
-DEFAULT_SPEED = {"pull": 0.1, "drop": 1.0, "impact": 2.0}
+DEFAULT_SPEED = {"pull": 0.1, "drop": 1.0, "impact": 2.0, "shoot": 3.0, "crush": 0.2}
 """Automatic load speed per kind [m/s] at capture.size = 0.5 m (scaled with the size)."""
 
 
 @dataclass
 class LoadPlan:
     """What a load adds to the config: boundaries, gravity, initial velocity, provider settings, and
-    how much room the grid needs below and along x."""
+    how much room the grid needs below, along x and around the load's own moving bodies."""
 
     boundaries: list = field(default_factory=list)
     gravity: tuple = (0.0, 0.0, 0.0)
@@ -39,6 +53,7 @@ class LoadPlan:
     max_events: int = 1
     release: str = "first"
     floor: float | None = None  # z of the floor [m]
+    room: tuple | None = None  # (lower, upper) corners the load's own bodies sweep, which the grid must hold [m]
     note: str = ""
 
 
@@ -91,7 +106,75 @@ def plan_load(kind: str, lo: torch.Tensor, hi: torch.Tensor, dx: float, size: fl
         return LoadPlan(
             boundaries=[plane, kick], gravity=(0.0, 0.0, -9.8), max_events=8, release="none", floor=floor, note=note
         )
+    if kind == "shoot":
+        return _shoot(lo, hi, dx, size, v, duration)
+    if kind == "crush":
+        return _crush(lo, hi, dx, size, v, duration)
     return LoadPlan(note="load none: only the boundaries of the config")
+
+
+def _resting(lo: list, dx: float) -> PlaneBoundary:
+    """A friction floor Δx/2 under the object's lowest particles: the nodes below them are behind it from
+    the start, so the object rests on it instead of falling onto it."""
+    return PlaneBoundary(point=(0.0, 0.0, lo[2] - 0.5 * dx), normal=(0.0, 0.0, 1.0), mode="friction", friction=0.4)
+
+
+def _shoot(lo: list, hi: list, dx: float, size: float, v: float, duration: float) -> LoadPlan:
+    """A ball of radius 0.12·size, 2Δx clear of the −x side at mid-height, flying along +x at v until
+    it is 2Δx past the object's +x end; the room holds its path during the run."""
+    floor = _resting(lo, dx)
+    r = 0.12 * size
+    centre = (lo[0] - r - 2 * dx, 0.5 * (lo[1] + hi[1]), 0.5 * (lo[2] + hi[2]))
+    end = (hi[0] + r + 2 * dx - centre[0]) / v
+    ball = SphereBoundary(center=centre, radius=r, velocity=(v, 0.0, 0.0), start=0.0, end=end)
+    reach = centre[0] + v * min(end, duration)
+    room = ((centre[0] - r, centre[1] - r, centre[2] - r), (reach + r, centre[1] + r, centre[2] + r))
+    note = (
+        f"load shoot: a rigid ball (radius {r:.3g} m) flies along +x at {v:g} m/s into the middle of the -x side "
+        f"and past the object by t = {end:.3g} s; it rests on a friction floor (up to 8 cracks)"
+    )
+    return LoadPlan(
+        boundaries=[floor, ball],
+        gravity=(0.0, 0.0, -9.8),
+        max_events=8,
+        release="none",
+        floor=floor.point[2],
+        room=room,
+        note=note,
+    )
+
+
+def _crush(lo: list, hi: list, dx: float, size: float, v: float, duration: float) -> LoadPlan:
+    """A 3Δx-thick plate over the footprint plus 0.1·size, its lower face Δx/2 above the object's top,
+    moving down at v until the face is 25 % of the object's height above the floor, then held there."""
+    floor = _resting(lo, dx)
+    height = hi[2] - lo[2]
+    margin = 0.1 * size
+    face, stop = hi[2] + 0.5 * dx, floor.point[2] + 0.25 * height
+    end = (face - stop) / v
+    lower, upper = (lo[0] - margin, lo[1] - margin, face), (hi[0] + margin, hi[1] + margin, face + 3 * dx)
+    down = (0.0, 0.0, -1.0)  # a pusher: it presses, never holds the object up against its own weight
+    press = CuboidBoundary(lower=lower, upper=upper, velocity=(0.0, 0.0, -v), start=0.0, end=end, push=down)
+    held = CuboidBoundary(
+        lower=(lower[0], lower[1], stop), upper=(upper[0], upper[1], stop + 3 * dx), start=end, push=down
+    )
+    where = f"{stop - floor.point[2]:.3g} m above the floor (25 % of the object's height) at t = {end:.3g} s"
+    what = (
+        f"it stops {where} and stays" if end <= duration else f"{v * duration:.3g} m in this run, it would stop {where}"
+    )
+    note = (
+        f"load crush: a plate over the whole top presses down at {v:g} m/s on the object, which rests on a friction "
+        f"floor: {what} (up to 8 cracks)"
+    )
+    return LoadPlan(
+        boundaries=[floor, press, held],
+        gravity=(0.0, 0.0, -9.8),
+        max_events=8,
+        release="none",
+        floor=floor.point[2],
+        room=(lower, upper),
+        note=note,
+    )
 
 
 def apply_load(cfg: SceneConfig, plan: LoadPlan) -> None:

@@ -206,6 +206,9 @@ def _room(size: float, lo, hi, plan, duration: float):
         room_lo[2] = min(float(room_lo[2]), plan.floor - 0.05 * size)
         room_lo[:2] -= 0.2 * size  # pieces spread on the floor
         room_hi[:2] += 0.2 * size
+    if plan.room is not None:  # the load's own bodies (a ball's path, a plate above the object)
+        room_lo = torch.minimum(room_lo, torch.tensor(plan.room[0], dtype=room_lo.dtype) - pad)
+        room_hi = torch.maximum(room_hi, torch.tensor(plan.room[1], dtype=room_hi.dtype) + pad)
     return room_lo, room_hi
 
 

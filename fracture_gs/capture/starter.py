@@ -9,13 +9,16 @@ import datetime
 import functools
 import inspect
 import re
+from typing import get_args
 
 from .. import config as config_module
 from ..config import (
+    BOUNDARY_TYPES,
     CameraConfig,
     CaptureConfig,
     ContactConfig,
     CuboidBoundary,
+    LoadKind,
     MaterialConfig,
     MaterialMapEntry,
     ParticleRegion,
@@ -23,6 +26,7 @@ from ..config import (
     RenderConfig,
     SceneConfig,
     SimConfig,
+    SphereBoundary,
     TopologyConfig,
 )
 from ..io.config import dump_config
@@ -31,7 +35,7 @@ TABLES = {
     "": (SceneConfig,),
     "sim": (SimConfig,),
     "sim.contact": (ContactConfig,),
-    "sim.boundaries": (PlaneBoundary, CuboidBoundary, ParticleRegion),
+    "sim.boundaries": (PlaneBoundary, CuboidBoundary, SphereBoundary, ParticleRegion),
     "material": (MaterialConfig,),
     "material_map": (MaterialMapEntry,),
     "topology": (TopologyConfig,),
@@ -57,8 +61,8 @@ def field_docs() -> dict[tuple[str, str], str]:
     return docs
 
 
-def _doc(table: str, key: str) -> str | None:
-    for cls in TABLES.get(table, ()):
+def _doc(table: str, key: str, classes: tuple = ()) -> str | None:
+    for cls in classes or TABLES.get(table, ()):
         text = field_docs().get((cls.__name__, key))
         if text:
             return text
@@ -78,13 +82,16 @@ def _wrap(text: str, width: int = 98) -> list[str]:
 
 def commented(toml_text: str) -> str:
     """Every `key = value` line of a dumped config preceded by its field's documentation."""
-    out, table = [], ""
+    out, table, classes = [], "", ()
     for line in toml_text.splitlines():
         header = re.match(r"^\[\[?([^\]]+)\]\]?$", line)
         if header:
-            table = header.group(1)
+            table, classes = header.group(1), ()
+        kind = re.match(r'^type = "([a-z]+)"$', line)
+        if table == "sim.boundaries" and kind and kind.group(1) in BOUNDARY_TYPES:
+            classes = (BOUNDARY_TYPES[kind.group(1)],)  # a boundary's keys documented by its own class
         m = re.match(r"^([A-Za-z_][A-Za-z0-9_]*) = ", line)
-        if m and (doc := _doc(table, m.group(1))):
+        if m and (doc := _doc(table, m.group(1), classes)):
             out += [f"# {w}" for w in _wrap(doc)]
         out.append(line)
     return "\n".join(out) + "\n"
@@ -93,6 +100,7 @@ def commented(toml_text: str) -> str:
 def starter_toml(capture, ply: str) -> str:
     """The starter config of a resolved capture (`capture.scene.Capture`) of the file `ply`."""
     notes = "\n".join(f"#   - {n}" for n in capture.notes)
+    loads = ", ".join(f'"{k}"' for k in get_args(LoadKind) if k != "none")
     head = f"""# fracture-gs starter config for {ply}
 # written by `fracture-gs init` on {datetime.date.today().isoformat()}: every automatic choice is written out
 # below as a plain value. Edit it, then run:  fracture-gs render-sim <this file>
@@ -104,6 +112,6 @@ def starter_toml(capture, ply: str) -> str:
 # delete capture.scale/rotation/offset (the fit; capture.up = "auto", "-y", "+z", ... picks the
 # up axis), set sim.grid = "auto", set capture.camera = "auto" or "trainer" (capture.view picks the
 # trainer's view), and for another load delete the [[sim.boundaries]] tables and set
-# capture.load = "pull", "drop" or "impact".
+# capture.load = {loads}.
 """
     return head + "\n" + commented(dump_config(capture.cfg))

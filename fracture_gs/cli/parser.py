@@ -6,7 +6,7 @@ import argparse
 import re
 from typing import get_args
 
-from ..config import ParticleOrder
+from ..config import LoadKind, ParticleOrder
 from ..io.formats import FORMATS
 from .sweep import add_sweep_parser
 
@@ -57,7 +57,7 @@ examples:
 A captured scene (a 3DGS trainer's .ply, or a .splat, .spz or compressed .ply from a viewer or
 editor; its format is read from the content) is prepared automatically: floaters and outliers are
 removed, the object is fitted into the grid (up axis from the trainer's cameras.json, else -y), its inside
-is filled, a load breaks it (--load pull|drop|impact) and a camera frames it; what was chosen is
+is filled, a load breaks it (--load pull|drop|impact|shoot|crush) and a camera frames it; what was chosen is
 printed and config.toml in --out holds it (`fracture-gs init` writes it with comments).
 
 Writes one folder per variant (frames, metrics.jsonl, topology) and a side-by-side comparison
@@ -176,8 +176,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--resolution", metavar="WxH", help="image size, e.g. 640x480 (default: the config's)")
     p.add_argument(
         "--load",
-        choices=("pull", "drop", "impact", "none"),
-        help="captured scenes (splat files): what breaks the object (default: the config's capture.load, pull)",
+        choices=get_args(LoadKind),
+        help="captured scenes (splat files): what breaks the object (default: the config's capture.load)",
     )
     p.add_argument(
         "--devices",
@@ -312,7 +312,7 @@ def build_parser() -> argparse.ArgumentParser:
         "scene", metavar="SCENE", help="a captured scene: 3DGS or compressed .ply, .splat or .spz (read by content)"
     )
     p.add_argument("--out", metavar="FILE", help="where to write the TOML (default: <scene name>.toml here)")
-    p.add_argument("--load", choices=("pull", "drop", "impact", "none"), help="what breaks the object (default pull)")
+    p.add_argument("--load", choices=get_args(LoadKind), help="what breaks the object (default pull)")
     p.add_argument("--force", action="store_true", help="overwrite FILE if it exists")
     add_sweep_parser(sub)
     return parser

@@ -100,7 +100,7 @@ def cmd_info(args: argparse.Namespace) -> int:
 
 def _describe_boundary(b: Any) -> str:
     """One short phrase per boundary for `validate`."""
-    from ..config import CuboidBoundary, ParticleRegion, PlaneBoundary
+    from ..config import CuboidBoundary, ParticleRegion, PlaneBoundary, SphereBoundary
 
     def v(t: Sequence[float]) -> str:
         return "(" + ", ".join(f"{x:g}" for x in t) + ")"
@@ -108,7 +108,10 @@ def _describe_boundary(b: Any) -> str:
     if isinstance(b, PlaneBoundary):
         return f"plane {b.mode} through {v(b.point)} normal {v(b.normal)}"
     if isinstance(b, CuboidBoundary):
-        return f"cuboid {v(b.lower)}-{v(b.upper)} velocity {v(b.velocity)}"
+        pusher = f" pushing {v(b.push)}" if any(b.push) else ""
+        return f"cuboid {v(b.lower)}-{v(b.upper)} velocity {v(b.velocity)}{pusher}"
+    if isinstance(b, SphereBoundary):
+        return f"sphere r={b.radius:g} at {v(b.center)} velocity {v(b.velocity)} t=[{b.start:g}, {b.end:g}]"
     if isinstance(b, ParticleRegion):
         what = f"delta_v {v(b.delta_v)}" if b.kind == "impulse" else f"velocity {v(b.velocity)}"
         return f"region {b.kind} {v(b.lower)}-{v(b.upper)} {what} t=[{b.start:g}, {b.end:g}]"

@@ -7,7 +7,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Optional
 
-from ..config import CuboidBoundary, ParticleRegion, SceneConfig
+from ..config import CuboidBoundary, ParticleRegion, SceneConfig, SphereBoundary
 from ..io.config import apply_overrides, validate
 
 # --------------------------------------------------------------------------------------------
@@ -80,7 +80,7 @@ def _compress_time(cfg: SceneConfig, scale: float) -> None:
     every switching time / scale (quasi-static loading keeps its frame numbers)."""
     cfg.frame_dt = cfg.frame_dt / scale
     for b in cfg.sim.boundaries:
-        if isinstance(b, CuboidBoundary):
+        if isinstance(b, (CuboidBoundary, SphereBoundary)):
             b.velocity = tuple(v * scale for v in b.velocity)
             b.start = b.start / scale
             b.end = b.end / scale if b.end < 1e29 else b.end
@@ -95,7 +95,7 @@ def _compress_time(cfg: SceneConfig, scale: float) -> None:
 def _scale_loading(cfg: SceneConfig, scale: float) -> None:
     """Every prescribed velocity (grips, particle regions) × scale; switching times unchanged."""
     for b in cfg.sim.boundaries:
-        if isinstance(b, (CuboidBoundary, ParticleRegion)):
+        if isinstance(b, (CuboidBoundary, SphereBoundary, ParticleRegion)):
             b.velocity = tuple(v * scale for v in b.velocity)
         if isinstance(b, ParticleRegion):
             b.delta_v = tuple(v * scale for v in b.delta_v)

@@ -11,6 +11,7 @@ from ..config import (
     ParticleRegion,
     PlaneBoundary,
     SimConfig,
+    SphereBoundary,
     TopologyConfig,
 )
 from ..errors import SimulationDiverged
@@ -36,6 +37,7 @@ __all__ = [
     "ReplayProvider",
     "StressProvider",
     "SimConfig",
+    "SphereBoundary",
     "SimulationDiverged",
     "SimulationError",
     "Simulator",

@@ -15,7 +15,7 @@ File layout (every key is a field of `fracture_gs.config`; all are optional, def
     gravity = [0.0, 0.0, -9.8]
     [[sim.boundaries]]         # one table per boundary; `type` picks the class:
     type = "plane"             #   "plane" → PlaneBoundary, "cuboid" → CuboidBoundary,
-    point = [0.0, 0.0, 0.1]    #   "region" → ParticleRegion
+    point = [0.0, 0.0, 0.1]    #   "sphere" → SphereBoundary, "region" → ParticleRegion
     [material]                 # MaterialConfig (the default material)
     [[material_map]]           # MaterialMapEntry per label (unset fields keep the default)
     [topology]                 # TopologyConfig

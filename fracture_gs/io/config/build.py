@@ -174,8 +174,8 @@ def _array(value: Any, dotted: str, src: str, what: str, example: str) -> list:
 
 
 def _build_boundaries(value: Any, dotted: str, src: str) -> list:
-    """`[[sim.boundaries]]` tables → PlaneBoundary / CuboidBoundary / ParticleRegion."""
-    example = '[[sim.boundaries]] tables with type = "plane", "cuboid" or "region"'
+    """`[[sim.boundaries]]` tables → PlaneBoundary / CuboidBoundary / SphereBoundary / ParticleRegion."""
+    example = '[[sim.boundaries]] tables with type = "plane", "cuboid", "sphere" or "region"'
     items = _array(value, dotted, src, "tables", example)
     out = []
     for i, item in enumerate(items):

@@ -26,6 +26,7 @@ from ...config import (
     RenderConfig,
     SceneConfig,
     SimConfig,
+    SphereBoundary,
     TopologyConfig,
 )
 from ...errors import ConfigError
@@ -231,12 +232,19 @@ def _check_boundary(c: _Checker, p: str, b: Any) -> None:
     elif isinstance(b, CuboidBoundary):
         c.box(p, b.lower, b.upper)
         c.interval(p, b.start, b.end)
+    elif isinstance(b, SphereBoundary):
+        c.positive(f"{p}.radius", b.radius, "give the sphere's radius in metres, e.g. radius = 0.06")
+        c.interval(p, b.start, b.end)
     elif isinstance(b, ParticleRegion):
         c.choice(f"{p}.kind", b.kind, REGION_KINDS)
         c.box(p, b.lower, b.upper)
         c.interval(p, b.start, b.end)
     else:
-        c.fail(p, f"{p} is a {type(b).__name__}, not a boundary", "use PlaneBoundary, CuboidBoundary or ParticleRegion")
+        c.fail(
+            p,
+            f"{p} is a {type(b).__name__}, not a boundary",
+            "use PlaneBoundary, CuboidBoundary, SphereBoundary or ParticleRegion",
+        )
 
 
 def _check_material(c: _Checker, p: str, m: Any) -> None:

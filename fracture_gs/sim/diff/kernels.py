@@ -13,12 +13,13 @@ from __future__ import annotations
 
 import warp as wp
 
-from ..boundary import Colliders, apply_boundaries
+from ..boundary import Colliders, cuboid_velocity, plane_velocity, sphere_velocity, wall_velocity
 from ..transfer_kernels import gather, node_terms, stencil
 
 wp.set_module_options({"enable_backward": True})
 
 SUM_EPS = 1e-6  # floor of s_i + s_j in the polar rotation's derivative (only reached by inverted, flat F)
+MAX_BOUNDARIES = 4  # planes, cuboids and spheres each: the unrolled loops of `apply_boundaries_unrolled`
 
 
 @wp.func
@@ -208,6 +209,28 @@ def contact_pair(
             v_out[ib] = wb
 
 
+@wp.func
+def apply_boundaries_unrolled(v: wp.vec3, node: wp.vec3i, xi: wp.vec3, t: float, c: Colliders):
+    """`boundary.apply_boundaries` (cuboids, spheres, planes, walls, in that order) with loops of a fixed
+    length MAX_BOUNDARIES, which Warp unrolls: its adjoint of a loop over an array's length keeps none of
+    the projections (the gradient passes through a plane or sphere as if it were not there), the
+    unrolled one differentiates each operator."""
+    out = v
+    for b in range(MAX_BOUNDARIES):
+        if b < c.box_lower.shape[0]:
+            out = cuboid_velocity(
+                out, xi, t, c.box_lower[b], c.box_upper[b], c.box_velocity[b], c.box_time[b], c.box_push[b]
+            )
+    for b in range(MAX_BOUNDARIES):
+        if b < c.sphere_radius.shape[0]:
+            vs = c.sphere_velocity[b]
+            out = sphere_velocity(out, xi, t, c.sphere_centre[b], c.sphere_radius[b], vs, c.sphere_time[b])
+    for b in range(MAX_BOUNDARIES):
+        if b < c.plane_point.shape[0]:
+            out = plane_velocity(out, xi, c.plane_point[b], c.plane_normal[b], c.plane_mode[b], c.plane_mu[b])
+    return wall_velocity(out, node, c.shape, c.wall_cells)
+
+
 @wp.kernel
 def boundaries(
     grid_m: wp.array(dtype=float),
@@ -230,7 +253,7 @@ def boundaries(
     v = v_in[i]
     if grid_m[i] > eps_m:
         xi = origin + wp.vec3(float(node[0]), float(node[1]), float(node[2])) * dx
-        v = apply_boundaries(v, node + lo, xi, t, colliders)
+        v = apply_boundaries_unrolled(v, node + lo, xi, t, colliders)
     v_out[i] = v
 
 

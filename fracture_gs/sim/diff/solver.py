@@ -11,8 +11,9 @@ Conventions (docs/DESIGN.md "Differentiable simulation"): the frame's Δt and su
 by the forward pass (no gradient through the CFL choice); fracture events are discrete, so the
 topology (fragment ids, band) is held fixed at each frame as latched, and gradients flow through each
 fragment's own dynamics on both sides of a latch, as through a fixed contact set. Supported: fixed-
-corotated and neo-Hookean materials, every variant but the global fragment pass, plane and cuboid
-boundaries and domain walls, fragment contact with the latched normal (restitution, friction).
+corotated and neo-Hookean materials, every variant but the global fragment pass, plane, cuboid and
+sphere boundaries (up to `kernels.MAX_BOUNDARIES` of each) and domain walls, fragment contact with the
+latched normal (restitution, friction).
 """
 
 from __future__ import annotations
@@ -91,6 +92,12 @@ class DiffSimulator:
         self.boundaries = Boundaries(cfg.boundaries, self.device, (1, 1, 1), cfg.wall_cells)
         if self.boundaries.regions:
             raise SimulationError('timed particle regions (sim.boundaries type = "region") are not differentiable yet')
+        for kind, key in (("plane", "plane_point"), ("cuboid", "box_lower"), ("sphere", "sphere_radius")):
+            if self.boundaries.t[key].shape[0] > K.MAX_BOUNDARIES:
+                raise SimulationError(
+                    f'sim.boundaries: the differentiable solver takes at most {K.MAX_BOUNDARIES} of type = "{kind}" '
+                    f"(got {self.boundaries.t[key].shape[0]}); merge or remove some"
+                )
         self.origin, self.dx, self.shape = fit_grid(cfg, x0.detach())
         self.boundaries = Boundaries(cfg.boundaries, self.device, self.shape, cfg.wall_cells)
         self.n_nodes = self.shape[0] * self.shape[1] * self.shape[2]
