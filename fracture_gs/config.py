@@ -30,7 +30,7 @@ BandRelease = Literal["first", "all", "none"]
 Preset = Literal["small", "paper"]
 UpAxis = Literal["auto", "+x", "-x", "+y", "-y", "+z", "-z"]
 RoiKind = Literal["auto", "box", "sphere", "all"]
-LoadKind = Literal["pull", "drop", "impact", "shoot", "crush", "none"]
+LoadKind = Literal["auto", "pull", "drop", "impact", "shoot", "crush", "none"]
 CameraSource = Literal["auto", "trainer", "config"]
 CaptureQuality = Literal["draft", "default", "fine"]
 CaptureMaterial = Literal["ceramic", "wood", "plant", "bread", "config"]
@@ -381,6 +381,23 @@ class RenderConfig:
 
 
 @dataclass
+class MaterialRegion:
+    """A box of a captured scene made of another material preset (`[[capture.regions]]`): its Gaussians get
+    label REGION_LABEL + its index and a `material_map` entry with the preset's constants."""
+
+    lower: Vec3 = (0.0, 0.0, 0.0)
+    """Box lower corner [scene units, the file's own coordinates]."""
+    upper: Vec3 = (0.0, 0.0, 0.0)
+    """Box upper corner [scene units]."""
+    material: CaptureMaterial = "wood"
+    """Preset of the Gaussians inside (`ceramic`, `wood`, `plant` or `bread`)."""
+
+
+REGION_LABEL = 1000
+"""Material label of `capture.regions[0]` (the next region's is one more)."""
+
+
+@dataclass
 class CaptureConfig:
     """How a captured 3DGS PLY (any trainer's output, in its own units and axes) becomes a simulated
     object: clean-up, region of interest, a uniform fit into the grid, interior fill, a load that breaks
@@ -423,6 +440,10 @@ class CaptureConfig:
     """Material preset of the object: `ceramic` (stiff, brittle: shards), `wood`, `plant` (bends, then snaps),
     `bread` (soft, tears) or `config` ([material] as written). Stiffness is the stiffest each time step
     affords (see `capture/materials.py`); Δt follows from its CFL bound."""
+    regions: list = field(default_factory=list)
+    """MaterialRegion list (`[[capture.regions]]`): boxes of the scene made of another preset (a pot of
+    ceramic under a plant); a PLY label property with `material_property` and `[[material_map]]` does the same
+    per Gaussian."""
     panel: PanelSize = "auto"
     """Video panel size: `auto` (640×480 on the CPU, 1280×720 on a GPU) or `config` ([render] width and
     height as written; `--resolution` sets them)."""
@@ -432,8 +453,9 @@ class CaptureConfig:
     """Fill: opacity-weighted density of an occupied voxel."""
     fill_closing: int = 1
     """Fill: holes narrower than about 2·fill_closing voxels are closed before the flood fill."""
-    load: LoadKind = "pull"
-    """What breaks the object: `pull` (grips at both ends of its longest axis), `drop` (falls onto a
+    load: LoadKind = "auto"
+    """What breaks the object: `auto` (chosen from its shape: `drop`, or `shoot` for a tall, slender object
+    that a fall would land on its base), `pull` (grips at both ends of its longest axis), `drop` (falls onto a
     floor), `impact` (a velocity kick at a point on its side), `shoot` (a rigid ball flies into its side),
     `crush` (a plate presses it onto the floor) or `none`. Added only to a config without
     [[sim.boundaries]] of its own (those are the load then)."""

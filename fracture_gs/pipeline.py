@@ -82,6 +82,9 @@ def prepare_scene(cfg: SceneConfig, device="cpu"):
                 f"available: {', '.join(sorted(gs.extra)) or 'none'}"
             )
         gs.labels = gs.extra[cfg.material_property].to(torch.int32)
+        if gs.carrier is not None:  # the simulated particles carry the labels that set their material
+            p = gs.carrier.particles
+            p.labels = p.extra[cfg.material_property].to(torch.int32)
     cap.gaussians = in_particle_order(gs.to(device), cfg)
     return cap
 

@@ -207,3 +207,34 @@ def test_a_carried_capture_simulates_its_particles(tmp_path):
     first = next(iter(simulate(sim, gs.covariances().float(), 1, scene.cfg.frame_dt, carrier=gs.carrier)))
     assert first.means.shape == gs.means.shape
     torch.testing.assert_close(first.means, gs.means.float(), atol=1e-6, rtol=0)
+
+
+def test_material_regions_set_the_particles_material(tmp_path):
+    """A `[[capture.regions]]` box of wood on a ceramic capture: the simulated particles inside it get wood's
+    Young's modulus and density, those outside keep ceramic's, and resolving the written config again adds no
+    second material_map entry."""
+    from trainer_ply import write_trainer_ply
+
+    from fracture_gs.config import MaterialRegion
+    from fracture_gs.io.config import dump_config, load_config
+    from fracture_gs.io.ply import load_ply
+    from fracture_gs.pipeline import make_simulator, prepare_scene
+
+    ply, _ = write_trainer_ply(tmp_path, n=9000)
+    cfg = load_config(ply)
+    cfg.capture.cells_across = 12
+    x = float(load_ply(ply).means[:, 0].median())  # the PLY's own coordinates: the box holds half its Gaussians
+    big = 1e3
+    cfg.capture.regions = [MaterialRegion(lower=(x, -big, -big), upper=(big, big, big), material="wood")]
+    scene = prepare_scene(cfg, "cpu")
+    sim = make_simulator(scene.cfg, scene.gaussians, "full", "cpu")
+    E, rho = sim.particles.E, sim.particles.mass / sim.particles.volume
+    wood, ceramic = PRESETS["wood"], PRESETS["ceramic"]
+    is_wood = E == wood.E
+    assert 0.25 < float(is_wood.float().mean()) < 0.75, "about half the particles lie in the box"
+    assert bool((E[~is_wood] == ceramic.E).all())
+    torch.testing.assert_close(rho[is_wood], torch.full_like(rho[is_wood], wood.density))
+    again = tmp_path / "again.toml"
+    again.write_text(dump_config(scene.cfg))
+    rerun = prepare_scene(load_config(again), "cpu")
+    assert len(rerun.cfg.material_map) == len(scene.cfg.material_map) == 1

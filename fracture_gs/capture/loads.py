@@ -177,6 +177,20 @@ def _crush(lo: list, hi: list, dx: float, size: float, v: float, duration: float
     )
 
 
+SLENDER = 2.0
+"""Height over longest horizontal extent above which `auto` shoots the object instead of dropping it."""
+
+
+def auto_load(lo, hi) -> tuple[str, str]:
+    """(load, why) for `capture.load = "auto"` from the fitted object's box [lo, hi] (up is +z, x its longest
+    horizontal axis): a fall breaks any shape without grips, so `drop`, unless the object is tall and slender
+    (height > SLENDER × width), which a fall lands on its base: a ball at mid-height breaks and topples it."""
+    height, width = float(hi[2] - lo[2]), float(max(hi[0] - lo[0], hi[1] - lo[1]))
+    if height > SLENDER * width:
+        return "shoot", f"tall and slender ({height / width:.1f}× as tall as wide): a fall would land on its base"
+    return "drop", "a fall breaks any shape without grips"
+
+
 def apply_load(cfg: SceneConfig, plan: LoadPlan) -> None:
     """Write a load plan into the config (its boundaries after the config's own)."""
     cfg.sim.boundaries = list(cfg.sim.boundaries) + plan.boundaries

@@ -77,3 +77,24 @@ def substep_note(cfg) -> str:
     return f"Δt ≤ {dt * 1e3:.3g} ms from the CFL bound (wave speed {c:.1f} m/s at Δx = {cfg.sim.dx * 1e3:.3g} mm): " + (
         f"about {math.ceil(cfg.frame_dt / min(dt, cfg.sim.dt))} substeps a frame"
     )
+
+
+def apply_regions(cfg, gs) -> str:
+    """Label the Gaussians of `gs` (scene coordinates) inside each of `cfg.capture.regions` REGION_LABEL + i and
+    give each label a `material_map` entry with its preset (replacing one of the same label, so resolving a
+    written config again changes nothing); returns the note line."""
+    import torch
+
+    from ..config import REGION_LABEL, MaterialMapEntry
+
+    parts = []
+    x = gs.means.detach().to(torch.float64)
+    for i, r in enumerate(cfg.capture.regions):
+        lo, hi = torch.tensor(r.lower, dtype=torch.float64), torch.tensor(r.upper, dtype=torch.float64)
+        inside = ((x >= lo) & (x <= hi)).all(1).to(gs.labels.device)
+        label, p = REGION_LABEL + i, PRESETS[r.material]
+        gs.labels[inside] = label
+        entry = MaterialMapEntry(label, "fixed_corotated", p.E, p.nu, p.density, sigma_R=p.sigma_R)
+        cfg.material_map = [e for e in cfg.material_map if e.label != label] + [entry]
+        parts.append(f"{int(inside.sum())} Gaussians {r.material} (label {label})")
+    return "material regions: " + ", ".join(parts)

@@ -25,8 +25,8 @@ from ..io.gaussian_set import GaussianSet
 from .camera import frame_box, trainer_view
 from .clean import clean
 from .fit import auto_roi, detect_up, find_cameras_json, fit_transform, read_cameras, roi_mask, transform_from_config
-from .loads import apply_load, plan_load
-from .materials import apply_material, substep_note
+from .loads import apply_load, auto_load, plan_load
+from .materials import apply_material, apply_regions, substep_note
 from .resolution import choose as choose_resolution
 from .sample import sample
 from .transform import SceneTransform
@@ -94,6 +94,8 @@ def resolve(cfg: SceneConfig, device: str = "cpu") -> Capture:
         )
     notes.append(f"{roi_note}: {n_obj} Gaussians simulated, {report.kept - n_obj} kept as a static background")
     obj, bg = kept.subset(inside), kept.subset(~inside)
+    if cap.regions:
+        notes.append(apply_regions(cfg, obj))
     fit = transform_from_config(cap)
     if fit is None:
         up, up_note = detect_up(cap, cameras)
@@ -120,7 +122,10 @@ def resolve(cfg: SceneConfig, device: str = "cpu") -> Capture:
             f"load: the config's own {len(cfg.sim.boundaries)} boundaries (capture.load = {cap.load!r} not added)"
         )
     else:
-        plan = plan_load(cap.load, lo, hi, dx, cap.size, cap.load_speed, duration)
+        kind, why = auto_load(lo, hi) if cap.load == "auto" else (cap.load, "")
+        plan = plan_load(kind, lo, hi, dx, cap.size, cap.load_speed, duration)
+        if why:
+            plan.note = f"{plan.note} (capture.load = 'auto' chose {kind}: {why}; --load sets it)"
         apply_load(cfg, plan)
     notes.append(plan.note)
     cap.load = "none"  # written out as boundaries: a rerun of this config must not add them again

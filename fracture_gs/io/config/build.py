@@ -14,7 +14,9 @@ from typing import Any, Iterable, Literal, Sequence, Union
 
 from ...config import (
     BOUNDARY_TYPES,
+    CaptureConfig,
     MaterialMapEntry,
+    MaterialRegion,
     OraclePlane,
     PlaneBoundary,
     SceneConfig,
@@ -220,8 +222,15 @@ def _build_planes(value: Any, dotted: str, src: str) -> list:
     return [_build(OraclePlane, item, f"{dotted}[{i}]", src) for i, item in enumerate(items)]
 
 
+def _build_regions(value: Any, dotted: str, src: str) -> list:
+    """`[[capture.regions]]` tables → MaterialRegion list."""
+    items = _array(value, dotted, src, "tables", '[[capture.regions]] tables with lower, upper and material = "wood"')
+    return [_build(MaterialRegion, item, f"{dotted}[{i}]", src) for i, item in enumerate(items)]
+
+
 _SPECIAL = {
     (TopologyConfig, "planes"): _build_planes,
+    (CaptureConfig, "regions"): _build_regions,
     (SimConfig, "boundaries"): _build_boundaries,
     (SceneConfig, "material_map"): _build_material_map,
     (SceneConfig, "variants"): _build_variants,

@@ -101,8 +101,25 @@ def validate(cfg: SceneConfig, source: str = "<config>") -> SceneConfig:
     _check_material_map(c, cfg.material_map)
     _check_topology(c, cfg.topology, cfg.frames)
     _check_render(c, cfg.render)
+    _check_capture(c, cfg.capture)
     _check_provider_needed(c, cfg)
     return cfg
+
+
+def _check_capture(c: _Checker, cap) -> None:
+    """The captured scene's resolution and material regions (the other keys are checked where they are used)."""
+    if cap.cells_across is not None:
+        c.within("capture.cells_across", cap.cells_across, 4, 1024, "use 4 to 1024 cells across the object")
+    for i, r in enumerate(cap.regions):
+        p = f"capture.regions[{i}]"
+        if not all(lo < hi for lo, hi in zip(r.lower, r.upper)):
+            c.fail(
+                p,
+                f"{p} has lower = {list(r.lower)} not below upper = {list(r.upper)} on every axis",
+                "give a box with lower < upper on x, y and z (scene units)",
+            )
+        if r.material == "config":
+            c.fail(f"{p}.material", f'{p}.material = "config" names no preset', "use ceramic, wood, plant or bread")
 
 
 def _check_finite(c: _Checker, value: Any, field: str) -> None:
