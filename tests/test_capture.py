@@ -260,7 +260,7 @@ def test_bad_scenes_get_one_sentence(tmp_path):
     with pytest.raises(PlyError):
         load_ply(mesh)
     missing = _one_sentence(cli("render-sim", str(tmp_path / "nope.ply"), "--device", "cpu"), "nope.ply")
-    assert "no such file" in missing
+    assert "no such PLY file" in missing
 
 
 def test_scene_error_names_the_file(tmp_path):

@@ -109,7 +109,7 @@ BAD_CALLS = [
     (["bench", "--accuracy", "--cases", "bar,nope", "--device", "cpu"], "--cases nope unknown"),
     (["figures", "--only", "ficus,nope", "--device", "cpu"], "--only nope unknown"),
     (["figures", "--protocol", "fast"], "invalid choice"),
-    (["render-sim", "scene.ply"], "no such file"),
+    (["render-sim", "scene.ply"], "no such PLY file"),
     (["render-sim", "scene.spz"], "no such .spz file"),
     (["render-sim", "bread", "--export-format", "spz"], "--export-format spz needs --export-ply"),
     (["render-sim", "bread", "--export-ply", "2", "--export-format", "gltf"], "invalid choice"),

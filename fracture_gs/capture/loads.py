@@ -1,33 +1,32 @@
 """Loads that break a fitted object, placed from its bounding box in the simulation frame.
 
 The fitted object's longest horizontal axis lies along x and up is +z (`fit.py`), so every load is
-axis-aligned. The material of `configs/capture.toml` (a soft brittle solid, E = 6 kPa, ρ = 200 kg/m³,
-σ_R = 250 Pa) and the speeds below are tuned together for an object `capture.size` = 0.5 m long:
+axis-aligned. The speeds below are tuned for an object `capture.size` = 0.5 m long made of a stiff preset
+of `materials.py` (ceramic: E = 400 kPa, ρ = 2000 kg/m³, P-wave speed c ≈ 15.5 m/s, σ_R = 25 kPa); the soft
+`bread` preset (E = 6 kPa, σ_R = 250 Pa) breaks under each of them sooner:
 
 * ``pull`` — grips over the outer 15 % of each end move apart along x at v (default 0.1 m/s) for the
-  whole run, no gravity. A suddenly moving grip sends a stress wave ρ c v ≈ 130 Pa into the solid
-  (below σ_R), and the quasi-static tension E · 2v t / L grows by ≈ 3.4 kPa/s between the grips, so
-  the stress event latches near frame 8–10 where the cross-section is weakest. One clean tear.
+  whole run, no gravity. The quasi-static tension E · 2v t / L grows by ≈ 160 kPa/s between the grips,
+  so the stress event latches near frame 16 where the cross-section is weakest. One clean tear.
 * ``drop`` — gravity and a friction floor 0.2·size below the object, which starts falling at v
-  (default 1 m/s): it lands at ≈ 1.7 m/s, the impact stress ρ c v ≈ 2 kPa exceeds σ_R, and the stress
+  (default 1 m/s): it lands at ≈ 1.7 m/s, the impact stress ρ c v ≈ 50 kPa exceeds σ_R, and the stress
   event may cut again as pieces hit (up to 8 events; bands only mark crack faces).
 * ``impact`` — the object rests on a floor under gravity; the particles within 0.15·size of the
-  middle of its −x end get a kick of v (default 2 m/s) along +x over the first 5 ms, like a hammer blow; the
-  stress wave cracks it around the blow (up to 8 events).
+  middle of its −x end get a kick of v (default 4 m/s) along +x over the first 5 ms, like a hammer blow; the
+  stress wave cracks it around the blow (up to 8 events). At 2 m/s the blow spreads into the stiff
+  object before enough particles pass σ_R.
 * ``shoot`` — the object rests on a friction floor (Δx/2 under its lowest particles) under gravity; a
   rigid ball of radius 0.12·size starts 2Δx clear of the middle of its −x side and flies along +x at v
   (default 3 m/s) until it is past the object's far end. It pushes material out of its way and never
-  pulls it (`SphereBoundary`): the contact stress ρ c v ≈ 4 kPa ≫ σ_R cracks the object where it hits
-  (the first event within ≈ 5 frames on the test ellipsoid) and drives the pieces along +x (up to 8
-  events).
+  pulls it (`SphereBoundary`): the contact stress ρ c v ≫ σ_R cracks the object where it hits and drives the
+  pieces along +x (up to 8 events).
 * ``crush`` — the object rests on the same floor under gravity; a plate (a 3Δx `CuboidBoundary` slab over
   its whole x–y footprint plus 0.1·size, `push` = −z so it presses without holding the object up) starts
-  on its top and moves down at v (default 0.2 m/s): the compressive strain grows by v/H (1/s for H =
-  0.2 m), so E v t / H passes σ_R within a few frames of contact. It stops, and stays there, when its
-  lower face is 25 % of the object's height above the floor, so it never reaches the floor (up to 8
-  events). Note that the capture material cannot carry its own weight (ρ g H ≈ 600 Pa > σ_R for
-  H = 0.3 m): on this floor under gravity alone the test ellipsoid (0.3 m tall) sags faster than 0.2 m/s
-  and cracks under its weight from frame ≈ 12, before the plate catches up with it.
+  on its top and moves down at v (default 0.2 m/s): the compressive strain grows by v/H, so E v t / H passes
+  σ_R within a few frames of contact. It stops, and stays there, when its lower face is 25 % of the
+  object's height above the floor, so it never reaches the floor (up to 8 events).
+
+`auto` (the default) picks `drop`, or `shoot` for a tall slender object (`auto_load`).
 """
 
 from __future__ import annotations
@@ -38,7 +37,7 @@ import torch
 
 from ..config import CuboidBoundary, ParticleRegion, PlaneBoundary, SceneConfig, SphereBoundary
 
-DEFAULT_SPEED = {"pull": 0.1, "drop": 1.0, "impact": 2.0, "shoot": 3.0, "crush": 0.2}
+DEFAULT_SPEED = {"pull": 0.1, "drop": 1.0, "impact": 4.0, "shoot": 3.0, "crush": 0.2}
 """Automatic load speed per kind [m/s] at capture.size = 0.5 m (scaled with the size)."""
 
 
