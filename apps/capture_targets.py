@@ -76,7 +76,8 @@ def main(argv=None) -> int:
             row = run_one(f, load.strip(), args.device, args.frames, args.out)
             print(json.dumps(row), flush=True)
             rows.append(row)
-    head = "| file | load | wall s | pieces ≥ 3 % | separated | edge last/first | ok |\n|---|---|---:|---:|---|---:|---|\n"
+    head = "| file | load | wall s | pieces ≥ 3 % | separated | edge last/first | ok |\n"
+    head += "|---|---|---:|---:|---|---:|---|\n"
     body = "".join(
         f"| {r['file']} | {r['load']} | {r['wall_s']} | {r.get('pieces', '-')} | {r.get('separated', '-')} | "
         f"{r.get('edge', '-')} | {'yes' if r.get('ok') else 'no: ' + r.get('error', 'target missed')} |\n"
