@@ -21,6 +21,19 @@ import warp as wp
 
 from .runtime import ensure_warp, warp_stream
 
+EIGH_CHUNK = 32768
+"""Batched CUDA eigh (cuSOLVER) fails for batches of ≥ 65,536 matrices in torch 2.11 + CUDA 13 (and with an
+internal error for ~100k float64 3×3s on an H100): decompose in chunks of this many."""
+
+
+def eigh_chunked(m: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:  # [N, 3, 3] -> ([N, 3], [N, 3, 3])
+    """`torch.linalg.eigh` of a batch of symmetric matrices, EIGH_CHUNK at a time (ascending eigenvalues)."""
+    if len(m) <= EIGH_CHUNK:
+        return torch.linalg.eigh(m)
+    parts = [torch.linalg.eigh(c) for c in m.split(EIGH_CHUNK)]
+    return torch.cat([v for v, _ in parts]), torch.cat([e for _, e in parts])
+
+
 wp.set_module_options({"enable_backward": False})
 
 POLAR_ITERATIONS = 16  # Newton steps before giving up (converges in ≤ 8 up to a condition number of ~1e3)

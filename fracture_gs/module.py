@@ -19,6 +19,7 @@ import torch
 from .config import SceneConfig
 from .errors import SimulationError
 from .io import GaussianSet
+from .linalg import eigh_chunked
 from .pipeline import FrameOutput, make_simulator, simulate
 
 
@@ -61,7 +62,7 @@ def gaussians_from_tensors(
 ) -> GaussianSet:
     """A GaussianSet from raw tensors; covariances are factored into rotation and scales."""
     if covars is not None:
-        evals, evecs = torch.linalg.eigh(covars.double())
+        evals, evecs = eigh_chunked(covars.double())
         evecs = evecs * torch.sign(torch.det(evecs))[:, None, None]  # proper rotation
         quats = _quats_from_rotations(evecs).to(means.dtype)
         scales = evals.clamp_min(1e-20).sqrt().to(means.dtype)

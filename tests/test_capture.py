@@ -204,7 +204,7 @@ def test_one_command_and_init(tmp_path):
         "2",
     )
     assert res.returncode == 0, res.stderr[-3000:]
-    assert "filled" in res.stderr + res.stdout and (tmp_path / "run" / "comparison.mp4").exists()
+    assert "interior: filled" in res.stderr + res.stdout and (tmp_path / "run" / "comparison.mp4").exists()
     assert sorted(p.name for p in (tmp_path / "run" / "ply" / "full").iterdir()) == ["frame_0000.ply", "frame_0002.ply"]
     assert load_config(tmp_path / "run" / "config.toml").capture.scale is not None
     res = cli("init", str(ply), "--out", str(tmp_path / "mine.toml"), "--load", "drop")
@@ -215,6 +215,11 @@ def test_one_command_and_init(tmp_path):
     assert a.cfg == b.cfg and torch.equal(a.gaussians.means, b.gaussians.means)
     again = cli("init", str(ply), "--out", str(tmp_path / "mine.toml"))
     assert again.returncode == 2 and "--force" in again.stderr
+    wood = cli("init", str(ply), "--out", str(tmp_path / "wood.toml"), "--material", "wood", "--quality", "draft")
+    assert wood.returncode == 0, wood.stderr[-3000:]
+    w = load_config(tmp_path / "wood.toml")
+    assert (w.material.E, w.material.density) == (1.5e5, 600.0), "--material wood sets wood's constants"
+    assert w.capture.cells_across < load_config(tmp_path / "mine.toml").capture.cells_across, "--quality draft"
 
 
 def _one_sentence(res, name):

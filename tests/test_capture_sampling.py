@@ -238,3 +238,19 @@ def test_material_regions_set_the_particles_material(tmp_path):
     again.write_text(dump_config(scene.cfg))
     rerun = prepare_scene(load_config(again), "cpu")
     assert len(rerun.cfg.material_map) == len(scene.cfg.material_map) == 1
+
+
+def test_covariances_factor_in_chunks(monkeypatch):
+    """Export factors Σ = R diag(s²) Rᵀ for more matrices than one eigh batch takes (cuSOLVER failed on a 110k
+    capture): with the chunk made small, 10 chunks give back every covariance to round-off."""
+    import fracture_gs.linalg as linalg
+    from fracture_gs.capture.transform import gaussians_from_covariances
+    from fracture_gs.io.gaussian_set import quat_to_matrix
+
+    monkeypatch.setattr(linalg, "EIGH_CHUNK", 100)
+    gen = torch.Generator().manual_seed(1)
+    A = torch.randn(1000, 3, 3, generator=gen, dtype=torch.float64)
+    cov = A @ A.transpose(1, 2) + 1e-3 * torch.eye(3, dtype=torch.float64)
+    q, s = gaussians_from_covariances(cov)
+    R = quat_to_matrix(q)
+    torch.testing.assert_close(R @ torch.diag_embed(s**2) @ R.transpose(1, 2), cov, rtol=1e-9, atol=1e-12)

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import torch
 
 from ..io.gaussian_set import GaussianSet, quat_mul
+from ..linalg import eigh_chunked
 from ..render.gaussians import sh_basis
 
 
@@ -80,7 +81,7 @@ def quat_from_matrix(R: torch.Tensor) -> torch.Tensor:  # [..., 3, 3] -> [..., 4
 
 def gaussians_from_covariances(cov: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
     """(quats [N, 4] wxyz, scales [N, 3]) with R diag(s²) Rᵀ = cov ([N, 3, 3], symmetric PSD)."""
-    lam, V = torch.linalg.eigh(cov.to(torch.float64))
+    lam, V = eigh_chunked(cov.to(torch.float64))
     flip = torch.linalg.det(V) < 0
     V[flip, :, 2] *= -1  # a proper rotation
     return quat_from_matrix(V).to(cov.dtype), lam.clamp_min(1e-20).sqrt().to(cov.dtype)

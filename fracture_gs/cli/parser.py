@@ -6,7 +6,7 @@ import argparse
 import re
 from typing import get_args
 
-from ..config import LoadKind, ParticleOrder
+from ..config import CaptureMaterial, CaptureQuality, LoadKind, ParticleOrder
 from ..io.formats import FORMATS
 from .sweep import add_sweep_parser
 
@@ -177,8 +177,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--load",
         choices=get_args(LoadKind),
-        help="captured scenes (splat files): what breaks the object (default: the config's capture.load)",
+        help="captured scenes (splat files): what breaks the object (default: the config's capture.load, auto: a "
+        "drop, or a ball for a tall slender object)",
     )
+    add_capture_options(p)
     p.add_argument(
         "--devices",
         metavar="D1,D2",
@@ -312,10 +314,27 @@ def build_parser() -> argparse.ArgumentParser:
         "scene", metavar="SCENE", help="a captured scene: 3DGS or compressed .ply, .splat or .spz (read by content)"
     )
     p.add_argument("--out", metavar="FILE", help="where to write the TOML (default: <scene name>.toml here)")
-    p.add_argument("--load", choices=get_args(LoadKind), help="what breaks the object (default pull)")
+    p.add_argument("--load", choices=get_args(LoadKind), help="what breaks the object (default auto)")
+    add_capture_options(p)
+    p.add_argument("--device", default="cpu", help="the device the run will use: sets the resolution budget and panel")
     p.add_argument("--force", action="store_true", help="overwrite FILE if it exists")
     add_sweep_parser(sub)
     return parser
+
+
+def add_capture_options(p: argparse.ArgumentParser) -> None:
+    """--material and --quality: a captured scene's material preset and resolution budget."""
+    p.add_argument(
+        "--material",
+        choices=get_args(CaptureMaterial),
+        help="captured scenes: the object's material preset (default ceramic: stiff, brittle; config: [material])",
+    )
+    p.add_argument(
+        "--quality",
+        choices=get_args(CaptureQuality),
+        help="captured scenes: the resolution budget for the device (default: default; fine resolves thinner parts, "
+        "slower)",
+    )
 
 
 def _positive_int(text: str) -> int:

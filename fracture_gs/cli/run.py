@@ -80,8 +80,7 @@ def cmd_render_sim(args: argparse.Namespace) -> int:
     args.partial_out = out_dir
     if getattr(args, "particles", None):
         cfg.particles = args.particles
-    if getattr(args, "load", None):
-        cfg.capture.load = args.load
+    _capture_overrides(cfg, args)
     if getattr(args, "particle_order", None):
         cfg.sim.particle_order = args.particle_order
     print(
@@ -202,14 +201,21 @@ def cmd_init(args: argparse.Namespace) -> int:
             f"{ply}: init takes a captured scene ({READ}); for a TOML config use `fracture-gs validate {ply}`."
         )
     cfg = load_config(ply)
-    if args.load:
-        cfg.capture.load = args.load
+    _capture_overrides(cfg, args)
     out = output_file(args.out if args.out is not None else Path(f"{cfg.name}.toml"))
     if out.exists() and not args.force:
         raise CliError(f"{out} exists; pass --force to overwrite it or choose another --out.")
-    capture = resolve(cfg)
+    capture = resolve(cfg, resolve_device(args.device))
     out.write_text(starter_toml(capture, str(ply)))
     for note in capture.notes:
         print(f"  {note}")
     print(f"wrote {out}: edit it, then run  fracture-gs render-sim {out}")
     return 0
+
+
+def _capture_overrides(cfg, args: argparse.Namespace) -> None:
+    """--load, --material and --quality into the capture settings."""
+    for flag, key in (("load", "load"), ("material", "material"), ("quality", "quality")):
+        value = getattr(args, flag, None)
+        if value:
+            setattr(cfg.capture, key, value)

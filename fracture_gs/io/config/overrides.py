@@ -98,6 +98,7 @@ def apply_overrides(
         out.frames = frames
     if resolution is not None:
         out.render.width, out.render.height = parse_resolution(resolution)
+        out.capture.panel = "config"  # a captured scene keeps the size asked for
     if variants is not None:
         out.variants = parse_variants(variants)
     return validate(out, source)

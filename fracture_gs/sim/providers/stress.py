@@ -20,17 +20,16 @@ import torch
 
 from ...config import TopologyConfig
 from ...errors import SimulationError
+from ...linalg import eigh_chunked
 from ..topology import FractureEvent, Topology
 from .cuts import RELEASE_EVENTS, finish_event, plane_cut, split_components
-
-EIGH_CHUNK = 32768  # batched CUDA eigh (cusolver) fails for batches of ≥ 65,536 in torch 2.11 + CUDA 13
 
 
 def principal_stress(tau: torch.Tensor, F: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
     """Largest principal Cauchy stress and its unit direction, per particle.
 
     σ = sym(τ) / det F (Cauchy from Kirchhoff); eigh on float64 (ascending eigenvalues, so the
-    last pair is the largest). Vectorized over particles in chunks of EIGH_CHUNK, on the tensors'
+    last pair is the largest). Vectorized over particles in chunks of `linalg.EIGH_CHUNK`, on the tensors'
     device."""
     J = torch.linalg.det(F.double())  # [N]
     tau = tau.double()
@@ -43,9 +42,9 @@ def principal_stress(tau: torch.Tensor, F: torch.Tensor) -> tuple[torch.Tensor, 
     peak = sigma.abs().flatten(1).amax(dim=1).where(finite, 0.0)  # [N]
     scale = torch.ldexp(torch.ones_like(peak), torch.frexp(peak).exponent)  # [N] power of two, 1 for 0
     unit = torch.where(finite[:, None, None], sigma / scale[:, None, None], 0.0)
-    parts = [torch.linalg.eigh(s) for s in unit.split(EIGH_CHUNK)]  # ascending, columns
-    values = torch.cat([v for v, _ in parts])[:, -1] * scale.where(finite, 0.0)  # [N]
-    vectors = torch.cat([e for _, e in parts])[:, :, -1].where(finite[:, None], 0.0)  # [N,3]
+    lam, axes = eigh_chunked(unit)  # ascending, columns
+    values = lam[:, -1] * scale.where(finite, 0.0)  # [N]
+    vectors = axes[:, :, -1].where(finite[:, None], 0.0)  # [N,3]
     return values, vectors
 
 
