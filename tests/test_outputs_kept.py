@@ -29,9 +29,9 @@ def test_interrupt_keeps_a_row_per_variant_and_the_held_frame(tmp_path, monkeypa
     real = pipeline.simulate
     calls = {"n": 0}
 
-    def interrupted_second_variant(sim, cov0, frames, frame_dt):
+    def interrupted_second_variant(sim, cov0, frames, frame_dt, **kw):
         calls["n"] += 1
-        for out in real(sim, cov0, frames, frame_dt):
+        for out in real(sim, cov0, frames, frame_dt, **kw):
             if calls["n"] == 2 and out.frame == 2:
                 raise KeyboardInterrupt
             yield out
@@ -54,9 +54,9 @@ def test_three_variants_interrupted_in_the_second(tmp_path, monkeypatch):
     real = pipeline.simulate
     calls = {"n": 0}
 
-    def stop(sim, cov0, frames, frame_dt):
+    def stop(sim, cov0, frames, frame_dt, **kw):
         calls["n"] += 1
-        for out in real(sim, cov0, frames, frame_dt):
+        for out in real(sim, cov0, frames, frame_dt, **kw):
             if calls["n"] == 2 and out.frame == 1:
                 raise KeyboardInterrupt
             yield out

@@ -72,8 +72,8 @@ def test_an_interrupted_variant_stops_the_others_at_their_next_frame(tmp_path, m
     cfg = tiny_bread(20)
     real = pipeline.simulate
 
-    def interrupt_full(sim, cov0, frames, frame_dt):
-        for out in real(sim, cov0, frames, frame_dt):
+    def interrupt_full(sim, cov0, frames, frame_dt, **kw):
+        for out in real(sim, cov0, frames, frame_dt, **kw):
             if sim.cfg.variant == "full" and out.frame == 3:
                 raise KeyboardInterrupt
             yield out
@@ -98,8 +98,8 @@ def test_an_error_in_one_variant_is_raised_and_stops_the_others(tmp_path, monkey
     real = pipeline.simulate
     seen = {}
 
-    def fail_baseline(sim, cov0, frames, frame_dt):
-        for out in real(sim, cov0, frames, frame_dt):
+    def fail_baseline(sim, cov0, frames, frame_dt, **kw):
+        for out in real(sim, cov0, frames, frame_dt, **kw):
             seen[sim.cfg.variant] = out.frame
             if sim.cfg.variant == "baseline" and out.frame == 2:
                 raise ValueError("boom in baseline")
