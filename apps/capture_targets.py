@@ -31,7 +31,9 @@ TARGET_EDGE = 0.9
 
 def run_one(path: Path, load: str, device: str, frames: int, out: Path) -> dict:
     folder = out / f"{path.name.replace('.', '_')}_{load}"
-    cmd = ["fracture-gs", "render-sim", str(path), "--device", device, "--frames", str(frames), "--out", str(folder)]
+    exe = Path(sys.executable).with_name("fracture-gs")  # the console script a user runs, from this environment
+    cli = [str(exe)] if exe.exists() else [sys.executable, "-m", "fracture_gs.cli"]
+    cmd = [*cli, "render-sim", str(path), "--device", device, "--frames", str(frames), "--out", str(folder)]
     if load != "auto":
         cmd += ["--load", load]
     t0 = time.perf_counter()
@@ -45,8 +47,11 @@ def run_one(path: Path, load: str, device: str, frames: int, out: Path) -> dict:
     full = next(v for v in summary["variants"] if v["variant"] == "full")
     with np.load(folder / "topology.npz") as z:
         big = pieces(z["fragment"])
-    frames_full = list(imageio.get_reader(folder / "full.mp4"))
-    e0, e1 = edge_strength(frames_full[0]), edge_strength(frames_full[-1])
+    video = imageio.get_reader(folder / "full.mp4")
+    first, last = video.get_data(0), None
+    for last in video:  # the last frame (counting frames in an MP4's metadata is unreliable)
+        pass
+    e0, e1 = edge_strength(first), edge_strength(last)
     notes = summary.get("capture", [])
     row.update(
         chosen=next((n for n in notes if n.startswith("load")), ""),

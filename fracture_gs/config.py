@@ -447,12 +447,16 @@ class CaptureConfig:
     panel: PanelSize = "auto"
     """Video panel size: `auto` (640×480 on the CPU, 1280×720 on a GPU) or `config` ([render] width and
     height as written; `--resolution` sets them)."""
-    max_particles: int = 20000
-    """Budget of interior fill particles (the fill spacing grows to respect it)."""
+    max_particles: Optional[int] = None
+    """Budget of interior fill particles (the fill spacing grows to respect it); None = the particle budget of
+    `quality` on the device."""
     fill_threshold: float = 0.2
     """Fill: opacity-weighted density of an occupied voxel."""
     fill_closing: int = 1
     """Fill: holes narrower than about 2·fill_closing voxels are closed before the flood fill."""
+    seal_bottom: bool = True
+    """Fill: close the object's underside with a virtual floor at its lowest layer before the flood fill (an
+    object captured standing on the ground has no bottom surface; false: only what its Gaussians close)."""
     load: LoadKind = "auto"
     """What breaks the object: `auto` (chosen from its shape: `drop`, or `shoot` for a tall, slender object
     that a fall would land on its base), `pull` (grips at both ends of its longest axis), `drop` (falls onto a

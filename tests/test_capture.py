@@ -82,11 +82,19 @@ def test_closed_shell_interior_within_20_percent(tmp_path, n):
 
 
 def test_open_shell_is_reported(tmp_path):
+    """A dome open underneath: with capture.seal_bottom = false the flood fill gets in and one line says the
+    surface is open (with the setting to change); sealed (the default: a captured object standing on the ground
+    has no underside) the same dome encloses its inside and is filled."""
     ply, _ = write_trainer_ply(tmp_path, n=6000, open_shell=True)
-    cap = resolve(load_config(ply))
+    cfg = load_config(ply)
+    cfg.capture.seal_bottom = False
+    cap = resolve(cfg)
     opens = [note for note in cap.notes if note.startswith("interior: the surface is open")]
     assert len(opens) == 1 and "capture.fill_closing" in opens[0], "one line says it is open, with the setting"
     assert not any(note.startswith("interior: filled") for note in cap.notes), "and no line contradicts it"
+    sealed = resolve(load_config(ply))
+    assert any(note.startswith("interior: filled") for note in sealed.notes), sealed.notes
+    assert int(sealed.gaussians.interior.sum()) > 3 * int(cap.gaussians.interior.sum())
 
 
 def test_up_axis_and_camera_from_trainer_cameras(tmp_path):

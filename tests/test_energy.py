@@ -123,8 +123,8 @@ def test_reference_point_is_the_lowest_grid_corner():
 
 
 def test_drivers_are_the_moving_boundaries_while_they_act():
-    """A moving cuboid drives while its window overlaps the frame, a velocity region in the substep it
-    acts, an impulse over its duration; a static plane and a still cuboid never drive."""
+    """A moving cuboid or a flying ball drives while its window overlaps the frame, a velocity region in the
+    substep it acts, an impulse over its duration; a static plane and a still cuboid never drive."""
     grip = S.CuboidBoundary(lower=(0, 0, 0), upper=(1, 1, 1), velocity=(0.1, 0, 0), end=0.3)
     still = S.CuboidBoundary(lower=(0, 0, 0), upper=(1, 1, 1), velocity=(0.0, 0, 0))
     kick = S.ParticleRegion(kind="velocity", upper=(1, 1, 1), velocity=(0.2, 0, 0), start=0.0, end=0.0)
@@ -132,6 +132,8 @@ def test_drivers_are_the_moving_boundaries_while_they_act():
     assert E.drivers_active([grip], 0.29, 0.30) and not E.drivers_active([grip], 0.31, 0.32)
     assert not E.drivers_active([still, floor], 0.0, 1.0)
     assert E.drivers_active([kick], 0.0, 0.005, 1e-4) and not E.drivers_active([kick], 0.005, 0.01, 1e-4)
+    ball = S.SphereBoundary(center=(0, 0, 0), radius=0.1, velocity=(3.0, 0, 0), end=0.1)
+    assert E.drivers_active([ball], 0.05, 0.06) and not E.drivers_active([ball], 0.11, 0.12)
 
 
 def drop(device, frames=24):

@@ -140,14 +140,25 @@ def _exterior(occ: torch.Tensor) -> torch.Tensor:  # [X, Y, Z] bool -> [X, Y, Z]
     return torch.from_numpy(np.isin(labels, outside))
 
 
-def _solid(occ: torch.Tensor, closing: int) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+def _solid(
+    occ: torch.Tensor, closing: int, seal_bottom: bool = False
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """(fill voxels, solid voxels, enclosed voxels): solid = everything the closed shell encloses,
     shell included; enclosed = solid minus the (closed) shell: empty for an open surface; fill = solid
     minus its outer layer (voxels face-adjacent to the exterior), so the filled volume follows the
-    middle of the shell rather than its outside."""
+    middle of the shell rather than its outside. `seal_bottom`: a virtual floor at the lowest occupied
+    layer (axis 2 is up) closes an object captured standing on the ground, whose underside no camera saw;
+    the floor itself is not solid."""
     closed = _close(occ, closing)
-    ext = _exterior(closed)
-    solid = ~ext
+    if seal_bottom and bool(closed.any()):
+        z0 = int(torch.nonzero(closed.any(dim=0).any(dim=0)).min())
+        floor = torch.zeros_like(closed)
+        floor[:, :, z0] = True
+        ext = _exterior(closed | floor)
+        solid = ~ext & ~(floor & ~closed)
+    else:
+        ext = _exterior(closed)
+        solid = ~ext
     return solid & ~_dilate6(ext), solid, solid & ~closed
 
 
@@ -161,7 +172,7 @@ def _nearest_occupied(occ: torch.Tensor, idx: torch.Tensor) -> torch.Tensor:  # 
     return near[0] * (occ.shape[1] * occ.shape[2]) + near[1] * occ.shape[2] + near[2]
 
 
-def _voxelize(gs, lo, hi, dv, pad, max_radius, threshold, closing=1):
+def _voxelize(gs, lo, hi, dv, pad, max_radius, threshold, closing=1, seal_bottom=False):
     """(grid, occupied [X,Y,Z] bool, owner [X·Y·Z], fill voxel indices [K, 3], solid voxel count) at voxel dv."""
     grid = _Grid(lo, hi, dv, pad)
     density, owner = _splat(gs, grid, max_radius)
@@ -170,7 +181,7 @@ def _voxelize(gs, lo, hi, dv, pad, max_radius, threshold, closing=1):
     at = torch.floor((gs.means.to(torch.float64) - grid.origin) / grid.dv).long()
     surface = float(density[(at * grid.strides).sum(1)].median())
     occ = (density >= min(threshold, 0.5 * surface)).reshape(grid.shape)
-    fill, solid, enclosed = _solid(occ, closing)
+    fill, solid, enclosed = _solid(occ, closing, seal_bottom)
     return grid, occ, owner, torch.nonzero(fill), (int(solid.sum()), int(enclosed.sum()))
 
 
@@ -228,6 +239,7 @@ def fill_interior(
     seed: int = 0,
     closing: int = 1,
     stats: dict | None = None,
+    seal_bottom: bool = False,
 ) -> GaussianSet:
     """`gs` followed by interior particles (interior=True) filling the volume its Gaussians
     enclose (see the module doc).
@@ -237,7 +249,8 @@ def fill_interior(
     particles are added. threshold: density (summed α·exp(-½m²)) of an occupied voxel. Gaussians
     with opacity < min_opacity or non-finite/degenerate parameters are ignored. max_radius: splat
     radius cap in voxels. closing: shell gaps up to about 2·closing voxels are bridged before the
-    flood fill. Deterministic for a given seed (it only drives the jitter). `stats`, if given,
+    flood fill; seal_bottom closes an object standing on the ground whose underside was never seen (a virtual
+    floor at its lowest layer, z up). Deterministic for a given seed (it only drives the jitter). `stats`, if given,
     receives `added`, `spacing`, `solid_voxels`, `fill_voxels`, `fill_fraction` (fill / solid) and
     `enclosed_fraction` (solid voxels that are not shell / solid: near 0 for an open surface)."""
     if stats is not None:
@@ -253,7 +266,7 @@ def fill_interior(
     dv = _voxel_size(src, spacing, ext, max_grid, pad)
 
     def voxelize(d):
-        return _voxelize(src, lo, hi, d, pad, max_radius, threshold, closing)
+        return _voxelize(src, lo, hi, d, pad, max_radius, threshold, closing, seal_bottom)
 
     coarse = max(dv, ext / max(1, min(max_grid, 64) - 2 * pad - 1))
     if coarse > dv:  # estimate the inside volume on a coarse grid to respect the budget at once
@@ -289,7 +302,12 @@ def fill_interior(
 
 
 def solid_voxels(
-    gs: GaussianSet, spacing: float, threshold: float = 0.2, min_opacity: float = 0.05, closing: int = 1
+    gs: GaussianSet,
+    spacing: float,
+    threshold: float = 0.2,
+    min_opacity: float = 0.05,
+    closing: int = 1,
+    seal_bottom: bool = False,
 ) -> torch.Tensor:  # -> [X, Y, Z] bool
     """The object as voxels of size `spacing` [m]: its shell and everything the shell encloses (steps 1–3 of
     the module doc), e.g. to measure how thick its parts are. Empty (0, 0, 0) when no Gaussian is valid."""
@@ -301,4 +319,4 @@ def solid_voxels(
     lo, hi = means.min(0).values, means.max(0).values
     pad = max(3, closing) + 2
     grid, occ, *_ = _voxelize(src, lo, hi, spacing, pad, 3, threshold, closing)
-    return ~_exterior(_close(occ, closing))
+    return _solid(occ, closing, seal_bottom)[1]

@@ -46,13 +46,16 @@ class Resolution:
     dx: float  # cell size [m]
     thin: float  # thickness of the thin parts [m] (0: not measured)
     note: str
+    budget: int = 0  # the quality's most simulated particles on the device
 
 
-def probe(gs: GaussianSet, size: float, threshold: float, min_opacity: float, closing: int) -> tuple[float, float]:
+def probe(
+    gs: GaussianSet, size: float, threshold: float, min_opacity: float, closing: int, seal_bottom: bool = False
+) -> tuple[float, float]:
     """(thickness of the object's thin parts [m] (steps 1–3 of the module doc; 0 if it has no solid), its solid
     volume as a fraction of the size³ cube)."""
     h = size / PROBE_CELLS
-    solid = solid_voxels(gs, h, threshold=threshold, min_opacity=min_opacity, closing=closing)
+    solid = solid_voxels(gs, h, threshold=threshold, min_opacity=min_opacity, closing=closing, seal_bottom=seal_bottom)
     if not bool(solid.any()):
         return 0.0, 0.0
     from scipy import ndimage
@@ -70,17 +73,17 @@ def choose(gs: GaussianSet, cap, device: str) -> Resolution:
     size = cap.size
     kind = "cuda" if str(device).startswith("cuda") else "cpu"
     lo, hi, budget = BUDGETS[kind][cap.quality]
-    thin, solid_fraction = probe(gs, size, cap.fill_threshold, cap.min_opacity, cap.fill_closing)
+    thin, solid_fraction = probe(gs, size, cap.fill_threshold, cap.min_opacity, cap.fill_closing, cap.seal_bottom)
     if cap.cells_across is not None:
         cells = int(cap.cells_across)
-        return Resolution(cells, size / cells, thin, _note(cells, size / cells, thin, "capture.cells_across"))
+        return Resolution(cells, size / cells, thin, _note(cells, size / cells, thin, "capture.cells_across"), budget)
     wanted = math.ceil(2.0 * size / thin) if thin > 0 else hi
     cells = min(max(wanted, lo), hi)
     particles = lambda c: 8.0 * solid_fraction * c**3  # noqa: E731  (8 per solid cell; c³ cells in the size cube)
     while cells > lo and particles(cells) > budget:
         cells = max(lo, int(cells * (budget / particles(cells)) ** (1 / 3)))
     why = f"capture.quality = {cap.quality!r} on the {'GPU' if kind == 'cuda' else 'CPU'}"
-    return Resolution(cells, size / cells, thin, _note(cells, size / cells, thin, why))
+    return Resolution(cells, size / cells, thin, _note(cells, size / cells, thin, why), budget)
 
 
 def _note(cells: int, dx: float, thin: float, why: str) -> str:

@@ -112,7 +112,7 @@ def resolve(cfg: SceneConfig, device: str = "cpu") -> Capture:
     dx, cap.cells_across = res.dx, res.cells
     notes.append(res.note)
     if cfg.fill_interior:
-        obj = _fill(obj, cap, dx, notes)
+        obj = _fill(obj, cap, dx, notes, cap.max_particles or res.budget)
     obj, sample_note = sample(obj, 0.5 * dx)
     notes.append(sample_note)
     duration = cfg.frames * cfg.frame_dt
@@ -162,7 +162,7 @@ def _as_written(cfg: SceneConfig, gs: GaussianSet, unreadable: int = 0) -> Captu
     return Capture(cfg, gs, None, None, notes)
 
 
-def _fill(obj: GaussianSet, cap, dx: float, notes: list) -> GaussianSet:
+def _fill(obj: GaussianSet, cap, dx: float, notes: list, budget: int) -> GaussianSet:
     """Fill at spacing Δx/2 (8 particles a cell); where the shell leaks at that resolution (a sparse
     capture), again at Δx and 2Δx, where its Gaussians close up: the first whose shell encloses empty
     space (at least a quarter of the solid volume), else the one that enclosed most."""
@@ -172,11 +172,12 @@ def _fill(obj: GaussianSet, cap, dx: float, notes: list) -> GaussianSet:
         filled = assets.fill_interior(
             obj,
             spacing=spacing,
-            max_particles=cap.max_particles,
+            max_particles=budget,
             threshold=cap.fill_threshold,
             min_opacity=cap.min_opacity,
             closing=cap.fill_closing,
             stats=stats,
+            seal_bottom=cap.seal_bottom,
         )
         if best is None or stats["enclosed_fraction"] > best[1]["enclosed_fraction"]:
             best = (filled, stats)

@@ -25,7 +25,7 @@ import math
 
 import torch
 
-from ..config import CuboidBoundary, ParticleRegion
+from ..config import CuboidBoundary, ParticleRegion, SphereBoundary
 from ..linalg import polar_rotation, singular_values
 from ..runtime import device_constant
 from .constitutive import MATERIAL_IDS, SIGMA_MIN, lame
@@ -134,13 +134,13 @@ def energies(P, gravity, reference, release: int = 0, models=None) -> torch.Tens
 
 
 def drivers_active(boundaries, t0: float, t1: float, dt: float = 0.0) -> bool:
-    """Whether a boundary that drives motion acted in a frame whose substeps start in [t0, t1): a cuboid
-    with a non-zero velocity (window [start, end]), or a particle region with a non-zero impulse (window
+    """Whether a boundary that drives motion acted in a frame whose substeps start in [t0, t1): a cuboid or a
+    sphere with a non-zero velocity (window [start, end]), or a particle region with a non-zero impulse (window
     [start, start + max(end − start, Δt)]) or override velocity (window [start, end + Δt/2]), as
     `boundary.Boundaries.region_table` times them. Static planes, still cuboids and domain walls only
     remove energy."""
     for b in boundaries:
-        if isinstance(b, CuboidBoundary):
+        if isinstance(b, (CuboidBoundary, SphereBoundary)):
             value, end = b.velocity, b.end
         elif isinstance(b, ParticleRegion) and b.kind == "impulse":
             value, end = b.delta_v, b.start + max(b.end - b.start, dt)

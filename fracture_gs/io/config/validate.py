@@ -110,6 +110,8 @@ def _check_capture(c: _Checker, cap) -> None:
     """The captured scene's resolution and material regions (the other keys are checked where they are used)."""
     if cap.cells_across is not None:
         c.within("capture.cells_across", cap.cells_across, 4, 1024, "use 4 to 1024 cells across the object")
+    if cap.max_particles is not None:
+        c.at_least("capture.max_particles", cap.max_particles, 1, "give a positive fill budget, or leave it unset")
     for i, r in enumerate(cap.regions):
         p = f"capture.regions[{i}]"
         if not all(lo < hi for lo, hi in zip(r.lower, r.upper)):
