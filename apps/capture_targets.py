@@ -49,8 +49,8 @@ def run_one(path: Path, load: str, device: str, frames: int, out: Path) -> dict:
         big = pieces(z["fragment"])
     video = imageio.get_reader(folder / "full.mp4")
     first, last = video.get_data(0), None
-    for last in video:  # the last frame (counting frames in an MP4's metadata is unreliable)
-        pass
+    for frame in video:  # to the last frame (an MP4's frame count in its metadata is unreliable)
+        last = frame
     e0, e1 = edge_strength(first), edge_strength(last)
     notes = summary.get("capture", [])
     row.update(
