@@ -367,6 +367,10 @@ class RenderConfig:
     trim_cracks: bool = False
     """At each fracture event, shrink the drawn Gaussians that reach across the new surface to their own side,
     so the opening shows as it opens (`render/crack_faces.py`; on for captured scenes)."""
+    max_stretch: Optional[float] = None
+    """Largest principal stretch (and 1/it, compression) a drawn Gaussian takes from its particle's F [unitless,
+    > 1]; None = F as it is. A brittle material breaks long before it stretches far, so stretch beyond its
+    failure strain is unresolved fracture, drawn as needles; a captured object's preset sets 1 + 4 σ_R/E."""
     interior_color: InteriorColor = "surface"
     """Colour of exposed interior: `surface` (the nearest surface Gaussian's) or `material` (the material's
     own interior colour, `interior_rgb`)."""
@@ -458,9 +462,8 @@ class CaptureConfig:
     """Fill: close the object's underside with a virtual floor at its lowest layer before the flood fill (an
     object captured standing on the ground has no bottom surface; false: only what its Gaussians close)."""
     load: LoadKind = "auto"
-    """What breaks the object: `auto` (chosen from its shape: `drop`, or `shoot` for a tall, slender object
-    that a fall would land on its base), `pull` (grips at both ends of its longest axis), `drop` (falls onto a
-    floor), `impact` (a velocity kick at a point on its side), `shoot` (a rigid ball flies into its side),
+    """What breaks the object: `auto` (a `drop`: a fall breaks any shape without grips to place), `pull` (grips
+    at both ends of its longest axis), `drop` (falls onto a floor), `impact` (a velocity kick at a point on its side), `shoot` (a rigid ball flies into its side),
     `crush` (a plate presses it onto the floor) or `none`. Added only to a config without
     [[sim.boundaries]] of its own (those are the load then)."""
     load_speed: float = 0.0

@@ -18,7 +18,7 @@ from .config import SceneConfig
 from .io import GaussianSet
 from .io.gaussian_set import Carrier
 from .profiling import phases
-from .render.gaussians import deform_covariances, polar_rotation
+from .render.gaussians import deform_covariances, limit_stretch, polar_rotation
 from .sim import Particles, SimulationError, Simulator, Topology
 from .sim.grid import fit_grid
 from .sim.neighbourhood import cell_order
@@ -53,10 +53,12 @@ class FrameOutput:
         self.band = band  # [N] int32
         self.metrics = metrics if metrics is not None else {}
         self.ready = None  # a CUDA event after the copies above, for a consumer on another stream
+        self.max_stretch: Optional[float] = None  # drawn covariances take at most this principal stretch of F
 
     @functools.cached_property
     def covars(self) -> torch.Tensor:  # [N, 3, 3]
-        return deform_covariances(self.F, self.cov0)
+        F = self.F if self.max_stretch is None else limit_stretch(self.F, self.max_stretch)
+        return deform_covariances(F, self.cov0)
 
     @functools.cached_property
     def rotations(self) -> torch.Tensor:  # [N, 3, 3] R(F)
@@ -185,18 +187,21 @@ def simulate(
     diagnostics: bool = True,
     carrier: Optional[Carrier] = None,
     crack_faces: bool = False,
+    max_stretch: Optional[float] = None,
 ) -> Iterator[FrameOutput]:
     """Yield frame 0 (initial state), then one FrameOutput per simulated frame. Raises
     `SimulationDiverged` at the frame that diverged (everything yielded before stays valid).
     Without `diagnostics` nothing is read back to the host but the per-frame divergence check. With a
     `carrier` the frames hold the carried Gaussians (cov0 is theirs), the metrics the simulated particles.
     With `crack_faces` the frames' rest covariances are trimmed at each fracture event's surfaces
-    (`render.crack_faces.CrackFaces`)."""
+    (`render.crack_faces.CrackFaces`); with `max_stretch` their drawn covariances take at most that principal
+    stretch (or 1/it compression) of F (`render.gaussians.limit_stretch`)."""
     tracker = sim.diagnostics_tracker() if diagnostics else None
     with phases.section("diagnostics"):
         first = tracker.snapshot() if tracker else {}
     out = frame_output(sim, cov0, first, carrier=carrier)
     trim = _CrackTrim(out, sim, cov0, carrier) if crack_faces else None
+    out.max_stretch = max_stretch
     yield out
     for _ in range(frames):
         with phases.section("simulate"):
@@ -204,6 +209,7 @@ def simulate(
             out = frame_output(sim, cov0, tracker.history[-1] if tracker else {}, n, carrier)
             if trim is not None:
                 out.cov0 = trim(out, sim)
+            out.max_stretch = max_stretch
         yield out
 
 

@@ -315,7 +315,13 @@ def run_variant(
     interrupted = False
     try:
         for out in simulate(
-            sim, painter.cov0, cfg.frames, cfg.frame_dt, carrier=gs.carrier, crack_faces=cfg.render.trim_cracks
+            sim,
+            painter.cov0,
+            cfg.frames,
+            cfg.frame_dt,
+            carrier=gs.carrier,
+            crack_faces=cfg.render.trim_cracks,
+            max_stretch=cfg.render.max_stretch,
         ):
             with phases.section("io"):
                 metrics_file.write(json.dumps({"variant": variant, **out.metrics}, default=_json_default) + "\n")

@@ -254,3 +254,16 @@ def test_covariances_factor_in_chunks(monkeypatch):
     q, s = gaussians_from_covariances(cov)
     R = quat_to_matrix(q)
     torch.testing.assert_close(R @ torch.diag_embed(s**2) @ R.transpose(1, 2), cov, rtol=1e-9, atol=1e-12)
+
+
+def test_limit_stretch_clamps_principal_stretches_and_keeps_rotation():
+    """F = R diag(2, 1, 0.4): with s_max = 1.25 the drawn F is R diag(1.25, 1, 0.8) (singular values clamped, the
+    same rotation, so Σ = F Σ⁰ Fᵀ is bounded); an F within the band is returned untouched, bit for bit."""
+    from fracture_gs.render.gaussians import limit_stretch
+
+    ang = 0.4
+    R = torch.tensor([[math.cos(ang), -math.sin(ang), 0], [math.sin(ang), math.cos(ang), 0], [0, 0, 1.0]])
+    F = torch.stack([R @ torch.diag(torch.tensor([2.0, 1.0, 0.4])), R @ torch.diag(torch.tensor([1.05, 1.0, 0.97]))])
+    out = limit_stretch(F, 1.25)
+    torch.testing.assert_close(out[0], R @ torch.diag(torch.tensor([1.25, 1.0, 0.8])), atol=1e-6, rtol=0)
+    assert torch.equal(out[1], F[1])

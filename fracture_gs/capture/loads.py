@@ -26,7 +26,7 @@ of `materials.py` (ceramic: E = 400 kPa, ρ = 2000 kg/m³, P-wave speed c ≈ 15
   σ_R within a few frames of contact. It stops, and stays there, when its lower face is 25 % of the
   object's height above the floor, so it never reaches the floor (up to 8 events).
 
-`auto` (the default) picks `drop`, or `shoot` for a tall slender object (`auto_load`).
+`auto` (the default) picks `drop` (`auto_load` says why).
 """
 
 from __future__ import annotations
@@ -176,18 +176,13 @@ def _crush(lo: list, hi: list, dx: float, size: float, v: float, duration: float
     )
 
 
-SLENDER = 2.0
-"""Height over longest horizontal extent above which `auto` shoots the object instead of dropping it."""
-
-
 def auto_load(lo, hi) -> tuple[str, str]:
-    """(load, why) for `capture.load = "auto"` from the fitted object's box [lo, hi] (up is +z, x its longest
-    horizontal axis): a fall breaks any shape without grips, so `drop`, unless the object is tall and slender
-    (height > SLENDER × width), which a fall lands on its base: a ball at mid-height breaks and topples it."""
+    """(load, why) for `capture.load = "auto"` from the fitted object's box [lo, hi]: `drop`. A fall is what breaks
+    real objects, needs no grips placed on a shape it does not know, and lets the shape decide where it breaks
+    (a tall part whips over, a thin one snaps). A ball (`shoot`) was tried for tall slender objects and scattered
+    a guitar out of the frame in needles (edge strength 0.72 of frame 0 against 0.87 for the drop)."""
     height, width = float(hi[2] - lo[2]), float(max(hi[0] - lo[0], hi[1] - lo[1]))
-    if height > SLENDER * width:
-        return "shoot", f"tall and slender ({height / width:.1f}× as tall as wide): a fall would land on its base"
-    return "drop", "a fall breaks any shape without grips"
+    return "drop", f"a fall breaks any shape without grips ({height / width:.1f}× as tall as wide)"
 
 
 def apply_load(cfg: SceneConfig, plan: LoadPlan) -> None:

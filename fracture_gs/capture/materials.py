@@ -60,6 +60,7 @@ def apply_material(cfg, size: float) -> str:
     m = cfg.material
     m.model, m.E, m.nu, m.density, m.sigma_R = "fixed_corotated", p.E, p.nu, p.density, p.sigma_R
     cfg.render.interior_rgb = p.interior_rgb
+    cfg.render.max_stretch = 1.0 + 4.0 * p.sigma_R / p.E  # beyond its failure strain it would have broken
     cfg.capture.material = "config"
     sag = p.density * 9.8 * size / p.E
     return (

@@ -177,8 +177,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--load",
         choices=get_args(LoadKind),
-        help="captured scenes (splat files): what breaks the object (default: the config's capture.load, auto: a "
-        "drop, or a ball for a tall slender object)",
+        help="captured scenes (splat files): what breaks the object (default: the config's capture.load, auto: a drop)",
     )
     add_capture_options(p)
     p.add_argument(

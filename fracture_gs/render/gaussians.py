@@ -39,6 +39,26 @@ def deform_covariances(F: Tensor, cov0: Tensor) -> Tensor:  # [N,3,3], [N,3,3] -
     return 0.5 * (S + S.transpose(-1, -2))
 
 
+def limit_stretch(F: Tensor, s_max: float) -> Tensor:  # [N,3,3] -> [N,3,3]
+    """F with its principal stretches σ clamped to [1/s_max, s_max]: with F = U Σ Vᵀ, U Σ_c Vᵀ = F V diag(Σ_c/Σ) Vᵀ
+    (same rotation R = U Vᵀ, so SH colours do not change). Only rows with ‖FᵀF − I‖_F above the band are
+    decomposed (eigh of FᵀF in float64); the rest are returned as they are."""
+    C = F.transpose(-1, -2) @ F  # [N,3,3] = V Σ² Vᵀ
+    eye = torch.eye(3, dtype=F.dtype, device=F.device)
+    band = min(s_max**2 - 1.0, 1.0 - 1.0 / s_max**2)
+    rows = torch.nonzero(torch.linalg.matrix_norm(C - eye) > band).flatten()
+    if len(rows) == 0:
+        return F
+    from ..linalg import eigh_chunked
+
+    lam, V = eigh_chunked(C[rows].double())
+    sigma = lam.clamp_min(1e-30).sqrt()
+    ratio = sigma.clamp(1.0 / s_max, s_max) / sigma  # [R,3]
+    out = F.clone()
+    out[rows] = (F[rows].double() @ (V * ratio[:, None, :]) @ V.transpose(-1, -2)).to(F.dtype)
+    return out
+
+
 def sh_basis(dirs: Tensor, degree: int) -> Tensor:  # [N,3] unit -> [N,(degree+1)²]
     """Real SH basis of degree 0–3 at unit directions, in the 3DGS ordering and sign convention."""
     if not 0 <= degree <= 3:

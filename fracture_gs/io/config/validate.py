@@ -332,6 +332,10 @@ def _check_render(c: _Checker, r: RenderConfig) -> None:
     c.within("render.width", r.width, 2, MAX_IMAGE_SIDE, f"use an image width of 2 to {MAX_IMAGE_SIDE} pixels")
     c.within("render.height", r.height, 2, MAX_IMAGE_SIDE, f"use an image height of 2 to {MAX_IMAGE_SIDE} pixels")
     c.at_least("render.fps", r.fps, 1, "use a positive frame rate")
+    if r.max_stretch is not None and not r.max_stretch > 1.0:
+        c.fail(
+            "render.max_stretch", f"render.max_stretch = {r.max_stretch!r} is not above 1", "use e.g. 1.25, or unset it"
+        )
     c.choice("render.mode", r.mode, RENDER_MODES)
     c.choice("render.backend", r.backend, RENDER_BACKENDS)
     for i, ch in enumerate(r.background):
