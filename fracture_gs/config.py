@@ -463,9 +463,9 @@ class CaptureConfig:
     object captured standing on the ground has no bottom surface; false: only what its Gaussians close)."""
     load: LoadKind = "auto"
     """What breaks the object: `auto` (a `drop`: a fall breaks any shape without grips to place), `pull` (grips
-    at both ends of its longest axis), `drop` (falls onto a floor), `impact` (a velocity kick at a point on its side), `shoot` (a rigid ball flies into its side),
-    `crush` (a plate presses it onto the floor) or `none`. Added only to a config without
-    [[sim.boundaries]] of its own (those are the load then)."""
+    at both ends of its longest axis), `drop` (falls onto a floor), `impact` (a velocity kick at a point on its
+    side), `shoot` (a rigid ball flies into its side), `crush` (a plate presses it onto the floor) or `none`.
+    Added only to a config without [[sim.boundaries]] of its own (those are the load then)."""
     load_speed: float = 0.0
     """Grip speed [m/s] (pull), impact speed (impact), initial downward speed (drop), ball speed (shoot) or
     plate speed (crush); 0 = automatic."""
