@@ -35,6 +35,7 @@ CameraSource = Literal["auto", "trainer", "config"]
 CaptureQuality = Literal["draft", "default", "fine"]
 CaptureMaterial = Literal["ceramic", "wood", "plant", "bread", "config"]
 PanelSize = Literal["auto", "config"]
+GroundKind = Literal["auto", "none"]
 InteriorColor = Literal["surface", "material"]
 
 VARIANTS = VARIANT_NAMES
@@ -418,6 +419,13 @@ class CaptureConfig:
     """Statistical outlier removal: neighbours averaged (0 = off)."""
     outlier_std: float = 3.0
     """A Gaussian whose mean distance to its neighbours exceeds mean + outlier_std·std is dropped."""
+    ground: GroundKind = "auto"
+    """The ground the object stands on (pavement, a table top): `auto` finds a flat layer at the bottom that
+    spans the scene and keeps it as a static background (`capture/ground.py`); `none` keeps every Gaussian a
+    candidate for the object."""
+    ground_level: Optional[float] = None
+    """Height of the ground's top along the up axis [scene units], below which Gaussians are background (None =
+    found by `ground = "auto"`, or no ground)."""
     roi: RoiKind = "auto"
     """Region simulated: `auto` (robust bounds of what is left), `box`, `sphere` or `all`; the rest is a
     static background, rendered but not simulated."""

@@ -20,7 +20,7 @@ from trainer_ply import SCENE_OFFSET, SCENE_SCALE, SEMI_AXES, write_cameras, wri
 from fracture_gs.capture.scene import resolve
 from fracture_gs.capture.transform import rotate_sh
 from fracture_gs.errors import PlyError, SceneError
-from fracture_gs.io.config import load_config
+from fracture_gs.io.config import dump_config, load_config
 from fracture_gs.io.ply import load_ply, save_ply
 
 pytestmark = pytest.mark.usefixtures("one_thread")
@@ -283,3 +283,32 @@ def test_scene_error_names_the_file(tmp_path):
     with pytest.raises(SceneError, match="point_cloud.ply"):
         resolve(cfg)
     assert SCENE_OFFSET[0] > 10 and write_cameras  # the scene is far from the origin (COLMAP-like)
+
+
+def test_ground_under_a_capture_stays_static(tmp_path):
+    """The test object standing on a wide flat layer of Gaussians (a pavement 4× its size): the layer is found as
+    ground and kept as static background, the object alone is fitted to capture.size (the pavement does not
+    shrink it), and the written config repeats the same split."""
+    from trainer_ply import SCENE_OFFSET, SCENE_SCALE, SEMI_AXES, concat
+
+    ply, _ = write_trainer_ply(tmp_path, n=6000)
+    obj = load_ply(ply)
+    gen = torch.Generator().manual_seed(5)
+    n = 12000
+    base = SCENE_OFFSET[1] + SEMI_AXES[1] * SCENE_SCALE  # the object's lowest point (y is down)
+    pts = torch.rand(n, 3, generator=gen) * torch.tensor([4.0, 0.0, 4.0]) - torch.tensor([2.0, 0.0, 2.0])
+    pts = pts * SCENE_SCALE * 0.5 + torch.tensor([SCENE_OFFSET[0], base + 0.01 * SCENE_SCALE, SCENE_OFFSET[2]])
+    flat = obj.subset(torch.arange(n) % len(obj)).replace(means=pts)
+    save_ply(concat(obj, flat), tmp_path / "grounded.ply")
+    cap = resolve(load_config(tmp_path / "grounded.ply"))
+    assert any(note.startswith("ground:") for note in cap.notes), cap.notes
+    assert len(cap.background) >= 0.95 * n
+    surf = cap.gaussians.means[~cap.gaussians.interior]
+    ext = surf.max(0).values - surf.min(0).values
+    assert float(ext.max()) == pytest.approx(0.5, rel=0.05), "the object, not the pavement, is 0.5 m long"
+    again = tmp_path / "again.toml"
+    again.write_text(dump_config(cap.cfg))
+    rerun = resolve(load_config(again))
+    assert rerun.cfg.capture.ground_level == cap.cfg.capture.ground_level and len(rerun.background) == len(
+        cap.background
+    )

@@ -267,3 +267,20 @@ def test_limit_stretch_clamps_principal_stretches_and_keeps_rotation():
     out = limit_stretch(F, 1.25)
     torch.testing.assert_close(out[0], R @ torch.diag(torch.tensor([1.25, 1.0, 0.8])), atol=1e-6, rtol=0)
     assert torch.equal(out[1], F[1])
+
+
+def test_ground_is_found_under_an_object_and_nowhere_else():
+    """A wide flat layer (the pavement, 60 % of the Gaussians) under a box: its top is found between the layer and
+    the box's base; the box alone, or the layer alone, has no ground."""
+    from fracture_gs.capture.ground import find_ground
+
+    gen = torch.Generator().manual_seed(3)
+    up = torch.tensor([0.0, -1.0, 0.0], dtype=torch.float64)  # COLMAP: up is −y
+    floor = torch.rand(30000, 3, generator=gen, dtype=torch.float64) * torch.tensor([4.0, 0.01, 4.0])
+    floor[:, 1] += 1.0  # at y ≈ 1.0 (height −1.0)
+    box = torch.rand(20000, 3, generator=gen, dtype=torch.float64) * torch.tensor([1.0, 1.0, 1.0])
+    box += torch.tensor([1.5, -0.0, 1.5])  # y in [0, 1]: height from −1 (on the floor) up to 0
+    level = find_ground(torch.cat([floor, box]), up)
+    assert level is not None and -1.01 < level < -0.9, level
+    assert find_ground(box, up) is None
+    assert find_ground(floor, up) is None

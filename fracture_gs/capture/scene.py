@@ -25,6 +25,7 @@ from ..io.gaussian_set import GaussianSet
 from .camera import frame_box, trainer_view
 from .clean import clean
 from .fit import auto_roi, detect_up, find_cameras_json, fit_transform, read_cameras, roi_mask, transform_from_config
+from .ground import find_ground
 from .loads import apply_load, auto_load, plan_load
 from .materials import apply_material, apply_regions, substep_note
 from .resolution import choose as choose_resolution
@@ -82,10 +83,18 @@ def resolve(cfg: SceneConfig, device: str = "cpu") -> Capture:
     kept = gs.subset(keep)
     cams_path = find_cameras_json(path, cap.cameras_json)
     cameras = read_cameras(cams_path) if cams_path else []
+    fit = transform_from_config(cap)
+    if fit is None:
+        up, up_note = detect_up(cap, cameras)
+    else:
+        up, up_note = fit.rotation[2].clone(), "up axis from the config's fit"  # the scene axis the fit takes to +z
+    above = _above_ground(kept.means, up, cap, notes)
     inside, roi_note = roi_mask(kept.means, cap, str(path))
     if cap.roi == "auto":
-        lo, hi = auto_roi(kept.means.to(torch.float64), cap.percentile)
+        lo, hi = auto_roi(kept.means[above].to(torch.float64), cap.percentile)
         cap.roi, cap.roi_lower, cap.roi_upper = "box", _vec(lo), _vec(hi)
+        inside, _ = roi_mask(kept.means, cap, str(path))
+    inside &= above
     n_obj = int(inside.sum())
     if n_obj < 10:
         raise SceneError(
@@ -96,9 +105,7 @@ def resolve(cfg: SceneConfig, device: str = "cpu") -> Capture:
     obj, bg = kept.subset(inside), kept.subset(~inside)
     if cap.regions:
         notes.append(apply_regions(cfg, obj))
-    fit = transform_from_config(cap)
     if fit is None:
-        up, up_note = detect_up(cap, cameras)
         fit = fit_transform(obj.means, up, cap.size)
         notes.append(f"{up_note}; scale {fit.scale:.4g} m per scene unit, longest side {cap.size:g} m")
     else:
@@ -143,6 +150,23 @@ def resolve(cfg: SceneConfig, device: str = "cpu") -> Capture:
     from ..io.config import validate
 
     return Capture(validate(cfg, f"{path} (captured scene)"), obj, bg, fit, notes)
+
+
+def _above_ground(means: torch.Tensor, up: torch.Tensor, cap, notes: list) -> torch.Tensor:  # -> [N] bool
+    """Gaussians above the ground (`ground.find_ground`, or capture.ground_level as written); the rest is static
+    background. Records the level found, so the written config repeats the run."""
+    if cap.ground == "auto" and cap.ground_level is None:
+        cap.ground_level = find_ground(means, up)
+        if cap.ground_level is None:
+            cap.ground = "none"
+    if cap.ground_level is None:
+        return torch.ones(len(means), dtype=torch.bool)
+    above = means.to(torch.float64) @ (up.to(torch.float64) / up.norm()) > cap.ground_level
+    notes.append(
+        f"ground: a flat layer under the object ({int((~above).sum())} Gaussians up to {cap.ground_level:.4g} along "
+        'the up axis) is kept as a static background and the floor stands on it (capture.ground = "none" keeps it)'
+    )
+    return above
 
 
 def _vec(t: torch.Tensor) -> tuple:
