@@ -74,11 +74,12 @@ def test_closed_shell_interior_within_20_percent(tmp_path, n):
     ply, volume = write_trainer_ply(tmp_path, n=n)
     cap = resolve(load_config(ply))
     g = cap.gaussians
-    spacing = 2 * float(g.scales[g.interior][0, 0])
+    line = next(note for note in cap.notes if note.startswith("interior: filled with"))
+    assert line.startswith(f"interior: filled with {int(g.interior.sum())} particles at "), line
+    spacing = 1e-3 * float(line.split(" particles at ")[1].split(" mm")[0])  # one particle per voxel of it
     filled = int(g.interior.sum()) * spacing**3 / cap.transform.scale**3 / SCENE_SCALE**3
     assert abs(filled / volume - 1) < 0.2, f"filled {filled:.4g} m³ of {volume:.4g} m³"
     assert not any("warning" in note for note in cap.notes)
-    assert any(note.startswith(f"interior: filled with {int(g.interior.sum())} particles") for note in cap.notes)
 
 
 def test_open_shell_is_reported(tmp_path):

@@ -189,8 +189,10 @@ def _as_written(cfg: SceneConfig, gs: GaussianSet, unreadable: int = 0) -> Captu
 def _fill(obj: GaussianSet, cap, dx: float, notes: list, budget: int) -> GaussianSet:
     """Fill at spacing Δx/2 (8 particles a cell); where the shell leaks at that resolution (a sparse
     capture), again at Δx and 2Δx, where its Gaussians close up: the first whose shell encloses empty
-    space (at least a quarter of the solid volume), else the one that enclosed most."""
-    best = None
+    space (at least a quarter of the solid volume), else the one that enclosed most if that is a closed
+    surface (≥ FILL_WARNING), else (an open surface at every spacing) the finest. Fill particles are drawn
+    (once a crack exposes them) with σ ≤ Δx/4, however coarse their spacing: crack faces stay crisp."""
+    best, finest = None, None
     for spacing in (dx / 2, dx, 2 * dx):
         stats = {}
         filled = assets.fill_interior(
@@ -203,11 +205,14 @@ def _fill(obj: GaussianSet, cap, dx: float, notes: list, budget: int) -> Gaussia
             stats=stats,
             seal_bottom=cap.seal_bottom,
         )
+        finest = finest or (filled, stats)
         if best is None or stats["enclosed_fraction"] > best[1]["enclosed_fraction"]:
             best = (filled, stats)
         if stats["enclosed_fraction"] >= 0.25:
             break
-    filled, stats = best
+    filled, stats = best if best[1]["enclosed_fraction"] >= FILL_WARNING else finest
+    inner = filled.interior
+    filled.scales[inner] = filled.scales[inner].clamp_max(0.25 * dx)
     enclosed, spacing = stats["enclosed_fraction"], 1e3 * (stats["spacing"] or 0)
     if enclosed < FILL_WARNING:
         notes.append(
