@@ -28,13 +28,17 @@ for f in .caps/biker.spz .caps/luma-seal.splat tests/data/captures/guitar.compre
   grep -E "^\| (full|baseline|stress_zero) " "$OUT/log_${n}_warm.txt" | cut -c1-150
   grep -E "resolution:|particles:|load " "$OUT/log_${n}_warm.txt" | cut -c1-220
   python3 -c "
-import imageio.v2 as iio, sys
+import imageio.v2 as iio
 from fracture_gs.capture.quality import edge_strength
-fr = list(iio.get_reader('/tmp/r_$n/full.mp4'))
-print('$n full edge last/first', round(edge_strength(fr[-1]) / edge_strength(fr[0]), 3), fr[0].shape)
-iio.imwrite('$OUT/${n}_last.png', fr[-1])
+r = iio.get_reader('/tmp/r_$n/full.mp4')
+first = r.get_data(0)
+for last in r:
+    pass
+print('$n full edge last/first', round(edge_strength(last) / edge_strength(first), 3), first.shape)
+iio.imwrite('$OUT/${n}_last.png', last)
 "
 done
 timeout 200 python3 -m fracture_gs.cli render-sim .caps/biker.spz --device cuda:0 --frames 4 --export-ply 2 \
   --variants full --out /tmp/r_export > "$OUT/log_export.txt" 2>&1; echo "export on GPU rc=$? $(ls /tmp/r_export/ply/full)"
+timeout 200 python3 gpu/mem.py .caps/biker.spz 40 2>&1 | grep -E "^peak|torch peak|MiB"
 timeout 240 python3 -m fracture_gs.cli bench --device cuda:0 --placements 2 --trials 3 2>&1 | grep -v "^Module" | tail -12

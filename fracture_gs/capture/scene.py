@@ -129,7 +129,7 @@ def resolve(cfg: SceneConfig, device: str = "cpu") -> Capture:
             f"load: the config's own {len(cfg.sim.boundaries)} boundaries (capture.load = {cap.load!r} not added)"
         )
     else:
-        kind, why = auto_load(lo, hi) if cap.load == "auto" else (cap.load, "")
+        kind, why = auto_load(lo, hi, cap.ground_level is not None) if cap.load == "auto" else (cap.load, "")
         plan = plan_load(kind, lo, hi, dx, cap.size, cap.load_speed, duration)
         if why:
             plan.note = f"{plan.note} (capture.load = 'auto' chose {kind}: {why}; --load sets it)"
