@@ -284,3 +284,17 @@ def test_ground_is_found_under_an_object_and_nowhere_else():
     assert level is not None and -1.01 < level < -0.9, level
     assert find_ground(box, up) is None
     assert find_ground(floor, up) is None
+
+
+def test_the_wide_bottom_of_an_object_is_not_ground():
+    """A cone standing on its wide base (most Gaussians low down, but spread over many heights) has no ground: the
+    ground is a spike in the heights, not a broad bottom."""
+    from fracture_gs.capture.ground import find_ground
+
+    gen = torch.Generator().manual_seed(4)
+    u = torch.rand(60000, generator=gen, dtype=torch.float64)
+    height = 1.0 - torch.sqrt(u)  # dense near the base, thinning to the tip
+    r = (1.0 - height) * torch.rand(60000, generator=gen, dtype=torch.float64).sqrt()
+    a = 2 * math.pi * torch.rand(60000, generator=gen, dtype=torch.float64)
+    x = torch.stack([r * torch.cos(a), -height, r * torch.sin(a)], 1)  # up is −y
+    assert find_ground(x, torch.tensor([0.0, -1.0, 0.0], dtype=torch.float64)) is None

@@ -6,9 +6,10 @@ region of interest. The ground is a flat layer at the bottom that spans the scen
 
 1. heights h = x·up of every Gaussian, binned in 1 % of their robust range (0.5–99.5 %);
 2. the fullest bin in the lowest 30 % of the range is the candidate level;
-3. it is the ground if the Gaussians within two bins of it are at least `MIN_SHARE` of all, spread at least
-   `MIN_SPREAD` as wide across the up axis as the whole capture, and leave at least `MIN_ABOVE` above it (an
-   object, not a flat scan).
+3. it is the ground if it is a spike, at least `MIN_PEAK` times the mean of those bins (a flat layer, not the
+   wide bottom of an object: the guitar's body reads 1.5, the seal's pavement 12), the Gaussians within two
+   bins of it are at least `MIN_SHARE` of all, spread at least `MIN_SPREAD` as wide across the up axis as the
+   whole capture, and leave at least `MIN_ABOVE` above it (an object, not a flat scan).
 
 Gaussians up to two bins above the level are ground; they stay as a static background, drawn every frame.
 """
@@ -19,6 +20,8 @@ from typing import Optional
 
 import torch
 
+MIN_PEAK = 4.0
+"""Least ratio of the ground bin's count to the mean count of the lowest 30 % of the height range."""
 MIN_SHARE = 0.08
 """Least share of the Gaussians in the ground layer."""
 MIN_SPREAD = 0.8
@@ -40,6 +43,8 @@ def find_ground(x: torch.Tensor, up: torch.Tensor) -> Optional[float]:  # x [N, 
     if len(low) == 0:
         return None
     counts = torch.histc(low, bins=30, min=lo, max=lo + 30 * width)
+    if float(counts.max()) < MIN_PEAK * float(counts.mean()):
+        return None
     level = lo + (int(counts.argmax()) + 0.5) * width
     layer = (h - level).abs() <= 2 * width
     top = level + 2 * width
