@@ -49,6 +49,28 @@ for owner, name in [
     (pipeline, "prepare_scene"),
 ]:
     watch(owner, name)
+import gsplat  # noqa: E402
+
+_raster = gsplat.rasterization
+
+
+def raster(*a, **k):
+    before = torch.cuda.max_memory_allocated()
+    torch.cuda.reset_peak_memory_stats()
+    out = _raster(*a, **k)
+    used = torch.cuda.max_memory_allocated()
+    if used > (2 << 30):
+        meta = out[2]
+        isects = int(meta["isect_ids"].numel()) if "isect_ids" in meta else -1
+        radii = meta.get("radii")
+        big = int((radii.float().max(-1).values > 200).sum()) if radii is not None else -1
+        print(f"rasterization: {used / 2**30:.2f} GiB peak, {isects} tile intersections, {big} Gaussians over 200 px"
+              f", N = {a[0].shape[0]}", flush=True)
+    peak["v"] = max(before, used)
+    return out
+
+
+gsplat.rasterization = raster
 runner.frame_output = pipeline.frame_output
 runner.make_simulator = pipeline.make_simulator
 runner.prepare_scene = pipeline.prepare_scene
