@@ -32,7 +32,7 @@ THIN_PERCENTILE = 10.0
 """Percentile of the medial thickness that counts as the object's thin parts [%]."""
 
 BUDGETS = {
-    "cpu": {"draft": (12, 20, 6_000), "default": (16, 28, 12_000), "fine": (24, 48, 40_000)},
+    "cpu": {"draft": (12, 24, 8_000), "default": (20, 44, 30_000), "fine": (32, 64, 80_000)},
     "cuda": {"draft": (32, 64, 150_000), "default": (48, 128, 600_000), "fine": (96, 256, 2_000_000)},
 }
 """(fewest cells across, most cells across, most simulated particles) per device kind and quality."""
