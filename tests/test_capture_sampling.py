@@ -49,10 +49,10 @@ def box_surface(lo, hi, spacing: float, seed: int = 0) -> GaussianSet:
 
 def test_thin_plate_thickness_is_measured():
     """A plate 0.5 m wide and 30 mm thick: the probe's thin parts are as thick as the plate (within a probe voxel
-    of 0.5/96 m either way), and a 120 mm block reads about four times thicker."""
+    of 0.5/128 m either way), and a 120 mm block reads about four times thicker."""
     plate = box_surface((0.25, 0.25, 0.4), (0.75, 0.75, 0.43), 0.004)
     thin, _ = probe(plate, 0.5, 0.2, 0.01, 1)
-    h = 0.5 / 96
+    h = 0.5 / 128
     assert abs(thin - 0.03) <= 1.5 * h, thin
     block = box_surface((0.25, 0.25, 0.4), (0.75, 0.75, 0.52), 0.006)
     thick, _ = probe(block, 0.5, 0.2, 0.01, 1)
@@ -71,9 +71,10 @@ def test_resolution_resolves_thin_parts_within_the_budget():
     cpu = choose(plate, cap, "cpu")
     assert cpu.cells <= BUDGETS["cpu"]["default"][1] and cpu.dx > gpu.dx
     foil = box_surface((0.25, 0.25, 0.4), (0.75, 0.75, 0.404), 0.004)
+    cap.quality = "draft"
     under = choose(foil, cap, "cpu")
     assert under.thin < under.dx and "under-resolved" in under.note and 'quality = "fine"' in under.note
-    cap.cells_across = 40
+    cap.quality, cap.cells_across = "default", 40
     given = choose(plate, cap, "cpu")
     assert given.cells == 40 and given.dx == pytest.approx(0.5 / 40) and "capture.cells_across" in given.note
 

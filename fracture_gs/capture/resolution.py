@@ -26,7 +26,7 @@ import torch
 from ..assets.fill import solid_voxels
 from ..io.gaussian_set import GaussianSet
 
-PROBE_CELLS = 96
+PROBE_CELLS = 128
 """Voxels across the object's longest side for the thickness probe."""
 THIN_PERCENTILE = 10.0
 """Percentile of the medial thickness that counts as the object's thin parts [%]."""
