@@ -117,7 +117,8 @@ def rotation_onto_z(u: torch.Tensor) -> torch.Tensor:
 
 
 def roi_mask(points: torch.Tensor, cap: CaptureConfig, source: str) -> tuple[torch.Tensor, str]:
-    """(inside [N] bool, description) of the region of interest, in scene coordinates."""
+    """(inside [N] bool, description) of the region of interest `all`, `sphere` or `box`, in scene coordinates
+    (`auto` is resolved to a box by the caller, with `auto_roi`)."""
     x = points.to(torch.float64)
     if cap.roi == "all":
         return torch.ones(len(x), dtype=torch.bool), "region of interest: everything"
@@ -128,13 +129,10 @@ def roi_mask(points: torch.Tensor, cap: CaptureConfig, source: str) -> tuple[tor
         return (x - c).norm(
             dim=1
         ) <= cap.roi_radius, f"region of interest: sphere r = {cap.roi_radius:g} at {cap.roi_center}"
-    if cap.roi == "box":
-        if cap.roi_lower is None or cap.roi_upper is None:
-            raise SceneError(f'{source}: capture.roi = "box" needs capture.roi_lower and capture.roi_upper.')
-        lo, hi = torch.tensor(cap.roi_lower, dtype=torch.float64), torch.tensor(cap.roi_upper, dtype=torch.float64)
-        return ((x >= lo) & (x <= hi)).all(1), "region of interest: box (capture.roi_lower/upper)"
-    lo, hi = auto_roi(x, cap.percentile)
-    return ((x >= lo) & (x <= hi)).all(1), "region of interest: automatic (robust bounds)"
+    if cap.roi_lower is None or cap.roi_upper is None:
+        raise SceneError(f'{source}: capture.roi = "box" needs capture.roi_lower and capture.roi_upper.')
+    lo, hi = torch.tensor(cap.roi_lower, dtype=torch.float64), torch.tensor(cap.roi_upper, dtype=torch.float64)
+    return ((x >= lo) & (x <= hi)).all(1), "region of interest: box (capture.roi_lower/upper)"
 
 
 def auto_roi(x: torch.Tensor, percentile: float) -> tuple[torch.Tensor, torch.Tensor]:
@@ -146,10 +144,8 @@ def auto_roi(x: torch.Tensor, percentile: float) -> tuple[torch.Tensor, torch.Te
     b = torch.quantile(x[torch.randperm(len(x))[:200_000]] if len(x) > 200_000 else x, q, dim=0)
     core_lo, core_hi = b[0], b[1]
     h = max(float((core_hi - core_lo).max()) / 48.0, 1e-12)
-    lo = x.min(0).values
-    cell = torch.floor((x - lo) / h).to(torch.int64)
-    shape = [int(v) + 1 for v in cell.max(0).values]
-    if shape[0] * shape[1] * shape[2] > 64_000_000:  # a scene whose floaters lie far away: voxel the core only
+    span = (x.max(0).values - x.min(0).values) / h + 1
+    if float(span.prod()) > 64_000_000:  # a scene whose floaters lie far away: voxel the core only
         near = ((x >= core_lo - 0.5 * (core_hi - core_lo)) & (x <= core_hi + 0.5 * (core_hi - core_lo))).all(1)
         return auto_roi_connected(x[near], core_lo, core_hi, h)
     return auto_roi_connected(x, core_lo, core_hi, h)

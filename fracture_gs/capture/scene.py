@@ -89,11 +89,13 @@ def resolve(cfg: SceneConfig, device: str = "cpu") -> Capture:
     else:
         up, up_note = fit.rotation[2].clone(), "up axis from the config's fit"  # the scene axis the fit takes to +z
     above = _above_ground(kept.means, up, cap, notes)
-    inside, roi_note = roi_mask(kept.means, cap, str(path))
-    if cap.roi == "auto":
+    roi_note = "region of interest: automatic (robust bounds grown to what connects to them)"
+    if cap.roi == "auto":  # resolved to a box, so the written config repeats it
         lo, hi = auto_roi(kept.means[above].to(torch.float64), cap.percentile)
         cap.roi, cap.roi_lower, cap.roi_upper = "box", _vec(lo), _vec(hi)
         inside, _ = roi_mask(kept.means, cap, str(path))
+    else:
+        inside, roi_note = roi_mask(kept.means, cap, str(path))
     inside &= above
     n_obj = int(inside.sum())
     if n_obj < 10:
