@@ -34,6 +34,7 @@ from .render.gaussians import exposed_interior_colors, sh_colors
 from .render.splat import gsplat_needs_compile, render
 from .runtime import current_lane, side_stream, stream_lane
 from .sim import SimulationDiverged
+from .sim.metrics import piece_gap
 from .sim.topology import save_history
 from .variant_threads import run_in_threads
 
@@ -355,6 +356,7 @@ def run_variant(
     if sim.topologies and topology is None:
         topology = list(sim.topologies)
     summary = summarize(variant, rows, status, time.perf_counter() - t0)
+    summary["piece_gap"] = piece_gap(sim.particles.x, sim.particles.fragment, sim.grid.dx)
     summary["interrupted"] = interrupted
     return summary, topology
 

@@ -126,3 +126,18 @@ def test_fragment_boxes_counts_nodes_as_by_hand(tmp_path):
     )
     assert [r["K"] for r in rows] == [2, 8] and all(r["fragment_box_nodes"] > 0 for r in rows)
     assert rows[1]["nodes_of_two_or_more"] > rows[0]["nodes_of_two_or_more"], "more pieces, more faces"
+
+
+def test_capture_targets_reads_back_what_a_user_gets(tmp_path):
+    """apps/capture_targets.py on a 5,000-Gaussian real .splat subset, 4 frames of a drop: the run is timed from the
+    shell and its row reads the pieces, separation and edge strength back from the run's own outputs (a 4-frame
+    drop breaks nothing, so the targets are reported as missed and the script exits 1)."""
+    capture = APPS.parent / "tests" / "data" / "captures" / "luma_seal_5k.splat"
+    out = tmp_path / "targets"
+    cmd = [sys.executable, str(APPS / "capture_targets.py"), str(capture), "--loads", "drop", "--frames", "4"]
+    proc = subprocess.run([*cmd, "--out", str(out)], cwd=tmp_path, capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 1, proc.stdout[-2000:] + proc.stderr[-2000:]
+    row = json.loads(next(line for line in proc.stdout.splitlines() if line.startswith("{")))
+    assert row["rc"] == 0 and row["wall_s"] > 0 and row["load"] == "drop" and row["ok"] is False
+    assert row["pieces"] == 0 and 0.5 < row["edge"] < 1.5, row
+    assert "| luma_seal_5k.splat | drop |" in (out / "targets.md").read_text()

@@ -50,7 +50,8 @@ def test_pieces_count_only_fragments_of_the_share():
 @pytest.mark.slow
 def test_a_real_capture_breaks_visibly_with_one_command(tmp_path):
     """`fracture-gs render-sim guitar.compressed.ply --device cpu --frames 40` with nothing else: the `full`
-    variant breaks the guitar into ≥ 2 pieces of ≥ 3 % of the particles each, they separate, and its video's last
+    variant breaks the guitar into ≥ 2 pieces of ≥ 3 % of the particles each, they separate (the first crack opens,
+    or the two largest pieces end more than half a cell apart), and its video's last
     frame keeps ≥ 0.9 of frame 0's edge strength (nothing smeared or ghosted)."""
     out = tmp_path / "guitar"
     cmd = [sys.executable, "-m", "fracture_gs.cli", "render-sim", str(GUITAR), "--device", "cpu", "--frames", "40"]
@@ -61,7 +62,7 @@ def test_a_real_capture_breaks_visibly_with_one_command(tmp_path):
     with np.load(out / "topology.npz") as z:
         big = pieces(z["fragment"], 0.03)
     assert len(big) >= 2, f"pieces of >= 3 %: {big}"
-    assert full["separated"] in (True, "yes")
+    assert full["separated"] in (True, "yes") or full["piece_gap"] > 0.5, "the pieces come apart"
     frames = list(imageio.get_reader(out / "full.mp4"))
     assert frames[0].shape[:2] == (480, 640), "captured scenes are drawn at 640x480 on the CPU"
     keep = edge_strength(frames[-1]) / edge_strength(frames[0])

@@ -39,3 +39,21 @@ def test_reported_particle_numbers_equal_their_twins_every_frame(device):
     assert checked >= 10 and len(sim.topologies) >= 2, (checked, len(sim.topologies))
     if device.startswith("cuda"):
         assert len(keys) >= 2, "a later fracture event records the graph again"
+
+
+def test_piece_gap_is_the_shortest_distance_between_the_two_largest_pieces():
+    """Blocks of 27 particles (x in [0, 0.2]) and 8 (x in [0.45, 0.55]) and a 2-particle crumb at x = 0.3 between
+    them: the gap of the two largest pieces is particle to particle, 0.45 − 0.2 = 0.25 = 5 Δx for Δx = 0.05 (the
+    crumb is no piece); one piece alone has no gap."""
+    import torch
+
+    from fracture_gs.sim.metrics import piece_gap
+
+    g = torch.arange(3, dtype=torch.float64) * 0.1
+    big = torch.stack(torch.meshgrid(g, g, g, indexing="ij"), -1).reshape(-1, 3)  # x in [0, 0.2]
+    small = big[(big < 0.15).all(1)] + torch.tensor([0.45, 0.0, 0.0], dtype=torch.float64)  # x in [0.45, 0.55]
+    crumb = torch.tensor([[0.3, 0.0, 0.0], [0.3, 0.1, 0.0]], dtype=torch.float64)
+    x = torch.cat([big, small, crumb])
+    frag = torch.cat([torch.zeros(27), torch.ones(8), torch.full((2,), 2)]).to(torch.int32)
+    assert math.isclose(piece_gap(x, frag, 0.05), 5.0, rel_tol=1e-9)
+    assert piece_gap(x, torch.zeros_like(frag), 0.05) == 0.0

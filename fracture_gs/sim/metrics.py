@@ -139,3 +139,18 @@ def plane_state(x, v, fragment, plane, dx: float, K: int) -> dict:
         "vt_near": torch.where(near, vt, zero).max(),
         "vn_close": torch.where(d < 2 * dx, vn.abs(), zero).max(),
     }
+
+
+def piece_gap(x: torch.Tensor, fragment: torch.Tensor, dx: float) -> float:  # x [N, 3], fragment [N]
+    """Gap between the two largest fragments [Δx]: the shortest distance from a particle of one to a particle of
+    the other (0 for fewer than two fragments). Where many pieces form, the first event's interface (`opening`)
+    can be pushed shut while the pieces fly apart; this says whether the object came apart."""
+    ids, counts = torch.unique(fragment[fragment >= 0], return_counts=True)
+    if len(ids) < 2:
+        return 0.0
+    a, b = ids[counts.argsort(descending=True)[:2]]
+    from scipy.spatial import cKDTree
+
+    pa, pb = x[fragment == a].detach().cpu().double().numpy(), x[fragment == b].detach().cpu().double().numpy()
+    d, _ = cKDTree(pa).query(pb, k=1)
+    return float(d.min()) / dx
