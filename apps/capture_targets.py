@@ -51,8 +51,10 @@ def run_one(path: Path, load: str, device: str, frames: int, out: Path) -> dict:
         return row
     summary = json.loads((folder / "summary.json").read_text())
     full = next(v for v in summary["variants"] if v["variant"] == "full")
-    with np.load(folder / "topology.npz") as z:
-        big = pieces(z["fragment"])
+    big = []  # no topology.npz: nothing latched, nothing broke
+    if (folder / "topology.npz").exists():
+        with np.load(folder / "topology.npz") as z:
+            big = pieces(z["fragment"])
     video = imageio.get_reader(folder / "full.mp4")
     first, last = video.get_data(0), None
     for frame in video:  # to the last frame (an MP4's frame count in its metadata is unreliable)
