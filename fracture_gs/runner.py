@@ -85,16 +85,16 @@ class Painter:
             return torch.zeros_like(self.interior)
         exposed = self.interior & (out.band != 0)
         count = int(exposed.sum())
-        if count != self.exposed_count and count > 0 and self.cfg.interior_color == "material":
-            rgb = torch.tensor(self.cfg.interior_rgb, dtype=torch.float32, device=out.means.device)
-            self.exposed_rgb = rgb.expand(count, 3)  # the material's own colour inside
-            self.exposed_idx = torch.nonzero(exposed).flatten()
-            self.exposed_count = count
-        elif count != self.exposed_count and count > 0 and bool((~self.interior).any()):
-            # colour of the nearest surface Gaussian, computed when a fracture exposes new interior
-            self.exposed_rgb = exposed_interior_colors(
-                out.means[exposed], out.means[~self.interior], self.surface_dc[~self.interior]
-            )
+        material = self.cfg.interior_color == "material"
+        if count != self.exposed_count and count > 0 and (material or bool((~self.interior).any())):
+            # computed when a fracture exposes new interior: the material's own colour, or the nearest surface's
+            if material:
+                rgb = torch.tensor(self.cfg.interior_rgb, dtype=torch.float32, device=out.means.device)
+                self.exposed_rgb = rgb.expand(count, 3)
+            else:
+                self.exposed_rgb = exposed_interior_colors(
+                    out.means[exposed], out.means[~self.interior], self.surface_dc[~self.interior]
+                )
             self.exposed_idx = torch.nonzero(exposed).flatten()
             self.exposed_count = count
         return exposed

@@ -33,10 +33,14 @@ class Preset:
 
     @property
     def wave_speed(self) -> float:
-        """P-wave speed c = √((λ + 2μ)/ρ) [m/s]."""
-        lam = self.E * self.nu / ((1 + self.nu) * (1 - 2 * self.nu))
-        mu = self.E / (2 * (1 + self.nu))
-        return math.sqrt((lam + 2 * mu) / self.density)
+        """P-wave speed [m/s]."""
+        return wave_speed(self.E, self.nu, self.density)
+
+
+def wave_speed(E: float, nu: float, density: float) -> float:
+    """P-wave speed c = √((λ + 2μ)/ρ) [m/s] of Young's modulus E [Pa], Poisson ratio ν and density ρ [kg/m³]."""
+    lam, mu = E * nu / ((1 + nu) * (1 - 2 * nu)), E / (2 * (1 + nu))
+    return math.sqrt((lam + 2 * mu) / density)
 
 
 PRESETS = {
@@ -73,7 +77,7 @@ def apply_material(cfg, size: float) -> str:
 def substep_note(cfg) -> str:
     """The CFL substep of the run's material at its Δx, and substeps per frame."""
     m = cfg.material
-    c = Preset(m.E, m.nu, m.density, m.sigma_R, (0, 0, 0), "").wave_speed
+    c = wave_speed(m.E, m.nu, m.density)
     dt = cfg.sim.cfl * cfg.sim.dx / c
     return f"Δt ≤ {dt * 1e3:.3g} ms from the CFL bound (wave speed {c:.1f} m/s at Δx = {cfg.sim.dx * 1e3:.3g} mm): " + (
         f"about {math.ceil(cfg.frame_dt / min(dt, cfg.sim.dt))} substeps a frame"

@@ -34,11 +34,11 @@ def sample(gs: GaussianSet, spacing: float) -> tuple[GaussianSet, str]:
     cell = torch.floor(x[surface] / spacing).to(torch.int64)
     cell -= cell.min(0).values
     span = cell.max(0).values + 1
-    key = (cell[:, 0] * span[1] + cell[:, 1]) * span[2] + cell[:, 2]  # [S] voxel id
+    key = ((cell[:, 0] * span[1] + cell[:, 1]) * span[2] + cell[:, 2]).numpy()  # [S] voxel id
     # the most opaque Gaussian of each voxel: sort by voxel, then by opacity (descending), take the first
-    order = np.lexsort((-gs.opacities.detach().cpu().numpy()[surface.numpy()], key.numpy()))
+    order = np.lexsort((-gs.opacities.detach().cpu().numpy()[surface.numpy()], key))
     first = np.ones(len(order), dtype=bool)
-    first[1:] = key.numpy()[order][1:] != key.numpy()[order][:-1]
+    first[1:] = key[order][1:] != key[order][:-1]
     picked = surface[torch.from_numpy(order[first])]
     if len(picked) + len(interior) >= 0.8 * len(gs):
         return gs, f"particles: all {len(gs)} Gaussians simulated (no denser than {1e3 * spacing:.3g} mm spacing)"

@@ -25,6 +25,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import PlyError
+from .ply import activate_opacity, activate_scale, inverse_opacity, inverse_scale
 
 # SH coefficient signs under (x, y, z) -> (x, -y, -z): a basis function odd in y·z changes sign.
 # Real SH order as in 3DGS: degree 1 (y, z, x); degree 2 (xy, yz, 3z²-1, xz, x²-y²); degree 3
@@ -62,31 +63,27 @@ def _activated(data) -> dict:
     sh = np.concatenate([np.asarray(data.sh0, np.float32)[:, None, :], np.asarray(shn, np.float32)], 1)
     q = np.asarray(data.quats, np.float64)
     norm = np.linalg.norm(q, axis=1, keepdims=True)
-    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+    with np.errstate(invalid="ignore", divide="ignore"):
         quats = np.where(norm > 0, q / np.where(norm > 0, norm, 1.0), 0.0)
-        scales = np.exp(np.asarray(data.scales, np.float64))
-        opac = 1.0 / (1.0 + np.exp(-np.asarray(data.opacities, np.float64).reshape(-1)))
     return {
         "means": np.asarray(data.means, np.float32),
-        "scales": scales.astype(np.float32),
+        "scales": activate_scale(np.asarray(data.scales)),
         "quats": quats.astype(np.float32),
-        "opacities": opac.astype(np.float32),
+        "opacities": activate_opacity(np.asarray(data.opacities).reshape(-1)),
         "sh": sh,
     }
 
 
 def _ply_space(a: dict) -> tuple:
     """Activated arrays -> (means, log-scales, quats, logit-opacities, sh0 [N, 3], shN [N, K-1, 3] or None)."""
-    p = np.clip(a["opacities"].astype(np.float64), 0.0, 1.0)
-    with np.errstate(divide="ignore"):
-        logit = np.clip(np.log(p) - np.log1p(-p), -80.0, 80.0)
+    logit = inverse_opacity(np.clip(a["opacities"], 0.0, 1.0))
     sh = np.asarray(a["sh"], np.float32)
     shn = np.ascontiguousarray(sh[:, 1:]) if sh.shape[1] > 1 else None
     return (
         np.ascontiguousarray(a["means"], np.float32),
-        np.log(a["scales"].astype(np.float64)).astype(np.float32),
+        inverse_scale(a["scales"]),
         np.ascontiguousarray(a["quats"], np.float32),
-        logit.astype(np.float32),
+        logit,
         np.ascontiguousarray(sh[:, 0]),
         shn,
     )

@@ -53,13 +53,13 @@ class _RawCache:
 # ----------------------------------------------------------------------------- activations
 
 
-def _activate_scale(raw: np.ndarray) -> np.ndarray:
+def activate_scale(raw: np.ndarray) -> np.ndarray:
     """exp(log-scale) in float64, stored as float32."""
     with np.errstate(over="ignore"):
         return np.exp(raw.astype(np.float64)).astype(np.float32)
 
 
-def _activate_opacity(raw: np.ndarray) -> np.ndarray:
+def activate_opacity(raw: np.ndarray) -> np.ndarray:
     """sigmoid(logit) in float64, stored as float32."""
     with np.errstate(over="ignore"):
         return (1.0 / (1.0 + np.exp(-raw.astype(np.float64)))).astype(np.float32)
@@ -71,11 +71,11 @@ def _activate_rot(raw: np.ndarray) -> np.ndarray:  # [N, 4]
     return (q / np.linalg.norm(q, axis=1, keepdims=True)).astype(np.float32)
 
 
-def _inverse_scale(s: np.ndarray) -> np.ndarray:
+def inverse_scale(s: np.ndarray) -> np.ndarray:
     return np.log(s.astype(np.float64)).astype(np.float32)
 
 
-def _inverse_opacity(p: np.ndarray) -> np.ndarray:
+def inverse_opacity(p: np.ndarray) -> np.ndarray:
     p = p.astype(np.float64)
     with np.errstate(divide="ignore"):
         logit = np.log(p) - np.log1p(-p)
@@ -256,7 +256,7 @@ def _usable_rows(data, names: list) -> np.ndarray:  # [N] bool
             if col.dtype != object and col.dtype.kind == "f":
                 ok &= np.isfinite(col.astype(np.float32))
         for i in range(3):
-            ok &= _sigma_ok(_activate_scale(np.asarray(data[f"scale_{i}"]).astype(np.float32)))
+            ok &= _sigma_ok(activate_scale(np.asarray(data[f"scale_{i}"]).astype(np.float32)))
         rot = np.stack([np.asarray(data[f"rot_{i}"]).astype(np.float32).astype(np.float64) for i in range(4)], 1)
         ok &= np.nan_to_num(np.linalg.norm(rot, axis=1)) > 0
         if LABEL_PROP in names:
@@ -302,7 +302,7 @@ def load_ply(path, device="cpu", _rows=None) -> GaussianSet:
     rest = cols(rest_n) if rest_n else np.zeros((len(data), 0), np.float32)  # [N, 3(K-1)]
     raw_scale, raw_rot = cols(scale_n), cols(rot_n)
     raw_opacity = _column(path, data, "opacity")
-    scales = _activate_scale(raw_scale)
+    scales = activate_scale(raw_scale)
     _check_scales(path, raw_scale, scales)
     _check_rots(path, raw_rot)
 
@@ -321,7 +321,7 @@ def load_ply(path, device="cpu", _rows=None) -> GaussianSet:
         means=t(means),
         quats=t(_activate_rot(raw_rot)),
         scales=t(scales),
-        opacities=t(_activate_opacity(raw_opacity)),
+        opacities=t(activate_opacity(raw_opacity)),
         sh=t(sh),
         interior=t(_interior(path, data)) if INTERIOR_PROP in names else None,
         labels=t(_labels(path, data)) if LABEL_PROP in names else None,
@@ -352,12 +352,12 @@ def _raw_fields(gs: GaussianSet) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     scales = _np(gs.scales).astype(np.float32)
     opac = _np(gs.opacities).astype(np.float32)
     quats = _np(gs.quats).astype(np.float32)
-    scale_raw, opac_raw, rot_raw = _inverse_scale(scales), _inverse_opacity(opac), quats.copy()
+    scale_raw, opac_raw, rot_raw = inverse_scale(scales), inverse_opacity(opac), quats.copy()
     cache = gs.__dict__.get("_ply_raw")
     if cache is not None and len(cache.opacity) == len(gs):
-        keep = (_activate_scale(cache.scale) == scales).all(axis=1)
+        keep = (activate_scale(cache.scale) == scales).all(axis=1)
         scale_raw[keep] = cache.scale[keep]
-        keep = _activate_opacity(cache.opacity) == opac
+        keep = activate_opacity(cache.opacity) == opac
         opac_raw[keep] = cache.opacity[keep]
         keep = (_activate_rot(cache.rot) == quats).all(axis=1)
         rot_raw[keep] = cache.rot[keep]
