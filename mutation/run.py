@@ -73,7 +73,8 @@ def cmd_map(args) -> int:
             continue
         env = dict(os.environ, COVERAGE_FILE=str(STATE / f".coverage.{i}"))
         cmd = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "--cov=fracture_gs"]
-        cmd += ["--cov-context=test", "--cov-report=", *args.pytest_args, *shard]
+        cmd += ["--cov-context=test", "--cov-report=", f"--junitxml={STATE / f'junit.{i}.xml'}", "--durations=0"]
+        cmd += [*args.pytest_args, *shard]
         log = open(STATE / f"map.{i}.log", "w")
         procs.append((subprocess.Popen(cmd, cwd=ROOT, env=env, stdout=log, stderr=subprocess.STDOUT), shard))
     t0, failed = time.time(), []
@@ -83,6 +84,9 @@ def cmd_map(args) -> int:
     print(f"coverage shards done in {time.time() - t0:.0f} s; failing shards: {len(failed)}", flush=True)
     import coverage
 
+    broken = _failing_tests(len(procs))
+    if broken:
+        print(f"{len(broken)} tests fail without any mutant and are left out of the map:", *sorted(broken), sep="\n  ")
     cov_map: dict[str, dict[str, list[str]]] = defaultdict(lambda: defaultdict(list))
     for i in range(len(procs)):
         data = coverage.CoverageData(basename=str(STATE / f".coverage.{i}"))
@@ -92,11 +96,27 @@ def cmd_map(args) -> int:
             for line, ctxs in (data.contexts_by_lineno(path) or {}).items():
                 for ctx in ctxs:
                     test = ctx.rsplit("|", 1)[0]
-                    if test:
+                    if test and test not in broken:
                         cov_map[rel][str(line)].append(test)
     (STATE / "coverage_map.json").write_text(json.dumps(cov_map))
     print(f"coverage map: {len(cov_map)} modules -> {STATE / 'coverage_map.json'}")
     return 1 if failed else 0
+
+
+def _failing_tests(shards: int) -> set[str]:
+    """Node ids that failed or errored in the unmutated run: they would 'kill' every mutant they reach."""
+    import xml.etree.ElementTree as ET
+
+    out: set[str] = set()
+    for i in range(shards):
+        path = STATE / f"junit.{i}.xml"
+        if not path.exists():
+            continue
+        for case in ET.parse(path).iter("testcase"):
+            if case.find("failure") is not None or case.find("error") is not None:
+                mod = case.get("classname", "").replace(".", "/")
+                out.add(f"{mod}.py::{case.get('name')}")
+    return out
 
 
 # ---------------------------------------------------------------- run: mutate and test
@@ -195,7 +215,10 @@ def cmd_run(args) -> int:
             )
         time.sleep(3)
         t0 = time.time()
-        subprocess.run([*cr, "exec", str(cfg), str(session)], cwd=ROOT, check=False)
+        try:
+            subprocess.run([*cr, "exec", str(cfg), str(session)], cwd=ROOT, check=False, timeout=args.budget)
+        except subprocess.TimeoutExpired:
+            print(f"stopped after --budget {args.budget:.0f} s; `run --resume` goes on where this left off")
         print(f"executed in {time.time() - t0:.0f} s", flush=True)
     finally:
         for w in workers:
@@ -294,6 +317,7 @@ def main(argv=None) -> int:
     r.add_argument("--sample", type=int, default=None, help="at most this many mutants per module (seeded)")
     r.add_argument("--seed", type=int, default=0, help="seed of the sample")
     r.add_argument("--timeout", type=float, default=600.0, help="seconds one mutant's tests may take")
+    r.add_argument("--budget", type=float, default=None, help="stop executing after this many seconds")
     r.add_argument("--resume", action="store_true", help="continue the existing session instead of a new one")
     sub.add_parser("report", help="score per module and the survivors (mutation/.state/survivors.json)")
     # score = killed / (killed + survived); equivalent mutants (equivalent.toml, each with its reason) are left out
