@@ -137,6 +137,24 @@ def test_package_lame_is_the_hand_formula():
     assert lame(1e5, 0.3)[1] == pytest.approx(57692.308, rel=1e-7)
 
 
+def test_reference_defines_its_own_lame_and_clamp():
+    """The float64 twin imports nothing from the kernels' module (a wrong Lamé parameter or constant there would
+    otherwise cancel out in kernel-vs-reference tests): its `lame` is the hand formula, and an inverted element
+    F = diag(1, 1, −0.5) under StVK-Hencky clamps the negative stretch to 10⁻⁴ in both: ε = (0, 0, ln 10⁻⁴), so
+    τ = diag(λ, λ, 2μ + λ) · ln 10⁻⁴."""
+    import inspect
+
+    src = inspect.getsource(ref)
+    assert "constitutive" not in src, "the reference imports the code under test"
+    for E, nu in ((1e5, 0.3), (3e3, 0.1)):
+        assert ref.lame(E, nu) == pytest.approx(lame_hand(E, nu), rel=1e-15)
+    mu, lam = lame_hand(E_PA, NU)
+    L = math.log(1e-4)
+    expected = np.diag([lam * L, lam * L, (2 * mu + lam) * L])
+    for name, tau, _, rel in both(np.diag([1.0, 1.0, -0.5])[None], VM):
+        assert close(tau[0], expected, 10 * rel), f"{name}: τ = {tau[0]}"
+
+
 @pytest.mark.parametrize("model", [FC, NH, VM])
 @pytest.mark.parametrize("s", [0.8, 1.25, 1.5])
 def test_uniaxial_stretch_kirchhoff_stress(model, s):
