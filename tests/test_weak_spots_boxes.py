@@ -125,7 +125,7 @@ def test_claims_reset_between_frames_also_empty_the_pool_rows(device, seed):
     visits claimed rows). Without it a row claimed anew adds onto last frame's mass.
     Bugs tried: `reset_claims` without `_mp[n_nodes:].zero_()` (the pool's mass doubles), without `band.zero_()`
     (the band masses double); both fail here."""
-    sim, topo = slab(seed, device, storage="slots")
+    sim, topo = slab(seed, device, n=1000, storage="slots")
     sim.latch(topo)
     with sim._stream_scope():
         sim.fit_active_box(4e-3)
@@ -144,7 +144,7 @@ def test_a_shadow_grid_cleared_before_each_deposit_holds_one_deposit(device, see
     """The diagnostics' shadow P2G (`target=` a Grid) clears the whole grid first (`Grid.clear`): two deposits in a
     row give the fields of one (mass, band mass and each fragment's mass Σ_i m_i^k = that fragment's particle mass).
     Bugs tried: `Grid.clear` without `band.zero_()`, without `pool_owner.fill_(-1)`, without `_mp.zero_()`."""
-    sim, topo = slab(seed, device, storage="slots")
+    sim, topo = slab(seed, device, n=1000, storage="slots")
     sim.latch(topo)
     g = sim.grid
     shadow = S.Grid(g.origin, g.dx, g.shape, device, slots=g.slots, max_fragments=sim.cfg.max_fragments)
@@ -213,3 +213,49 @@ def test_each_fragment_box_holds_every_stencil_the_horizon_can_reach(device, see
         sim.set_clock(DT)
         sim.p2g(DT)
     assert int(sim.counts[COUNT_ESCAPED]) == 0
+
+
+def test_shared_support_and_mixing_of_known_fields_in_the_slot_storage():
+    """Shared support = nodes with ≥ 2 active fields (m > ε_m) over nodes with ≥ 1, in percent; the counterfactual
+    mixing Σ_i Σ_k m_i^k ‖v̄_i − v_i^k‖² / Σ m equals Σ_i (1/M_i) Σ_{a<b} m_a m_b ‖v_a − v_b‖² (the pairwise form);
+    Σ_i m_i^k per fragment. Three fields on a 6³ grid written straight into the slots: field 0 (slot 0) on i < 3,
+    field 1 on j < 2, field 2 on l = 5, each at its own constant velocity, and field 2 with a mass below ε_m on
+    l = 4 (inactive: counted in no support). Both the torch twin (`Grid.mixing`, `fragment_mass`) and the two
+    launches (`Grid.field_sums`) must give these numbers.
+    Bugs tried: shared nodes counted at ≥ 1 field (`active >= 2` as `>= 1`), a pool row whose slot 0 is empty not
+    counted as active, the percentage without its 100, `m > ε_m` as `m >= 0`; each fails here."""
+    from simutil import fill_slots
+
+    from fracture_gs.sim.grid import Grid
+
+    s, eps = 6, 1e-9
+    g = Grid((0.0, 0.0, 0.0), 1.0 / s, (s, s, s), "cpu", slots=4)
+    g.ensure_pool(s**3)
+    i, j, l = torch.meshgrid(*(torch.arange(s),) * 3, indexing="ij")  # noqa: E741
+    m = torch.zeros(3, s, s, s, dtype=torch.float64)
+    m[0][i < 3] = 1.0
+    m[1][j < 2] = 2.0
+    m[2][l == 5] = 0.5
+    m[2][l == 4] = 1e-12  # below ε_m
+    vel = torch.tensor([[1.0, 0.0, 0.0], [0.0, 2.0, 0.0], [0.0, 0.0, -1.0]], dtype=torch.float64)
+    v = vel[:, None, None, None, :].expand(3, s, s, s, 3)
+    fill_slots(g, m, v)
+    g.n_fields = 3
+    on = m > eps
+    count = on.sum(0)
+    shared = 100.0 * float((count >= 2).sum()) / float((count >= 1).sum())
+    M = m.sum(0)
+    pair = torch.zeros(s, s, s, dtype=torch.float64)
+    for a in range(3):
+        for b in range(a + 1, 3):
+            pair += m[a] * m[b] * on[a] * on[b] * float((vel[a] - vel[b]).square().sum())
+    mixing = float((pair / M.clamp_min(1e-300)).sum() / m.sum())
+    assert 0 < shared < 100 and mixing > 0.1
+    cf, pct = g.mixing(eps)
+    assert float(pct) == pytest.approx(shared, rel=1e-9)
+    assert float(cf) == pytest.approx(mixing, rel=1e-5)
+    torch.testing.assert_close(g.fragment_mass(3), m.flatten(1).sum(1), rtol=1e-6, atol=0.0)
+    cf, pct, mass = g.field_sums(eps, 3)
+    assert float(pct) == pytest.approx(shared, rel=1e-9)
+    assert float(cf) == pytest.approx(mixing, rel=1e-5)
+    torch.testing.assert_close(mass, m.flatten(1).sum(1), rtol=1e-6, atol=0.0)
