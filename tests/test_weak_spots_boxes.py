@@ -259,3 +259,41 @@ def test_shared_support_and_mixing_of_known_fields_in_the_slot_storage():
     assert float(pct) == pytest.approx(shared, rel=1e-9)
     assert float(cf) == pytest.approx(mixing, rel=1e-5)
     torch.testing.assert_close(mass, m.flatten(1).sum(1), rtol=1e-6, atol=0.0)
+
+
+def test_box_clear_empties_mass_momentum_and_band_for_the_next_deposit(device, seed):
+    """`FragmentBoxes.clear` runs after every substep: the next P2G must start from empty fields, so two deposits
+    with a clear between them give the fields of one: mass, momentum and the band mass of the latched gate.
+    Bug tried: `box_clear` without `b.band[t] = 0.0` (the band masses grow every substep): fails here."""
+    P, w = two_pieces(seed, device)
+    band = (torch.arange(len(P["x"]), device=device) % 3 == 0).to(torch.int32)
+    boxes = FragmentBoxes((n, n, n), (0.0, 0.0, 0.0), DX, device)
+    boxes.fit(P["x"], P["fragment"])
+    counts = torch.zeros(N_COUNTS, dtype=torch.int32, device=device)
+    fields = []
+    for _ in range(2):
+        boxes.p2g(w, clock(device), wp.from_torch(counts), band_flags=wp.from_torch(band))
+        fields.append((boxes.mp.cpu().clone(), boxes.band.cpu().clone()))
+        boxes.clear()
+    (mp1, b1), (mp2, b2) = fields
+    assert float(b1.sum()) > 0
+    torch.testing.assert_close(mp2, mp1, rtol=1e-6, atol=1e-9)
+    torch.testing.assert_close(b2, b1, rtol=1e-6, atol=1e-9)
+
+
+def test_boxes_that_share_one_node_layer_are_contact_partners(device):
+    """Two boxes overlap when they share a node, a single layer included: each lists the other among its contact
+    partners (`over`), so the fields that meet on that layer are projected. Fragment 0's stencils end at node 10 and
+    fragment 1's start at node 10 (no slack): they share the layer x = 10 only; a third fragment far away meets
+    neither.
+    Bug tried: the overlap test `lo ≤ hi` as `lo < hi` (boxes touching on one layer never meet): fails here."""
+    ensure_warp()
+    # base = ⌊ξ − ½⌋: ξ = 8.7 → base 8, stencil 8 … 10; ξ = 10.7 → base 10, stencil 10 … 12
+    x = torch.tensor([[8.7, 5.6, 5.6], [10.7, 5.6, 5.6], [18.7, 18.6, 18.6]]) * DX
+    boxes = FragmentBoxes((n, n, n), (0.0, 0.0, 0.0), DX, device)
+    boxes.fit(x.to(device), torch.tensor([0, 1, 2], dtype=torch.int32, device=device), slack=0)
+    top0 = int(boxes.lo[0, 0] + boxes.dims[0, 0] - 1)
+    assert top0 == 10 and int(boxes.lo[1, 0]) == 10, "the boxes share the layer x = 10 only"
+    start, over = boxes.over_start.cpu().tolist(), boxes.over.cpu().tolist()
+    partners = {k: over[start[k] : start[k + 1]] for k in range(3)}
+    assert partners == {0: [1], 1: [0], 2: []}

@@ -91,3 +91,29 @@ def test_band_mass_is_the_band_particles_mass_on_the_grid():
         m, b = wp.to_torch(gm).double(), wp.to_torch(gb).double()
         assert float(m.sum()) == pytest.approx(float(mass.double().sum()), rel=1e-5)
         torch.testing.assert_close(b, gamma * m, rtol=1e-5, atol=1e-7)
+
+
+def test_a_frame_runs_on_the_topology_latched_at_or_before_it():
+    """`topology_at(f)`: a topology latched at frame L (the simulator's frame counter when the provider returned it,
+    after frame L − 1's substeps) routes frames L, L + 1, …; frame L − 1 still runs on the shared field.
+    Bug tried: `t.latch_frame <= frame` as `<` (every latch one frame late): fails here."""
+    sim, topo, x = latched("full", 1)
+    topo.latch_frame = 1
+    assert sim.plan(0, torch.zeros_like(x), 0.01, 0.0).fields == 1
+    assert sim.plan(1, torch.zeros_like(x), 0.01, 0.0).fields == 4
+
+
+def test_a_frames_fields_hold_every_stencil_its_particles_can_reach():
+    """The differentiable frame's fields cover a box of the grid (`FramePlan.lo`, `shape`): the particles' bounds
+    plus the stencil and their travel over the frame, so every stencil (base = ⌊ξ − ½⌋ … base + 2) at the frame's
+    start and after moving v · frame_dt (6.4 Δx) lies inside it (one outside would be clamped onto the box's edge).
+    Bugs tried: `pad = 5 + …` as `pad = 0 + …` and the travel term dropped; each fails here."""
+    sim, _, x = latched("full", 1)
+    v = torch.tensor([10.0, -3.0, 2.0]).expand_as(x)  # 6.4 Δx in x over the frame
+    frame_dt = 0.02
+    plan = sim.plan(0, v, frame_dt, 0.0)
+    lo, shape = torch.tensor(plan.lo), torch.tensor(plan.shape)
+    for moved in (x, x + v * frame_dt):
+        xi = (moved.double() - torch.tensor(sim.origin, dtype=torch.float64)) / sim.dx
+        base = torch.floor(xi - 0.5).long() - lo
+        assert bool((base >= 0).all() and (base + 2 < shape).all()), (plan.lo, plan.shape)

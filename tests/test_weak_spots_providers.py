@@ -107,8 +107,8 @@ def test_the_voronoi_band_is_band_width_from_the_bisector_on_either_side():
     """The Voronoi band: particles whose distance to the bisector with their second-nearest site is below the band
     width, on both sides. Two sites on the x axis 0.4 apart put the bisector at x = 0.5: particles 0.049 away are in
     the band, 0.051 away are not (band width 0.05 = 0.5 Δx through the provider, which scales `band_width` by Δx).
-    Bugs tried: the gap without its ½ (the band half as wide), `band_width · Δx / 2` in the provider, `gap <=`; each
-    fails here."""
+    Bugs tried: the gap without its ½ (the band half as wide), `band_width · Δx / 2` in the provider, `gap <` as
+    `gap <=`; each fails here."""
     offsets = torch.tensor([0.0, 0.02, -0.02, 0.049, -0.049, 0.051, -0.051, 0.1, -0.1], dtype=torch.float64)
     x = torch.zeros(len(offsets), 3, dtype=torch.float64)
     x[:, 0] = 0.5 + offsets
@@ -118,6 +118,9 @@ def test_the_voronoi_band_is_band_width_from_the_bisector_on_either_side():
     want = offsets.abs() < 0.05
     assert torch.equal(band.bool(), want), band
     assert torch.equal(cell.long(), (offsets >= 0).long()), "each particle in its nearest site's cell"
+    exact = torch.tensor([[0.75, 0.0, 0.0], [0.25, 0.0, 0.0], [0.625, 0.0, 0.0]], dtype=torch.float64)
+    _, edge = voronoi_labels(exact, torch.tensor([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]], dtype=torch.float64), 0.25)
+    assert edge.tolist() == [0, 0, 1], "exactly band_width away (0.25, binary-exact) is outside: |d| < width"
     cfg = TopologyConfig(provider="voronoi", cells=2, band_width=0.5, split_components=False, latch_frame=0)
     sites = torch.cat([seeds.float(), x.float()])  # the sites are drawn from the particles: make them the two seeds
     provider = VoronoiProvider(cfg)
