@@ -103,13 +103,15 @@ def test_a_frame_runs_on_the_topology_latched_at_or_before_it():
     assert sim.plan(1, torch.zeros_like(x), 0.01, 0.0).fields == 4
 
 
-def test_a_frames_fields_hold_every_stencil_its_particles_can_reach():
+@pytest.mark.parametrize("speed", [0.0, 1.0])
+def test_a_frames_fields_hold_every_stencil_its_particles_can_reach(speed):
     """The differentiable frame's fields cover a box of the grid (`FramePlan.lo`, `shape`): the particles' bounds
     plus the stencil and their travel over the frame, so every stencil (base = ⌊ξ − ½⌋ … base + 2) at the frame's
-    start and after moving v · frame_dt (6.4 Δx) lies inside it (one outside would be clamped onto the box's edge).
+    start and after moving v · frame_dt (at rest, or 6.4 Δx) lies inside it (one outside would be clamped onto the
+    box's edge).
     Bugs tried: `pad = 5 + …` as `pad = 0 + …` and the travel term dropped; each fails here."""
     sim, _, x = latched("full", 1)
-    v = torch.tensor([10.0, -3.0, 2.0]).expand_as(x)  # 6.4 Δx in x over the frame
+    v = speed * torch.tensor([10.0, -3.0, 2.0]).expand_as(x)  # 6.4 Δx in x over the frame (or at rest)
     frame_dt = 0.02
     plan = sim.plan(0, v, frame_dt, 0.0)
     lo, shape = torch.tensor(plan.lo), torch.tensor(plan.shape)
