@@ -143,7 +143,9 @@ def test_claims_reset_between_frames_also_empty_the_pool_rows(device, seed):
 def test_a_shadow_grid_cleared_before_each_deposit_holds_one_deposit(device, seed):
     """The diagnostics' shadow P2G (`target=` a Grid) clears the whole grid first (`Grid.clear`): two deposits in a
     row give the fields of one (mass, band mass and each fragment's mass Σ_i m_i^k = that fragment's particle mass).
-    Bugs tried: `Grid.clear` without `band.zero_()`, without `pool_owner.fill_(-1)`, without `_mp.zero_()`."""
+    Bugs tried: `Grid.clear` without `band.zero_()`, without `_mp.zero_()`: each fails here. Without
+    `pool_owner.fill_(-1)` it passes: the same particles claim the same rows for the same fragments (equivalent
+    here; it only wastes slots when a node's fragments change)."""
     sim, topo = slab(seed, device, n=1000, storage="slots")
     sim.latch(topo)
     g = sim.grid
