@@ -78,7 +78,11 @@ def main() -> int:
         before = (STATE / "orig" / module).read_text()
         if now != before:
             tests += select_tests(module, changed_lines(before, now), before, cover, fallback)
-    tests = list(dict.fromkeys(tests))
+    tests = [t for t in dict.fromkeys(tests) if (root / t.split("::")[0]).exists()]
+    timing_path = STATE / "durations.json"
+    if timing_path.exists():  # fastest first: a killed mutant stops at its first failing test (-x)
+        seconds = json.loads(timing_path.read_text())
+        tests.sort(key=lambda t: seconds.get(t, seconds.get(t.split("::")[0], 1.0)))
     if not tests:
         print("no test reaches the mutated line: survived")
         return 0

@@ -84,7 +84,8 @@ def cmd_map(args) -> int:
     print(f"coverage shards done in {time.time() - t0:.0f} s; failing shards: {len(failed)}", flush=True)
     import coverage
 
-    broken = _failing_tests(len(procs))
+    broken, seconds = _failing_tests(len(procs))
+    (STATE / "durations.json").write_text(json.dumps(seconds))
     if broken:
         print(f"{len(broken)} tests fail without any mutant and are left out of the map:", *sorted(broken), sep="\n  ")
     cov_map: dict[str, dict[str, list[str]]] = defaultdict(lambda: defaultdict(list))
@@ -103,20 +104,23 @@ def cmd_map(args) -> int:
     return 1 if failed else 0
 
 
-def _failing_tests(shards: int) -> set[str]:
-    """Node ids that failed or errored in the unmutated run: they would 'kill' every mutant they reach."""
+def _failing_tests(shards: int) -> tuple[set[str], dict[str, float]]:
+    """Node ids that failed or errored in the unmutated run (they would 'kill' every mutant they reach),
+    and every test's seconds, so a mutant runs its fastest tests first."""
     import xml.etree.ElementTree as ET
 
     out: set[str] = set()
+    seconds: dict[str, float] = {}
     for i in range(shards):
         path = STATE / f"junit.{i}.xml"
         if not path.exists():
             continue
         for case in ET.parse(path).iter("testcase"):
+            node = f"{case.get('classname', '').replace('.', '/')}.py::{case.get('name')}"
+            seconds[node] = float(case.get("time") or 0.0)
             if case.find("failure") is not None or case.find("error") is not None:
-                mod = case.get("classname", "").replace(".", "/")
-                out.add(f"{mod}.py::{case.get('name')}")
-    return out
+                out.add(node)
+    return out, seconds
 
 
 # ---------------------------------------------------------------- run: mutate and test
