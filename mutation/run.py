@@ -85,10 +85,18 @@ def cmd_map(args) -> int:
     import coverage
 
     broken, seconds = _failing_tests(len(procs))
-    (STATE / "durations.json").write_text(json.dumps(seconds))
     if broken:
         print(f"{len(broken)} tests fail without any mutant and are left out of the map:", *sorted(broken), sep="\n  ")
     cov_map: dict[str, dict[str, list[str]]] = defaultdict(lambda: defaultdict(list))
+    old_path = STATE / "coverage_map.json"
+    if args.merge and old_path.exists():  # keep what other test files recorded; replace only those re-run here
+        rerun = tuple(f"{f}::" for f in files)
+        for mod, by_line in json.loads(old_path.read_text()).items():
+            for line, tests in by_line.items():
+                cov_map[mod][line] = [t for t in tests if not t.startswith(rerun)]
+        old = json.loads((STATE / "durations.json").read_text()) if (STATE / "durations.json").exists() else {}
+        seconds = {**{k: v for k, v in old.items() if not k.startswith(rerun)}, **seconds}
+    (STATE / "durations.json").write_text(json.dumps(seconds))
     for i in range(len(procs)):
         data = coverage.CoverageData(basename=str(STATE / f".coverage.{i}"))
         data.read()
@@ -314,6 +322,7 @@ def main(argv=None) -> int:
     m = sub.add_parser("map", help="record which test executes which line (coverage contexts)")
     m.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="parallel pytest shards")
     m.add_argument("--tests", default="test_*.py", help="glob of test files under tests/")
+    m.add_argument("--merge", action="store_true", help="add to the existing map instead of replacing it")
     m.add_argument("pytest_args", nargs="*", help="extra pytest arguments, e.g. -m 'not slow'")
     r = sub.add_parser("run", help="mutate the targets and run the tests that reach each mutant")
     r.add_argument("targets", nargs="*", help=f"folders, files or globs (default: {' '.join(DEFAULT_TARGETS)})")
