@@ -113,9 +113,9 @@ def check_size(spec: SweepSpec, max_cells: Optional[int] = None) -> int:
         raise ConfigError(
             spec.source,
             "sweep.max_cells",
-            f"the tables multiply out to {total:,} cells ({table}: {n:,}), over the cap of {cap:,}; list fewer "
-            f"values (each list multiplies the count) or split the spec, or raise the cap with [sweep] max_cells = "
-            f"{total} or --max-cells {total}.",
+            f"the tables multiply out to {total:,} cells ({table}: {n:,}), over the cap sweep.max_cells = {cap:,}; "
+            f"list fewer values (each list multiplies the count) or split the spec, or raise the cap with "
+            f"max_cells = {total} in [sweep] or --max-cells {total}.",
         )
     return total
 
