@@ -52,7 +52,7 @@ VALUES = st.one_of(
 def bounded(examples: int) -> settings:
     """The suite's settings with a per-example deadline: a reader that hangs (a 32 GB closing, a million-cell
     expansion) fails the test instead of stalling it."""
-    return settings(fuzz_settings(examples), deadline=timedelta(seconds=5))
+    return settings(fuzz_settings(examples), deadline=timedelta(seconds=20))
 
 
 def typed(tp):

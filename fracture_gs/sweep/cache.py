@@ -156,6 +156,21 @@ def _is_number(v: Any) -> bool:
     return isinstance(v, (int, float)) and not isinstance(v, bool)
 
 
+def _non_finite(value: Any) -> Optional[str]:
+    """The path (e.g. `.latch.time` or `[3]`) of the first NaN or inf inside nested JSON, or None (iterative:
+    a deeply nested file cannot exhaust the stack)."""
+    todo = [("", value)]
+    while todo:
+        where, v = todo.pop()
+        if isinstance(v, float) and not math.isfinite(v):
+            return where
+        if isinstance(v, dict):
+            todo.extend((f"{where}.{k}", x) for k, x in v.items())
+        elif isinstance(v, list):
+            todo.extend((f"{where}[{i}]", x) for i, x in enumerate(v))
+    return None
+
+
 def check_row(path: Path, cell: Cell, row: Any) -> dict:
     """A cached row as the driver and the tables read it, or OutputError naming the file, the key and the fix."""
 
@@ -175,6 +190,9 @@ def check_row(path: Path, cell: Cell, row: Any) -> dict:
         if key == "extra":
             if not isinstance(v, dict):
                 raise bad(key, f"is {_what(v)}, not an object")
+            where = _non_finite(v)
+            if where is not None:
+                raise bad(f"extra{where}", "is not a finite number")
             continue
         if isinstance(v, float) and not math.isfinite(v):
             raise bad(key, f"is {v!r}, not a finite number")
