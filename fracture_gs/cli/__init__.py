@@ -2,35 +2,56 @@
 
 Every user error (bad config, bad PLY, missing file, bad flag) ends as one line
 `fracture-gs: error: <sentence>` on stderr and exit code 2, never a traceback (set
-FRACTURE_GS_DEBUG=1 to get the traceback instead). The heavy work lives
+FRACTURE_GS_DEBUG=1 to get the traceback instead). A flag that would do nothing in the combination
+given is such an error too (`run.refuse_ignored_flags`). The heavy work lives
 in modules imported only when a command needs them (`fracture_gs.runner`, `fracture_gs.paper`), so
 `--help`, `info` and `validate` stay fast and work on any machine.
+
+This module imports nothing heavy at its top: the parser and the commands (torch, Warp) are imported
+inside `main`'s handler, so Ctrl-C at any moment, the first second of imports included, exits 130
+with one line.
 """
 
 from __future__ import annotations
 
+import importlib
 import os
 import sys
-from typing import Optional, Sequence
+from typing import Any, Optional, Sequence
 
-from .devices import _prepare_warp, resolve_device
-from .parser import PROG, CliError, build_parser
-from .report import cmd_info, cmd_validate
-from .run import cmd_bench, cmd_figures, cmd_init, cmd_render_sim
-from .sweep import cmd_sweep
+PROG = "fracture-gs"
 
-__all__ = ["CliError", "build_parser", "main", "resolve_device"]
+__all__ = ["CliError", "PROG", "build_parser", "main", "resolve_device"]
 
 _WARP_COMMANDS = ("render-sim", "bench", "figures", "sweep")
-_COMMANDS = {
-    "render-sim": cmd_render_sim,
-    "bench": cmd_bench,
-    "figures": cmd_figures,
-    "info": cmd_info,
-    "validate": cmd_validate,
-    "init": cmd_init,
-    "sweep": cmd_sweep,
-}
+_LAZY = {"CliError": "parser", "build_parser": "parser", "resolve_device": "devices"}
+_SUBMODULES = ("devices", "parser", "report", "run", "sweep")
+
+
+def __getattr__(name: str) -> Any:
+    """`cli.resolve_device`, `cli.CliError`, `cli.build_parser` and the submodules, imported on first use."""
+    if name in _LAZY:
+        return getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
+    if name in _SUBMODULES:
+        return importlib.import_module(f".{name}", __name__)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def _commands() -> dict:
+    """Command name -> function (imports the command modules)."""
+    from .report import cmd_info, cmd_validate
+    from .run import cmd_bench, cmd_figures, cmd_init, cmd_render_sim
+    from .sweep import cmd_sweep
+
+    return {
+        "render-sim": cmd_render_sim,
+        "bench": cmd_bench,
+        "figures": cmd_figures,
+        "info": cmd_info,
+        "validate": cmd_validate,
+        "init": cmd_init,
+        "sweep": cmd_sweep,
+    }
 
 
 # --------------------------------------------------------------------------------------------
@@ -39,9 +60,10 @@ _COMMANDS = {
 
 def _user_error_types() -> tuple[type, ...]:
     """Exceptions reported as one line: flags, config, PLY, scene, output folder, missing files, bad values."""
-    from ..errors import ConfigError, OutputError, PlyError, SceneError
+    from ..errors import ConfigError, FractureGSError, OutputError, PlyError, SceneError
+    from .parser import CliError
 
-    return (CliError, ConfigError, PlyError, SceneError, OutputError, FileNotFoundError, ValueError)
+    return (CliError, ConfigError, PlyError, SceneError, OutputError, FractureGSError, FileNotFoundError, ValueError)
 
 
 def _one_line(exc: BaseException) -> str:
@@ -56,6 +78,9 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     """Console entry point; returns the exit code (0 ok, 2 user error, 130 interrupted)."""
     args = None
     try:
+        from .devices import _prepare_warp
+        from .parser import build_parser
+
         parser = build_parser()
         argv = list(argv) if argv is not None else sys.argv[1:]
         args = parser.parse_args(argv)
@@ -63,12 +88,13 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         if not args.command:
             parser.print_help()
             return 0
+        commands = _commands()
         # a run's buffers change size every frame (fragments, boxes, visible Gaussians): expandable segments keep
         # torch's CUDA cache near what is allocated (a 150k-Gaussian capture held 69 GiB reserved for 17 in use)
         os.environ.setdefault("PYTORCH_CUDA_ALLOC_CONF", "expandable_segments:True")
         if args.command in _WARP_COMMANDS:
             _prepare_warp()
-        return _COMMANDS[args.command](args)
+        return commands[args.command](args)
     except SystemExit as exc:  # --help / --version: keep main() returning an exit code
         return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 2)
     except KeyboardInterrupt:
