@@ -11,11 +11,7 @@ entry point (`fracture_gs.cli:main`) imports torch and Warp inside its Ctrl-C ha
 while they load exits 130 like any other (DESIGN.md "Errors and validation").
 """
 
-from __future__ import annotations
-
-import importlib
-from typing import TYPE_CHECKING, Any
-
+TYPE_CHECKING = False  # typing is not imported: a Ctrl-C during start-up should find as little to interrupt
 __version__ = "0.1.0"
 __all__ = ["FractureSim", "assets", "config", "io", "render", "sim", "__version__"]
 
@@ -26,8 +22,10 @@ if TYPE_CHECKING:  # for type checkers and IDEs; at run time __getattr__ imports
     from .module import FractureSim
 
 
-def __getattr__(name: str) -> Any:
+def __getattr__(name: str) -> object:
     """`fracture_gs.sim`, `fracture_gs.FractureSim`, ...: imported when first asked for."""
+    import importlib
+
     if name in _SUBMODULES:
         return importlib.import_module(f".{name}", __name__)
     if name == "FractureSim":

@@ -13,8 +13,8 @@ from __future__ import annotations
 import argparse
 from typing import Optional
 
+from . import CliError
 from .devices import resolve_device
-from .parser import CliError
 
 _TABLE2_FLAGS = ("particles", "steps", "warmup", "trials", "placements", "grid", "no_graph", "sort")
 _ACCURACY_FLAGS = ("quick", "cases", "from_json")

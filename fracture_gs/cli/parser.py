@@ -8,17 +8,13 @@ from typing import get_args
 
 from ..config import CaptureMaterial, CaptureQuality, LoadKind, ParticleOrder
 from ..io.formats import FORMATS
-from . import PROG
+from . import PROG, CliError
 from .sweep import add_sweep_parser
 
 DEVICE_RE = re.compile(r"^(auto|cpu|cuda(:\d+)?)$")
 RESOLUTION_RE = re.compile(r"\s*([0-9]+)\s*[xX×]\s*([0-9]+)\s*")
 BENCH_DEFAULTS = {"steps": 200, "warmup": 20, "trials": 3, "grid": 128, "sort": "cell"}
 """bench's defaults, applied by `cmd_bench` (the flags default to None, so a flag typed is told from one not)."""
-
-
-class CliError(Exception):
-    """A user-facing error: its message is one sentence, printed without a traceback."""
 
 
 class _Parser(argparse.ArgumentParser):

@@ -12,9 +12,10 @@ from pathlib import Path
 from typing import Any
 
 from ..io.outputs import output_dir, output_file
+from . import CliError
 from .devices import resolve_device
 from .ignored import refuse_bench, refuse_figures, refuse_render_sim, run_devices
-from .parser import BENCH_DEFAULTS, CliError
+from .parser import BENCH_DEFAULTS
 
 
 @contextlib.contextmanager
