@@ -134,8 +134,6 @@ def _factor_covariances(where: str, means, covars) -> tuple[torch.Tensor, torch.
 def _material_argument(name: str, value, n: int) -> torch.Tensor:
     """E, nu or density of the differentiable forward: a scalar or [N], finite, within the range the config
     allows (`io.config.validate`'s material rules, the one statement of those ranges)."""
-    from .io.config.validate import _check_material, _Checker
-
     t = as_tensor(FORWARD, name, value, "a scalar or [N]")
     if t.is_complex() or t.dtype == torch.bool:
         raise ArgumentError(f"{FORWARD}: {name} has dtype {t.dtype}; pass real numbers.")
@@ -148,14 +146,23 @@ def _material_argument(name: str, value, n: int) -> torch.Tensor:
         )
     if t.numel():
         d = t.detach()
-        nan = bool(torch.isnan(d).any())
-        digits = ".15g" if d.dtype == torch.float64 else ".7g"  # show 0.7, not float32's 0.699999988
-        for v in [float("nan")] if nan else [float(f"{x:{digits}}") for x in torch.stack([d.min(), d.max()]).tolist()]:
-            try:
-                _check_material(_Checker(FORWARD), "material", MaterialMapEntry(**{name: v}))
-            except ConfigError as exc:
-                raise ArgumentError(str(exc).replace(f"material.{name}", name)) from None
+        for v in [float("nan")] if bool(torch.isnan(d).any()) else torch.stack([d.min(), d.max()]).tolist():
+            problem = _material_problem(name, v)
+            if problem is not None:
+                shown = float(f"{v:{'.15g' if d.dtype == torch.float64 else '.7g'}}")  # 0.7, not 0.699999988
+                raise ArgumentError(_material_problem(name, shown) or problem)
     return t
+
+
+def _material_problem(name: str, value: float) -> Optional[str]:
+    """The config's sentence for material.<name> = value (`io.config.validate`), as the argument `name`."""
+    from .io.config.validate import _check_material, _Checker
+
+    try:
+        _check_material(_Checker(FORWARD), "material", MaterialMapEntry(**{name: value}))
+    except ConfigError as exc:
+        return str(exc).replace(f"material.{name}", name)
+    return None
 
 
 def _velocity_argument(value, n: int) -> torch.Tensor:
