@@ -98,7 +98,7 @@ BAD_CALLS = [
     (["validate", "INVALID_VALUE"], "material.nu"),
     (["render-sim", "bread", "--device", "gpu"], "not a device"),
     (["render-sim", "bread", "--device", "cuda:7"], "cuda:7"),
-    (["render-sim", "bread", "--resolution", "640by480"], "WIDTHxHEIGHT"),
+    (["render-sim", "bread", "--resolution", "640by480"], "must be WxH with positive integers, got 640by480"),
     (["render-sim", "bread", "--resolution", "1x480"], "too small"),
     (["render-sim", "bread", "--variants", "baseline,fulll"], "did you mean 'full'"),
     (["render-sim", "bread", "--preset", "huge"], "--preset"),

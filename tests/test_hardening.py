@@ -237,7 +237,7 @@ def test_item8_config_files_that_are_not_plain_utf8_toml(tmp_path, capsys):
 @pytest.mark.parametrize(
     "argv,needle",
     [
-        (["--resolution", "²x²"], "--resolution '²x²' is not WIDTHxHEIGHT"),
+        (["--resolution", "²x²"], "--resolution must be WxH with positive integers, got ²x²"),
         (["--resolution", "9000x100"], "over 8192"),
         (["--device", ""], "--device '' is not a device"),
         (["--device", " "], "is not a device"),
