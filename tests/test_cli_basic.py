@@ -221,3 +221,21 @@ def test_info_reports_the_video_encoder(capsys, monkeypatch):
     assert cli.main(["info"]) == 0
     line = next(line for line in capsys.readouterr().out.splitlines() if line.startswith("video"))
     assert "unavailable" in line and "pip install imageio-ffmpeg" in line
+
+
+def test_a_bare_value_error_is_reported_as_a_bug_not_as_bad_input(monkeypatch, capsys):
+    """Every bad input is refused as a package error where it enters (exit 2, naming the key); a ValueError from
+    elsewhere is a bug in fracture-gs, so it must not pose as the user's mistake: exit 1, one line that says so
+    and how to get the traceback, no traceback printed."""
+    import fracture_gs.cli as cli
+
+    def broken(args):
+        raise ValueError("invalid literal for int() with base 10: 'x'")
+
+    monkeypatch.setattr(cli, "_commands", lambda: {"info": broken})
+    assert cli.main(["info"]) == 1
+    err = capsys.readouterr().err
+    assert "internal error: ValueError" in err and "FRACTURE_GS_DEBUG=1" in err and "Traceback" not in err
+    monkeypatch.setenv("FRACTURE_GS_DEBUG", "1")
+    with pytest.raises(ValueError):
+        cli.main(["info"])

@@ -69,7 +69,7 @@ def _user_error_types() -> tuple[type, ...]:
     """Exceptions reported as one line: flags, config, PLY, scene, output folder, missing files, bad values."""
     from ..errors import ConfigError, FractureGSError, OutputError, PlyError, SceneError  # errors.py imports nothing
 
-    return (CliError, ConfigError, PlyError, SceneError, OutputError, FractureGSError, FileNotFoundError, ValueError)
+    return (CliError, ConfigError, PlyError, SceneError, OutputError, FractureGSError, FileNotFoundError)
 
 
 def _one_line(exc: BaseException) -> str:
@@ -156,10 +156,19 @@ def main(argv: "Optional[Sequence[str]]" = None) -> int:
     except Exception as exc:  # noqa: BLE001 - user errors become one line, bugs keep their traceback
         if interrupts.hit:  # e.g. a C extension's import turned the KeyboardInterrupt into an ImportError
             return _interrupted(args)
-        if not isinstance(exc, _user_error_types()) or os.environ.get("FRACTURE_GS_DEBUG"):
+        if os.environ.get("FRACTURE_GS_DEBUG"):
             raise
-        print(f"{PROG}: error: {_one_line(exc)}", file=sys.stderr)
-        return 2
+        if isinstance(exc, _user_error_types()):
+            print(f"{PROG}: error: {_one_line(exc)}", file=sys.stderr)
+            return 2
+        if isinstance(exc, ValueError):  # not ours: every bad input is refused as a package error where it enters
+            print(
+                f"{PROG}: internal error: {type(exc).__name__}: {_one_line(exc)}; this is a bug in {PROG}, "
+                f"not in your input: rerun with FRACTURE_GS_DEBUG=1 for the traceback and report it.",
+                file=sys.stderr,
+            )
+            return 1
+        raise
     finally:
         interrupts.restore(leaving=argv_was_none)
 
