@@ -18,7 +18,7 @@ from trainer_ply import write_cameras, write_trainer_ply
 from fracture_gs.capture.fit import read_cameras
 from fracture_gs.capture.scene import resolve
 from fracture_gs.cli import main
-from fracture_gs.errors import ConfigError, FractureGSError, OutputError, SceneError
+from fracture_gs.errors import ConfigError, OutputError, SceneError
 from fracture_gs.io.config import config_from_dict
 from fracture_gs.sweep import cache, driver, expansion, load_spec
 from fracture_gs.sweep.cells import Outcome
@@ -373,18 +373,17 @@ def _spec(tmp_path, text=SPEC) -> Path:
     return path
 
 
-def test_an_unexpected_value_error_is_not_disguised_as_a_user_error(cached, monkeypatch):
-    """Rule: only the package's own errors print as one-line user errors; a bare ValueError inside the sweep
-    (a bug, e.g. int('abc') in a table) keeps its traceback instead of exit 2 with a line naming no file."""
+def test_an_unexpected_value_error_is_not_disguised_as_a_user_error(cached, monkeypatch, capsys):
+    """Rule: only the package's own errors print as one-line user errors (exit 2); a bare ValueError inside the
+    sweep (a bug, e.g. int('abc') in a table) says it is a bug in fracture-gs, exit 1, not a line naming no file."""
     spec, out, _ = cached
 
     def broken(*args, **kwargs):
         raise ValueError("invalid literal for int() with base 10: 'abc'")
 
     monkeypatch.setattr(driver, "write_outputs", broken)
-    with pytest.raises(RuntimeError) as info:
-        main(["sweep", str(spec), "--device", "cpu", "--out", str(out)])
-    assert not isinstance(info.value, FractureGSError) and isinstance(info.value.__cause__, ValueError)
+    assert main(["sweep", str(spec), "--device", "cpu", "--out", str(out)]) == 1
+    assert "internal error: ValueError" in capsys.readouterr().err
 
 
 # ---------------------------------------------------------------- sweep size
@@ -471,3 +470,22 @@ def test_list_prints_each_cell_as_it_is_made(tmp_path, capsys, monkeypatch):
     code, out, err = sweep(_spec(tmp_path, SCENES), tmp_path / "out", capsys, "--list")
     assert code == 2 and "seed 2 is refused" in err
     assert "up to 2,000 cells" in out and "seed 0" in out and "seed 1" in out, out
+
+
+@pytest.mark.parametrize(
+    "flags, named",
+    [
+        (["--list", "--fresh"], "--fresh"),
+        (["--list", "--rerun-failed"], "--rerun-failed"),
+        (["--list", "--rank-timeout", "60"], "--rank-timeout"),
+        (["--fresh", "--rerun-failed"], "--rerun-failed"),
+    ],
+)
+def test_sweep_flags_that_would_change_nothing_are_refused(flags, named, capsys):
+    """--list only reads the cache, so --fresh, --rerun-failed and --rank-timeout beside it change nothing, and
+    --rerun-failed beside --fresh (which reruns everything) neither: each is refused by name, exit 2."""
+    from fracture_gs.cli import main
+
+    assert main(["sweep", "accuracy", *flags]) == 2
+    err = capsys.readouterr().err
+    assert named in err and "Traceback" not in err and err.count("\n") == 1

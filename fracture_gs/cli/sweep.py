@@ -110,7 +110,7 @@ def add_sweep_parser(subparsers, parser_class: Optional[type] = None) -> argpars
         "--rank-timeout",
         metavar="S",
         type=_positive_seconds,
-        default=300.0,
+        default=None,
         help="seconds without a heartbeat after which a rank counts as dead (default 300)",
     )
     return p
@@ -159,21 +159,26 @@ def _progress(echo_every_s: float = 5.0):
     return report
 
 
+def _refuse_ignored(args: argparse.Namespace) -> None:
+    """Flags that would change nothing are refused (cli/ignored.py's rule): --list only reads the cache."""
+    from . import CliError
+
+    if args.list:
+        for flag, given in (
+            ("--fresh", args.fresh),
+            ("--rerun-failed", args.rerun_failed),
+            ("--rank-timeout", args.rank_timeout is not None),
+        ):
+            if given:
+                raise CliError(f"{flag} does nothing with --list, which only reads the cache; drop {flag} or --list.")
+    if args.fresh and args.rerun_failed:
+        raise CliError("--rerun-failed does nothing beside --fresh, which runs every cell again; keep one of them.")
+
+
 def cmd_sweep(args: argparse.Namespace) -> int:
     """sweep: run (or --list) a spec's cells on this rank; rank 0 prints the summary and the table. Bad input
-    raises the package's errors (one line from the CLI); a bare ValueError here is a bug, not bad input, so it is
-    re-raised as a RuntimeError and keeps its traceback instead of reading as a user error that names no file."""
-    from ..errors import FractureGSError
-
-    try:
-        return _cmd_sweep(args)
-    except ValueError as exc:
-        if isinstance(exc, FractureGSError):
-            raise
-        raise RuntimeError(f"sweep: unexpected {type(exc).__name__}: {exc} (a bug; please report it)") from exc
-
-
-def _cmd_sweep(args: argparse.Namespace) -> int:
+    raises the package's errors (one line from the CLI)."""
+    _refuse_ignored(args)
     from ..io.outputs import output_dir
     from ..sweep import expand, find_spec, load_spec
     from ..sweep.distributed import RankFailure, launch_from_env, resolve_device
@@ -198,7 +203,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         device=args.device,
         fresh=args.fresh,
         rerun_failed=args.rerun_failed,
-        rank_timeout_s=args.rank_timeout,
+        rank_timeout_s=300.0 if args.rank_timeout is None else args.rank_timeout,
         command="fracture-gs " + " ".join(argv),
         max_cells=args.max_cells,
     )
