@@ -199,7 +199,13 @@ def test_method_slice_and_figure(tmp_path, storage):
     assert np.abs(d["impulse"][d["category"] < 4]).max() == 0
     assert set(np.unique(d["fragment"]).tolist()) == {0, 1} and len(d["px"]) == len(d["fragment"])
     method_figure(d, tmp_path / "method.png", dpi=50)
-    assert cv2.imread(str(tmp_path / "method.png")).shape == (230, 400, 3)  # figsize (8, 4.6) × 50 dpi
+    img = cv2.imread(str(tmp_path / "method.png"))
+    assert img.shape == (230, 400, 3)  # figsize (8, 4.6) × 50 dpi
+    ink = (img < 200).any(-1).mean()
+    assert 0.02 < ink < 0.8, f"{ink:.3f} of the method figure is drawn: blank or filled"
+    d2 = dict(d, impulse=-np.asarray(d["impulse"]))  # the arrows are the data: reversing the impulse redraws them
+    method_figure(d2, tmp_path / "method2.png", dpi=50)
+    assert np.any(cv2.imread(str(tmp_path / "method2.png")) != img), "the impulse arrows are not drawn from the data"
     assert method_slice(two_blocks("stress_zero")) is None  # a single-field variant has no field sets
     json.dumps({k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in d.items()})  # cacheable
 
@@ -250,7 +256,12 @@ def test_accuracy_helpers(tmp_path):
     rows = list(csv.DictReader(io.StringIO((tmp_path / "accuracy.csv").read_text())))
     assert [x["pareto"] for x in rows] == ["yes", "yes"] and rows[0]["dx"] == "1/16"
     accuracy.pareto_figure(r, tmp_path / "p.png", dpi=50)
-    assert cv2.imread(str(tmp_path / "p.png")).shape[:2] == (190, 215)  # figsize (4.3 per case, 3.8) × dpi
+    img = cv2.imread(str(tmp_path / "p.png"))
+    assert img.shape[:2] == (190, 215)  # figsize (4.3 per case, 3.8) × dpi
+    assert 0.01 < (img < 200).any(-1).mean() < 0.6, "the Pareto figure is blank or filled"
+    r[1] = accuracy.Result("bar", "dt", 1 / 32, 5e-4, 0.2, 512, 161, 0.1, 0.05, "rel. period error", {}, "y")
+    accuracy.pareto_figure(r, tmp_path / "p2.png", dpi=50)
+    assert np.any(cv2.imread(str(tmp_path / "p2.png")) != img), "a point's error does not move it in the figure"
 
 
 def test_accuracy_cases_against_known_answers():
