@@ -101,8 +101,8 @@ def test_deform_covariances_is_F_cov_Ft_and_spd():
     Fy = (F @ y[..., None])[..., 0]
     q_def = (Fy * torch.linalg.solve(cov, Fy)).sum(1)
     q_rest = (y * torch.linalg.solve(cov0, y)).sum(1)
-    assert_close(q_def, q_rest, rtol=1e-8, atol=0, msg=msg)
-    assert_close(torch.linalg.det(cov), torch.linalg.det(F) ** 2 * torch.linalg.det(cov0), rtol=1e-8, atol=0, msg=msg)
+    assert_close(q_def, q_rest, rtol=1e-6, atol=0, msg=msg)  # a wrong formula is off by O(1); near-singular F
+    assert_close(torch.linalg.det(cov), torch.linalg.det(F) ** 2 * torch.linalg.det(cov0), rtol=1e-6, atol=0, msg=msg)
     assert_close(cov, cov.transpose(1, 2), rtol=0, atol=0, msg=lambda m: f"seed {seed}: not symmetric {m}")
     assert (torch.linalg.eigvalsh(cov) > 0).all(), f"seed {seed}: not SPD"
     # float32 keeps SPD while cond(F Σ⁰ Fᵀ) stays well under 1/ε₃₂ ≈ 1.7e7 (cond Σ⁰ ≤ 100 here, so cond F ≤ 100)
