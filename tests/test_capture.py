@@ -144,6 +144,7 @@ def _run_full(cfg):
     return cap, sim, rows
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("load", ["pull", "drop", "impact"])
 def test_every_load_latches_and_opens(tmp_path, load):
     """Each load breaks the object: the stress event latches, and with FractureFields the pieces open
@@ -196,6 +197,7 @@ def cli(*args, cwd=None):
     )
 
 
+@pytest.mark.slow
 def test_one_command_and_init(tmp_path):
     ply, _ = write_trainer_ply(tmp_path / "model", n=3000)
     res = cli(
@@ -250,6 +252,7 @@ def _nan_means(src, dst, rows) -> None:
     data.write(str(dst))
 
 
+@pytest.mark.slow
 def test_bad_scenes_get_one_sentence(tmp_path):
     ply, _ = write_trainer_ply(tmp_path / "m", n=2000)
     gs = load_ply(ply)
@@ -296,6 +299,7 @@ def test_scene_error_names_the_file(tmp_path):
     assert SCENE_OFFSET[0] > 10 and write_cameras  # the scene is far from the origin (COLMAP-like)
 
 
+@pytest.mark.slow
 def test_ground_under_a_capture_stays_static(tmp_path):
     """The test object standing on a wide flat layer of Gaussians (a pavement 4× its size): the layer is found as
     ground and kept as static background, the object alone is fitted to capture.size (the pavement does not

@@ -45,6 +45,7 @@ def assert_one_line_error(code: int, err: str) -> None:
 # ---------------------------------------------------------------- subprocess (the real entry point)
 
 
+@pytest.mark.slow
 def test_subprocess_validate_info_and_error(tmp_path):
     bad = tmp_path / "bad.toml"
     bad.write_text("[sim]\ngravty = [0, 0, -9.8]\n")

@@ -136,6 +136,7 @@ def test_teaser_and_multiscene_png(tmp_path):
     assert (tmp_path / "grid.png").stat().st_size < 1 << 20
 
 
+@pytest.mark.slow
 def test_curves_png(tmp_path):
     t = np.linspace(0.1, 0.9, 20)
     series = {
@@ -264,6 +265,7 @@ def test_accuracy_helpers(tmp_path):
     assert np.any(cv2.imread(str(tmp_path / "p2.png")) != img), "a point's error does not move it in the figure"
 
 
+@pytest.mark.slow
 def test_accuracy_cases_against_known_answers():
     """The bar's first period against 2L/c within 3 % at Δx = 1/16 (0.5 % at 1/32); the spinning
     cube's energy within 0.2 % over a revolution with its angular momentum kept; no
@@ -301,6 +303,7 @@ def test_partial_rerun_keeps_the_figures_an_earlier_call_made(tmp_path):
     assert merged_figures(tmp_path / "nowhere", now) == now  # no earlier summary: this call's only
 
 
+@pytest.mark.slow
 def test_fragment_rows_press_the_shattered_ficus_with_momentum_conserved():
     """The figures' K table (`paper.fragments`): per K the timing of both branches, and the pieces pressed into
     each other: contact fires on more nodes for more pieces, the projection conserves momentum (relative

@@ -122,6 +122,7 @@ class Recorder:
         return {"ok": True}
 
 
+@pytest.mark.slow
 @pytest.mark.usefixtures("one_thread")
 def test_fuzz_cli(tmp_path, monkeypatch, capsys):
     import fracture_gs.paper.bench as bench

@@ -301,6 +301,7 @@ def test_api_errors_share_one_base_class():
         assert isinstance(err.value, FractureGSError) and isinstance(err.value, ValueError)
 
 
+@pytest.mark.slow
 def test_a_run_leaves_no_tensors_in_reference_cycles(tmp_path):
     """Memory comes back when a run ends, without waiting for Python's cycle collector (which a GPU out
     of memory never triggers): after render-sim, nothing the run allocated sits in a reference cycle
