@@ -174,6 +174,32 @@ def test_a_path_without_its_toml_suffix_finds_the_file(tmp_path):
     assert load_config(tmp_path / "mine").variants == ["baseline"]
 
 
+def test_file_encoding_and_folder_errors(tmp_path):
+    """A UTF-8 byte-order mark is not part of the TOML; a file that is not UTF-8 names the bad byte; a folder
+    given as the config says so; an empty name is refused."""
+    (tmp_path / "bom.toml").write_bytes(b'\xef\xbb\xbfvariants = ["baseline"]\n')
+    assert load_config(tmp_path / "bom.toml").variants == ["baseline"]
+    (tmp_path / "latin.toml").write_bytes(b'name = "caf\xe9"\n')
+    with pytest.raises(ConfigError, match="byte 0xe9 at offset 11"):
+        load_config(tmp_path / "latin.toml")
+    with pytest.raises(ConfigError, match="is a folder"):
+        find_config(tmp_path)
+    with pytest.raises(ConfigError, match="empty"):
+        find_config("  ")
+
+
+def test_a_trainer_ply_is_named_after_its_model_folder(tmp_path):
+    """A bare splat file is the built-in capture config with that scene; the reference trainer's
+    model/point_cloud/iteration_N/point_cloud.ply is named after `model`, another file after its stem."""
+    from fracture_gs.io.config.files import ply_config
+
+    ply = tmp_path / "my garden" / "point_cloud" / "iteration_7000" / "point_cloud.ply"
+    cfg = ply_config(ply)
+    assert cfg.name == "my_garden" and cfg.scene == str(ply.resolve())
+    assert cfg.capture == load_config("capture").capture
+    assert ply_config(tmp_path / "statue.compressed.ply").name == "statue"
+
+
 def test_extends_deep_merges_tables_and_replaces_arrays(tmp_path):
     """A file that extends another keeps the base's keys it does not set (tables merge key by key) and
     replaces arrays whole; a file without `extends` stands alone."""
@@ -198,6 +224,16 @@ def test_extends_cycle_is_one_sentence(tmp_path):
 
 # ---------------------------------------------------------------------------------------------
 # building: types, tables, normals
+
+
+def test_unknown_keys_get_the_closest_name_or_the_valid_list():
+    """An unknown key close to a valid one gets that one name as the fix; one far from every key gets the list
+    of valid keys of its table."""
+    err = _error(_with(sim__dxx=0.1))
+    assert err.field == "sim.dxx" and "did you mean 'dx'?" in str(err)
+    err = _error(_with(render__zzzzqq=1))
+    assert "valid keys in [render] are width, height" in str(err)
+    assert "did you mean 'frames'?" in str(_error(_with(framse=3)))
 
 
 def test_a_section_given_as_a_scalar_is_a_table_error():

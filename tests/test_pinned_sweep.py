@@ -22,7 +22,7 @@ from fracture_gs.sweep import distributed as D
 from fracture_gs.sweep.cells import Outcome
 from fracture_gs.sweep.expansion import Cell, accuracy_cost, scene_cost
 from fracture_gs.sweep.report import accuracy_results, csv_text, write_outputs
-from fracture_gs.sweep.spec import SceneBlock
+from fracture_gs.sweep.spec import SceneBlock, load_spec
 
 
 def cell(i=0, kind="scene", params=None, **info) -> Cell:
@@ -86,14 +86,17 @@ def test_numpy_and_torch_values_are_written_as_plain_json(tmp_path):
 def test_cache_rows_are_reused_only_for_the_same_cell_and_device_type(tmp_path):
     """A cached row is reused for the cell with the same id and parameters, by a run on the same device type
     (cuda:1 counts as cuda; a row without a device as cpu); a file whose parameters differ, or that is not a
-    JSON object, is ignored."""
+    JSON object, or whose row is not a table, is ignored."""
     a, b, c, d = cell(0), cell(1), cell(2), cell(3)
     cache.store(tmp_path, a, {"status": "ok", "device": "cuda:1"})
     cache.store(tmp_path, b, {"status": "ok"})
     cache.store(tmp_path, cell(2, params={"kind": "scene", "i": 99}), {"status": "ok"})  # same id, other params
     cache.cache_path(tmp_path, d.id).write_text("[1, 2]")
+    e = cell(4)
+    cache.write_json_atomic(cache.cache_path(tmp_path, e.id), {"id": e.id, "params": e.params, "row": [1, 2]})
     assert cache.load(tmp_path, a) == {"status": "ok", "device": "cuda:1"}
-    assert cache.load(tmp_path, c) is None and cache.load(tmp_path, d) is None
+    assert cache.load(tmp_path, c) is None and cache.load(tmp_path, d) is None and cache.load(tmp_path, e) is None
+    assert cache.scan(tmp_path, [e], "cpu") == {}
     assert set(cache.scan(tmp_path, [a, b, c, d], "cuda")) == {a.id}
     assert set(cache.scan(tmp_path, [a, b, c, d], "cpu")) == {b.id}
     assert cache.scan(tmp_path / "nowhere", [a], "cpu") == {}
@@ -124,6 +127,18 @@ def test_adaptive_scene_costs_what_its_cfl_step_costs():
     assert scene_cost(scene(adaptive=False, E=4 * stiff)) == scene_cost(scene(adaptive=False, E=stiff))
 
 
+def test_particles_double_a_substeps_cost_at_the_unit():
+    """A substep's estimated time grows linearly with the particle count and doubles at PARTICLES_PER_UNIT_COST
+    (200k) particles: launch-bound below, bandwidth-bound beyond."""
+    from fracture_gs.sweep.expansion import PARTICLES_PER_UNIT_COST, SECONDS_PER_FRAME
+
+    assert PARTICLES_PER_UNIT_COST == 2e5
+    frame_part = 10 * SECONDS_PER_FRAME  # scene(): 10 frames
+    one, unit, two = (scene_cost(scene(particles=n)) - frame_part for n in (1, 200_001, 400_001))
+    assert unit == pytest.approx(2 * one, rel=1e-4)
+    assert two - unit == pytest.approx(unit - one, rel=1e-9)
+
+
 def test_scene_cost_is_positive_and_grows_with_the_work():
     """A scene cell's estimate is positive and grows with its frames, its substeps (shorter dt) and its
     particles; even a one-substep-per-frame cell costs something per frame."""
@@ -134,6 +149,7 @@ def test_scene_cost_is_positive_and_grows_with_the_work():
     assert scene_cost(scene(particles=100_000)) > base
     one = scene(dt=0.01)
     assert scene_cost(one) > 0 and scene_cost(scene(dt=0.01, frames=20)) > scene_cost(one)
+    assert scene_cost(scene(dt=0.01 / 1.5)) > scene_cost(one)  # 1.5 substeps a frame cost more than 1
 
 
 @pytest.mark.parametrize("case", ["bar", "spin", "recontact"])
@@ -163,6 +179,40 @@ def test_a_scene_block_renders_nothing_unless_asked():
     block = SceneBlock(configs=("bread",))
     assert block.render is False
     assert (block.cells, block.steps, block.seeds, block.variants) == ((None,), (None,), (0,), ())
+
+
+def test_scene_spec_scalars_are_read_as_given(tmp_path):
+    """A [[scene]] table's scalar frames, particles and preset are the block's values; render defaults to off."""
+    path = tmp_path / "s.toml"
+    path.write_text('[[scene]]\nconfig = "bread"\nframes = 7\nparticles = 500\npreset = "paper"\n')
+    block = load_spec(path).scenes[0]
+    assert (block.frames, block.particles, block.preset, block.render) == (7, 500, "paper", False)
+
+
+def test_a_rendered_scene_cell_reports_its_one_variant(monkeypatch, tmp_path):
+    """A scene cell with render = true runs render-sim for its one variant and reports that variant's summary:
+    flat numbers as metrics (with the latch frame and time lifted out, particles and frames added), tables and
+    lists as extras, the variant's status as the cell's."""
+    import fracture_gs.runner as runner
+    from fracture_gs.io.config import config_from_dict, config_to_dict
+    from fracture_gs.sweep.cells import run_cell
+
+    calls = []
+
+    def fake_render_sim(cfg, variants, device, folder, progress=True):
+        calls.append((list(variants), device, folder))
+        latch = {"latch_frame": 4, "latch_time": 0.04}
+        variant = {"variant": variants[0], "status": "diverged at frame 9: x", "opening": 1.5, "latch": latch}
+        return {"particles": 321, "variants": [variant | {"fragments": [1, 2]}]}
+
+    monkeypatch.setattr(runner, "run_render_sim", fake_render_sim)
+    config = config_to_dict(config_from_dict({"variants": ["baseline"], "frames": 9}))
+    c = Cell(0, "abc", "scene", {"variant": "baseline", "seed": 0, "render": True}, {}, ("t",), config)
+    out = run_cell(c, "cpu", tmp_path)
+    assert calls == [(["baseline"], "cpu", tmp_path / "cells" / "abc")]
+    assert out.status == "diverged at frame 9: x"
+    assert out.metrics == {"opening": 1.5, "latch_frame": 4, "latch_time": 0.04, "particles": 321, "frames": 9}
+    assert out.extra == {"latch": {"latch_frame": 4, "latch_time": 0.04}, "fragments": [1, 2]}
 
 
 def test_run_one_times_the_cell_and_records_where_it_ran(monkeypatch):
@@ -251,8 +301,8 @@ def test_launch_environment_bounds():
     assert D.launch_from_env({}) == D.Launch()
     for env in (
         {"RANK": "0", "WORLD_SIZE": "0"},
-        {"RANK": "2", "WORLD_SIZE": "2"},
-        {"RANK": "-1", "WORLD_SIZE": "2"},
+        {"RANK": "2", "WORLD_SIZE": "2", "MASTER_ADDR": "h", "MASTER_PORT": "1"},
+        {"RANK": "-1", "WORLD_SIZE": "2", "MASTER_ADDR": "h", "MASTER_PORT": "1"},
         {"RANK": "0", "WORLD_SIZE": "1", "LOCAL_WORLD_SIZE": "2"},
         {"RANK": "0", "WORLD_SIZE": "2"},
     ):
@@ -386,7 +436,17 @@ def test_wait_on_a_dead_owner_is_a_rank_failure():
     """Waiting for a key whose owner is dead raises RankFailure naming that rank instead of waiting forever."""
     coord = coordinator(0, 2)
     coord.dead[1] = "sent no heartbeat"
-    with pytest.raises(D.RankFailure, match="rank 1 of 2 sent no heartbeat") as info:
-        coord.plan({}, lambda s: {})
-    assert info.value.rank == 1
+    raised = []
+
+    def plan():
+        try:
+            coord.plan({}, lambda s: {})
+        except D.RankFailure as exc:
+            raised.append(exc)
+
+    thread = threading.Thread(target=plan, daemon=True)  # a wait that never ends fails here, not hangs
+    thread.start()
+    thread.join(2.0)
+    assert len(raised) == 1, "the wait did not end"
+    assert raised[0].rank == 1 and "rank 1 of 2 sent no heartbeat" in str(raised[0])
     assert coord.store.check([coord._key("abort")])
