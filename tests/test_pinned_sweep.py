@@ -301,7 +301,14 @@ def test_launch_environment_bounds():
     assert D.launch_from_env({}) == D.Launch()
     for env in (
         {"RANK": "0", "WORLD_SIZE": "0"},
-        {"RANK": "2", "WORLD_SIZE": "2", "MASTER_ADDR": "h", "MASTER_PORT": "1"},
+        {
+            "RANK": "2",
+            "WORLD_SIZE": "2",
+            "LOCAL_RANK": "0",
+            "LOCAL_WORLD_SIZE": "1",
+            "MASTER_ADDR": "h",
+            "MASTER_PORT": "1",
+        },
         {"RANK": "-1", "WORLD_SIZE": "2", "MASTER_ADDR": "h", "MASTER_PORT": "1"},
         {"RANK": "0", "WORLD_SIZE": "1", "LOCAL_WORLD_SIZE": "2"},
         {"RANK": "0", "WORLD_SIZE": "2"},
