@@ -461,6 +461,7 @@ def test_thick_object_gets_the_fewest_cells_of_its_quality(monkeypatch, device, 
     )
 
 
+@pytest.mark.slow  # 0.5–3 s: the probe voxelizes the cube
 def test_a_measured_thick_cube_gets_the_gpu_default_floor():
     """Measured by the probe (no stand-in), a 0.1 m cube gets 48 cells across under the GPU's default quality:
     its thin parts (the whole cube) would need only 10."""
