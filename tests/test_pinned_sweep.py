@@ -189,6 +189,20 @@ def test_scene_spec_scalars_are_read_as_given(tmp_path):
     assert (block.frames, block.particles, block.preset, block.render) == (7, 500, "paper", False)
 
 
+@pytest.mark.parametrize(
+    "key, value", [("frames", "[10, 20]"), ("particles", "[100, 200]"), ("preset", '["small", "paper"]')]
+)
+def test_a_scene_scalar_given_as_a_list_is_refused_by_name(tmp_path, key, value):
+    """frames, particles and preset take one value per [[scene]] table: a list of two would silently keep only its
+    first, so it is refused naming scene[0].<key> and the fix (one table per value)."""
+    from fracture_gs.errors import ConfigError
+
+    path = tmp_path / "s.toml"
+    path.write_text(f'[[scene]]\nconfig = "bread"\n{key} = {value}\n')
+    with pytest.raises(ConfigError, match=rf"scene\[0\]\.{key}.*one \[\[scene\]\] table per value"):
+        load_spec(path)
+
+
 def test_a_rendered_scene_cell_reports_its_one_variant(monkeypatch, tmp_path):
     """A scene cell with render = true runs render-sim for its one variant and reports that variant's summary:
     flat numbers as metrics (with the latch frame and time lifted out, particles and frames added), tables and

@@ -363,6 +363,15 @@ def _scene_block(src: str, prefix: str, t: dict) -> SceneBlock:
                 f'{prefix}.set.{key} is a table; quote the dotted key: "{key}.field" = [...].',
             )
         overrides.append((key, tuple(_list(src, f"{prefix}.set.{key}", value))))
+    for key in ("frames", "particles", "preset"):  # one value per [[scene]] table: a list would keep only its first
+        value = t.get(key)
+        if isinstance(value, list) and len(value) != 1:
+            raise ConfigError(
+                src,
+                f"{prefix}.{key}",
+                f"{prefix}.{key} takes one value, not a list of {len(value)}; give one value, or one [[scene]] "
+                "table per value.",
+            )
     frames = t.get("frames")
     if frames is not None:
         frames = _ints(src, f"{prefix}.frames", frames, 1, 1_000_000, "e.g. frames = 10")[0]
