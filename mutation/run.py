@@ -92,8 +92,10 @@ def cmd_map(args) -> int:
     if args.merge and old_path.exists():  # keep what other test files recorded; replace only those re-run here
         rerun = tuple(f"{f}::" for f in files)
         for mod, by_line in json.loads(old_path.read_text()).items():
+            shift = _line_shift(mod)  # the modules may have changed since the map was made
             for line, tests in by_line.items():
-                cov_map[mod][line] = [t for t in tests if not t.startswith(rerun)]
+                if (now := shift.get(int(line))) is not None:
+                    cov_map[mod][str(now)] = [t for t in tests if not t.startswith(rerun)]
         old = json.loads((STATE / "durations.json").read_text()) if (STATE / "durations.json").exists() else {}
         seconds = {**{k: v for k, v in old.items() if not k.startswith(rerun)}, **seconds}
     (STATE / "durations.json").write_text(json.dumps(seconds))
@@ -108,8 +110,31 @@ def cmd_map(args) -> int:
                     if test and test not in broken:
                         cov_map[rel][str(line)].append(test)
     (STATE / "coverage_map.json").write_text(json.dumps(cov_map))
+    for mod in cov_map:  # the sources the line numbers refer to, for the next --merge
+        if (ROOT / mod).is_file():
+            (STATE / "mapped_src" / mod).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copyfile(ROOT / mod, STATE / "mapped_src" / mod)
     print(f"coverage map: {len(cov_map)} modules -> {STATE / 'coverage_map.json'}")
     return 1 if failed else 0
+
+
+def _line_shift(module: str) -> dict[int, int]:
+    """Old line -> current line of `module`, from the source the map was made on (`mapped_src`) to today's; lines
+    since deleted or rewritten have none. Without a saved source the map is taken as current."""
+    import difflib
+
+    old_path, now_path = STATE / "mapped_src" / module, ROOT / module
+    if not now_path.is_file():
+        return {}
+    now = now_path.read_text().splitlines()
+    if not old_path.is_file():
+        return {i: i for i in range(1, len(now) + 1)}
+    old = old_path.read_text().splitlines()
+    shift: dict[int, int] = {}
+    for tag, i1, i2, j1, _ in difflib.SequenceMatcher(a=old, b=now, autojunk=False).get_opcodes():
+        if tag == "equal":
+            shift.update({i1 + k + 1: j1 + k + 1 for k in range(i2 - i1)})
+    return shift
 
 
 def _failing_tests(shards: int) -> tuple[set[str], dict[str, float]]:
