@@ -65,7 +65,7 @@ def target_files(patterns: list[str]) -> list[str]:
 def cmd_map(args) -> int:
     """Run the suite under coverage with one context per test; keep {module: {line: [test ids]}}."""
     STATE.mkdir(exist_ok=True)
-    files = sorted(str(p.relative_to(ROOT)) for p in (ROOT / "tests").glob(args.tests))
+    files = sorted({str(p.relative_to(ROOT)) for g in args.tests.split(",") for p in (ROOT / "tests").glob(g)})
     shards = [files[i :: args.jobs] for i in range(args.jobs)]
     procs = []
     for i, shard in enumerate(shards):
@@ -346,7 +346,7 @@ def main(argv=None) -> int:
     sub = ap.add_subparsers(dest="cmd", required=True)
     m = sub.add_parser("map", help="record which test executes which line (coverage contexts)")
     m.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="parallel pytest shards")
-    m.add_argument("--tests", default="test_*.py", help="glob of test files under tests/")
+    m.add_argument("--tests", default="test_*.py", help="globs of test files under tests/, comma-separated")
     m.add_argument("--merge", action="store_true", help="add to the existing map instead of replacing it")
     m.add_argument("pytest_args", nargs="*", help="extra pytest arguments, e.g. -m 'not slow'")
     r = sub.add_parser("run", help="mutate the targets and run the tests that reach each mutant")
