@@ -417,7 +417,7 @@ def test_up_axis_from_cameras_and_config(tmp_path):
     (tmp_path / "cameras.json").write_text("[]")
     (tmp_path / "a" / "cameras.json").unlink()
     assert find_cameras_json(ply, None) == tmp_path / "cameras.json"
-    with pytest.raises(SceneError, match="no usable view"):
+    with pytest.raises(SceneError, match="non-empty list of views"):
         read_cameras(tmp_path / "cameras.json")
 
 

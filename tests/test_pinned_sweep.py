@@ -85,8 +85,10 @@ def test_numpy_and_torch_values_are_written_as_plain_json(tmp_path):
 
 def test_cache_rows_are_reused_only_for_the_same_cell_and_device_type(tmp_path):
     """A cached row is reused for the cell with the same id and parameters, by a run on the same device type
-    (cuda:1 counts as cuda; a row without a device as cpu); a file whose parameters differ, or that is not a
-    JSON object, or whose row is not a table, is ignored."""
+    (cuda:1 counts as cuda; a row without a device as cpu); a file whose parameters differ is ignored (the cell
+    runs again), and a file that is not a JSON object, or whose row is not a table, is refused naming the file."""
+    from fracture_gs.errors import OutputError
+
     a, b, c, d = cell(0), cell(1), cell(2), cell(3)
     cache.store(tmp_path, a, {"status": "ok", "device": "cuda:1"})
     cache.store(tmp_path, b, {"status": "ok"})
@@ -95,10 +97,12 @@ def test_cache_rows_are_reused_only_for_the_same_cell_and_device_type(tmp_path):
     e = cell(4)
     cache.write_json_atomic(cache.cache_path(tmp_path, e.id), {"id": e.id, "params": e.params, "row": [1, 2]})
     assert cache.load(tmp_path, a) == {"status": "ok", "device": "cuda:1"}
-    assert cache.load(tmp_path, c) is None and cache.load(tmp_path, d) is None and cache.load(tmp_path, e) is None
-    assert cache.scan(tmp_path, [e], "cpu") == {}
-    assert set(cache.scan(tmp_path, [a, b, c, d], "cuda")) == {a.id}
-    assert set(cache.scan(tmp_path, [a, b, c, d], "cpu")) == {b.id}
+    assert cache.load(tmp_path, c) is None
+    for damaged in (d, e):
+        with pytest.raises(OutputError, match=damaged.id):
+            cache.load(tmp_path, damaged)
+    assert set(cache.scan(tmp_path, [a, b, c], "cuda")) == {a.id}
+    assert set(cache.scan(tmp_path, [a, b, c], "cpu")) == {b.id}
     assert cache.scan(tmp_path / "nowhere", [a], "cpu") == {}
 
 
