@@ -268,14 +268,17 @@ def _equivalent(mutation, diff: str, equivalents: list[dict]) -> str | None:
     """The reason a surviving mutant changes no behaviour, when `equivalent.toml` gives one.
 
     An entry names the module, the operator and the exact source line the mutant rewrote (the `-`
-    line of its diff), so it follows the line when code above it moves, and a reason a reader can check.
+    line of its diff), so it follows the line when code above it moves, and a reason a reader can check;
+    an optional `mutant` (the `+` line) narrows it to one of several mutants of that operator on that line.
     """
     removed = [ln[1:].strip() for ln in diff.splitlines() if ln.startswith("-") and not ln.startswith("---")]
+    added = [ln[1:].strip() for ln in diff.splitlines() if ln.startswith("+") and not ln.startswith("+++")]
     for e in equivalents:
         if (
             e["module"] == str(mutation.module_path)
             and mutation.operator_name.endswith(e["operator"])
             and e["line"].strip() in removed
+            and ("mutant" not in e or e["mutant"].strip() in added)
         ):
             return e["reason"]
     return None
