@@ -66,3 +66,19 @@ def test_a_toy_session_kills_what_its_test_catches_and_keeps_the_equivalent(tmp_
     assert "3 to run" in out and "66.7%" in out
     survivors = json.loads((tmp_path / "mutation" / ".state" / "survivors.json").read_text())
     assert [s["operator"] for s in survivors] == ["core/ReplaceComparisonOperator_Gt_GtE"]
+
+
+def test_every_equivalent_mutant_names_a_line_that_exists_and_a_reason():
+    """equivalent.toml leaves survivors out of the score, so each entry must be checkable: it parses, names a module,
+    an operator and a reason, and its line is in that module today (a stale entry would excuse nothing, or the
+    wrong line)."""
+    import tomllib
+
+    root = MUTATION.parent
+    entries = tomllib.loads((MUTATION / "equivalent.toml").read_text())["mutant"]
+    assert entries
+    for e in entries:
+        assert {"module", "operator", "line", "reason"} <= set(e), e
+        source = [ln.strip() for ln in (root / e["module"]).read_text().splitlines()]
+        assert e["line"].strip() in source, f"{e['module']}: no line {e['line']!r}"
+        assert len(e["reason"]) > 20, e
