@@ -80,3 +80,61 @@ def fill_slots(grid, m, v, band=None):
     b = band.reshape(K, n).to(dev, torch.float32)
     grid.band.view(grid.capacity, grid.slots)[rows, :K] = b.T
     grid.n_fields = K
+
+
+def field_masses(sim):
+    """Mass of every node field [K, X, Y, Z] the solver's transfer deposits for the particles where they are now:
+    the per-fragment boxes' fields (boxed storage), else a fresh P2G of the current state into a scratch grid
+    routed as the solver routes (by fragment after a latch of a multi-field variant, all into one field
+    otherwise). Reads the code under test's deposits; `foreign_mass` judges them by hand."""
+    import warp as wp
+
+    from fracture_gs.sim.grid import Grid
+    from fracture_gs.sim.layout import N_COUNTS
+
+    if sim.boxed:
+        return sim.box_fields()[0].double().cpu()
+    g, multi = sim.grid, sim.multifield
+    scratch = Grid(g.origin, g.dx, g.shape, sim.device, slots=sim.cfg.field_slots if multi else 1, max_fragments=64)
+    scratch.n_fields = sim.n_fragments if multi else 1
+    if multi:
+        scratch.ensure_pool(g.n_nodes)
+    counts = torch.zeros(N_COUNTS, dtype=torch.int32, device=sim.device)
+    sim.p2g(sim.dt, target=scratch, multifield=multi, counts=wp.from_torch(counts))
+    return scratch.mass.double().cpu()
+
+
+def foreign_mass(sim, mass):
+    """Realized mixing checked by hand: each particle of fragment k reads its velocity from one node field at
+    each of its 27 stencil nodes (field k under a fragment-conditioned transfer, the one shared field otherwise).
+    From the particles' positions, masses and fragment ids alone this computes, with the quadratic B-spline
+    written out, the mass fragment k itself puts at every node, own[k, n] = Σ_{p ∈ k} m_p w_pn; then
+    foreign = Σ_k Σ_{n reached by k} (mass[field read by k, n] − own[k, n]): the mass other fragments deposited
+    into the fields fragment k reads; and shared = Σ_k Σ_{n reached by k} Σ_{j ≠ k} own[j, n], what they would
+    deposit into a field common to all. Returns (foreign, shared, total particle mass) in kg."""
+    import numpy as np
+
+    P, g = sim.particles, sim.grid
+    x = P.x.double().cpu().numpy()
+    m = P.mass.double().cpu().numpy()
+    frag = P.fragment.cpu().numpy().astype(np.int64)
+    K = int(frag.max()) + 1
+    shape = tuple(g.shape)
+    xi = (x - np.asarray(g.origin)) / g.dx
+    base = np.floor(xi - 0.5).astype(np.int64)
+    f = xi - base
+    w = np.stack([0.5 * (1.5 - f) ** 2, 0.75 - (f - 1.0) ** 2, 0.5 * (f - 0.5) ** 2], 1)  # [N, 3 (offset), 3 (axis)]
+    own = np.zeros((K, int(np.prod(shape))))
+    for a in range(3):
+        for b in range(3):
+            for c in range(3):
+                node = np.ravel_multi_index((base[:, 0] + a, base[:, 1] + b, base[:, 2] + c), shape)
+                np.add.at(own, (frag, node), m * w[:, a, 0] * w[:, b, 1] * w[:, c, 2])
+    fields = mass.numpy().reshape(mass.shape[0], -1)
+    foreign = shared = 0.0
+    for k in range(K):
+        reach = own[k] > 0
+        read = fields[k if fields.shape[0] > 1 else 0]
+        foreign += float((read[reach] - own[k][reach]).sum())
+        shared += float(np.delete(own, k, axis=0)[:, reach].sum())
+    return foreign, shared, float(m.sum())

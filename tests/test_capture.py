@@ -215,7 +215,8 @@ def test_one_command_and_init(tmp_path):
     assert res.returncode == 0, res.stderr[-3000:]
     assert "interior: filled" in res.stderr + res.stdout and (tmp_path / "run" / "comparison.mp4").exists()
     assert sorted(p.name for p in (tmp_path / "run" / "ply" / "full").iterdir()) == ["frame_0000.ply", "frame_0002.ply"]
-    assert load_config(tmp_path / "run" / "config.toml").capture.scale is not None
+    scale = load_config(tmp_path / "run" / "config.toml").capture.scale  # the automatic fit, recorded
+    assert scale is not None and math.isfinite(scale) and scale > 0, scale
     res = cli("init", str(ply), "--out", str(tmp_path / "mine.toml"), "--load", "drop")
     assert res.returncode == 0, res.stderr[-3000:]
     text = (tmp_path / "mine.toml").read_text()

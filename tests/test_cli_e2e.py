@@ -9,6 +9,7 @@ import subprocess
 import sys
 import time
 
+import cv2
 import numpy as np
 import pytest
 import torch
@@ -30,8 +31,16 @@ def cli(*args, timeout=600, **kw):
 @pytest.fixture(scope="module")
 def recontact_run(tmp_path_factory):
     out = tmp_path_factory.mktemp("rc")
-    res = cli("render-sim", "recontact", "--frames", "4", "--out", str(out), *TINY)
+    res = cli("render-sim", "recontact", "--frames", "4", "--out", str(out), "--export-ply", "4", *TINY)
     return res, out
+
+
+def video_frames(path) -> list:
+    """Every frame of a video as an [H, W, 3] uint8 array."""
+    import imageio.v2 as imageio
+
+    with imageio.get_reader(path) as reader:
+        return [np.asarray(f) for f in reader]
 
 
 def test_render_sim_writes_every_output(recontact_run):
@@ -52,7 +61,29 @@ def test_render_sim_writes_every_output(recontact_run):
     assert (n, h, w) == (5, 48, 64)
     n, h, w = read_video(out / "comparison.mp4")
     assert n == 5 and h % 2 == 0 and w % 2 == 0 and w > 2 * 64
-    assert len(list((out / "frames").glob("compare_*.png"))) == 5
+    pngs = sorted((out / "frames").glob("compare_*.png"))
+    assert len(pngs) == 5
+    # content: the comparison video's frames are the PNGs written beside it (to H.264's loss on small frames with text:
+    # under 8 levels on average, where a blank or black frame is off by ~100), and those
+    # PNGs are not blank
+    for frame, png in zip(video_frames(out / "comparison.mp4"), pngs):
+        img = cv2.imread(str(png))[..., ::-1]
+        assert frame.shape == img.shape and np.abs(frame.astype(int) - img).mean() < 8.0, png.name
+        assert img.std() > 10, f"{png.name} is blank"
+    # content: full.mp4's first frame shows the scene's surface Gaussians where the configured camera projects
+    # them and the background colour away from them (a shifted, mirrored or blank frame fails)
+    from imageutil import check_object_where_projected
+
+    from fracture_gs.pipeline import load_scene
+    from fracture_gs.render.camera import frame_camera
+
+    cfg = load_config(out / "config.toml")
+    gs = load_scene(cfg)
+    surface = ~gs.interior
+    sigma = gs.scales[surface].max(dim=1).values  # [M] largest axis of each drawn Gaussian
+    first = video_frames(out / "full.mp4")[0]
+    cam = frame_camera(cfg, 0)
+    check_object_where_projected(first, cam, gs.means[surface], sigma, cfg.render.background, near_frac=0.9, tol=24)
     rows = [json.loads(line) for line in (out / "metrics.jsonl").read_text().splitlines()]
     assert {r["variant"] for r in rows} == {"local_multifield", "full"} and len(rows) == 10
     assert all(r["mixing_realized"] == 0.0 for r in rows if r.get("latched"))
@@ -186,8 +217,12 @@ def test_bad_ply_is_one_sentence(tmp_path):
 
 
 def test_module_matches_cli(recontact_run):
-    """FractureSim on the same Gaussians reproduces the CLI's trajectories (CPU: exactly)."""
+    """FractureSim on the same Gaussians reproduces the CLI's trajectories (CPU: exactly): the final positions of
+    the Gaussians the CLI exported (`--export-ply 4`: every drawn Gaussian at frame 4) are the module's positions
+    of the same Gaussians (each exported mean has a module mean within 1e-6 m, distinct ones, covering every
+    surface Gaussian), and the per-frame momentum and kinetic energy agree."""
     import fracture_gs as fgs
+    from fracture_gs.io.ply import load_ply
     from fracture_gs.pipeline import load_scene
 
     res, out = recontact_run
@@ -198,9 +233,19 @@ def test_module_matches_cli(recontact_run):
     result = sim(
         gs.means, gs.opacities, gs.sh, quats=gs.quats, scales=gs.scales, interior=gs.interior, labels=gs.labels
     )
-    assert result["means"].shape == (cfg.frames + 1, len(gs), 3) and result["covars"].shape[-2:] == (3, 3)
+    assert result["means"].shape == (cfg.frames + 1, len(gs), 3)
+    final = result["means"][-1].double()  # [N, 3]
+    exported = load_ply(out / "ply" / "full" / "frame_0004.ply").means.double()
+    moved = (final - result["means"][0].double()).norm(dim=1).max()
+    assert moved > 1e-3, "the run moves the Gaussians by far more than the tolerance (frame 0 would not match)"
+    d, idx = torch.cdist(exported, final).min(dim=1)
+    assert float(d.max()) <= 1e-6, f"an exported Gaussian is {float(d.max()):.3g} m from every module position"
+    assert len(set(idx.tolist())) == len(exported), "two exported Gaussians matched one module Gaussian"
+    surface = set(torch.nonzero(~gs.interior.cpu()).flatten().tolist())
+    assert surface <= set(idx.tolist()), "a surface Gaussian is missing from the export"
     cli_rows = [json.loads(line) for line in (out / "metrics.jsonl").read_text().splitlines()]
     cli_rows = [r for r in cli_rows if r["variant"] == "full"]
+    assert len(cli_rows) == len(result["metrics"]) == cfg.frames + 1
     for ours, theirs in zip(result["metrics"], cli_rows):
         assert ours["frame"] == theirs["frame"]
         np.testing.assert_allclose(ours["momentum"], theirs["momentum"], rtol=0, atol=1e-12)

@@ -67,6 +67,24 @@ def test_side_by_side_and_grid_sizes():
     plain = grid([[a, b, c], [c, b, a]])
     assert plain.shape == (even(2 * 64 + 4), even(3 * 50 + 2 * 4), 3)
     assert g.shape[0] > plain.shape[0] and g.shape[1] > plain.shape[1]
+    # content: cell (r, k) holds its image at its top-left corner (cells 64 × 50, gap 4), white padding beside it
+    for r, row in enumerate([[a, b, c], [c, b, a]]):
+        for k, img in enumerate(row):
+            y0, x0 = r * 68, k * 54
+            np.testing.assert_array_equal(plain[y0 : y0 + img.shape[0], x0 : x0 + img.shape[1]], img, f"seed {seed}")
+    assert (plain[60:64, 54:104] == 255).all(), "b's cell is padded below it"
+    # with labels the same images sit below the label bar and right of the label column, in the same arrangement
+    spots = {}
+    for name, img in (("a", a), ("b", b), ("c", c)):
+        res = cv2.matchTemplate(g, img, cv2.TM_SQDIFF)  # float sums: near-zero where the image sits, confirmed exactly
+        near = np.argwhere(res < 1e-4 * float((img.astype(np.float64) ** 2).sum()))
+        h, w = img.shape[:2]
+        hits = [(y, x) for y, x in near if np.array_equal(g[y : y + h, x : x + w], img)]
+        assert len(hits) == 2, f"{name} appears {len(hits)} times, not twice (seed {seed})"
+        spots[name] = sorted(map(tuple, hits))
+    (ya0, xa0), (ya1, xa1) = spots["a"]  # a: row 0 column 0, row 1 column 2
+    assert ya1 - ya0 == 68 and xa1 - xa0 == 2 * 54 and ya0 > 0 and xa0 > 0
+    assert spots["b"] == [(ya0, xa0 + 54), (ya1, xa0 + 54)]
     # float images in [0, 1] are accepted
     assert side_by_side([a / 255.0, torch.from_numpy(b / 255.0)]).dtype == np.uint8
 
@@ -136,6 +154,25 @@ def test_video_roundtrip_odd_size_padded(tmp_path):
         for k in range(5):
             vw.write(np.full((20, 30, 3), k / 5.0))  # float frames
     assert read_video(tmp_path / "f.mp4") == (5, 20, 30)
+    # content: flat float frames come back as their grey level k/5 · 255 (within H.264's rounding), in order
+    import imageio.v2 as imageio
+
+    with imageio.get_reader(tmp_path / "f.mp4") as reader:
+        levels = [float(np.asarray(f).mean()) for f in reader]
+    assert levels == pytest.approx([round(k / 5 * 255) for k in range(5)], abs=3), levels
+    # a moving square: each decoded frame has it where it was drawn (its brightest block), on black
+    moving = []
+    for k in range(4):
+        f = np.zeros((48, 64, 3), np.uint8)
+        f[10:26, 8 + 10 * k : 24 + 10 * k] = 255
+        moving.append(f)
+    write_video(tmp_path / "m.mp4", moving, fps=10)
+    with imageio.get_reader(tmp_path / "m.mp4") as reader:
+        for k, f in enumerate(reader):
+            grey = np.asarray(f).mean(-1)
+            ys, xs = np.nonzero(grey > 128)
+            assert abs(xs.mean() - (15.5 + 10 * k)) < 1 and abs(ys.mean() - 17.5) < 1, (k, seed)
+            assert grey[30:, :].max() < 40, "the background stays black"
     with pytest.raises(ValueError, match="same size"):
         with VideoWriter(tmp_path / "bad.mp4") as vw:
             vw.write(np.zeros((20, 30, 3), np.uint8))

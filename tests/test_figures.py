@@ -105,7 +105,7 @@ def panel(h, w, value):
 
 def test_teaser_and_multiscene_png(tmp_path):
     frames = [3, 6, 9]
-    panels = {v: {f: panel(48, 64, 40 * i + f) for f in frames} for i, v in enumerate(("baseline", "full"))}
+    panels = {v: {f: panel(48, 64, 40 * i + 10 * f) for f in frames} for i, v in enumerate(("baseline", "full"))}
     regions = {3: (32.0, 24.0, 6.0), 6: (32.0, 24.0, 6.0), 9: None}
     img = teaser_figure(panels, frames, 0.04, tmp_path / "teaser.png", regions)
     png = cv2.imread(str(tmp_path / "teaser.png"))
@@ -113,7 +113,18 @@ def test_teaser_and_multiscene_png(tmp_path):
     bar = 16  # compose's label bar for 64-px-wide cells
     assert png.shape[0] == bar + 4 + 2 * 48 + 4  # column labels, two rows of panels
     assert png.shape[1] >= 3 * 64 + 2 * 4
-    assert not np.array_equal(img, teaser_figure(panels, frames, 0.04, tmp_path / "plain.png"))  # insets drawn
+    np.testing.assert_array_equal(png[..., ::-1], img)  # the PNG holds the composed figure
+    # content: the frame-9 panels (no interface region, so no inset) appear whole, baseline above full in the
+    # last column; the panels of frames 3 and 6 carry insets, drawn over them
+    where = {}
+    for v in ("baseline", "full"):
+        res = cv2.matchTemplate(img, panels[v][9], cv2.TM_SQDIFF)
+        where[v] = np.unravel_index(np.argmin(res), res.shape)
+        assert res[where[v]] == 0, f"{v}'s frame 9 is not in the figure"
+    assert where["baseline"][0] < where["full"][0] and where["baseline"][1] == where["full"][1]
+    assert where["baseline"][1] + 64 >= img.shape[1] - 4, "frame 9 is the last column"
+    plain = teaser_figure(panels, frames, 0.04, tmp_path / "plain.png")
+    assert np.any(img != plain), "the insets of frames 3 and 6 are drawn"
 
     scenes = {
         "ficus": {v: panel(60, 48, 90) for v in ("baseline", "stress_zero", "full")},
@@ -141,7 +152,15 @@ def test_curves_png(tmp_path):
         for s in ("ficus", "bread")
     }
     curves_figure(series, tmp_path / "curves.png", dpi=50)
-    assert cv2.imread(str(tmp_path / "curves.png")).shape == (2 * 140, 450, 3)  # figsize (9, 2.8·rows) × dpi
+    img = cv2.imread(str(tmp_path / "curves.png"))
+    assert img.shape == (2 * 140, 450, 3)  # figsize (9, 2.8·rows) × dpi
+    ink = (img < 200).any(-1).mean()
+    assert 0.01 < ink < 0.6, f"{ink:.3f} of the figure is drawn: blank or filled"
+    # the curves are the data: the same figure with full's opening doubled differs, and only in the opening panels
+    series["ficus"]["full"]["opening"] = 2 * series["ficus"]["full"]["opening"]
+    curves_figure(series, tmp_path / "curves2.png", dpi=50)
+    diff = np.any(cv2.imread(str(tmp_path / "curves2.png")) != img, axis=-1)
+    assert diff.any(), "changing a series does not change the figure"
 
 
 def two_blocks(variant="full", storage="auto"):

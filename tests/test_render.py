@@ -13,6 +13,7 @@ import time
 import numpy as np
 import pytest
 import torch
+from imageutil import check_object_where_projected
 from torch.testing import assert_close
 
 from fracture_gs.config import CameraConfig
@@ -68,18 +69,45 @@ def random_scene(n, g, spread=0.4, scale=0.05, sh_degree=0, dtype=torch.float32)
 
 
 def test_deform_covariances_is_F_cov_Ft_and_spd():
+    """The deformed Gaussian is the image of the rest ellipsoid under x ↦ F x, checked against closed forms
+    computed here: a scale-only F = diag(k) scales the axes of an axis-aligned Σ⁰ = diag(s²) to diag((k s)²); a
+    rotation Q turns it into the ellipsoid whose axes are Q's columns with the same lengths (Σ q_i = s_i² q_i);
+    a simple shear of a sphere σ² I gives σ² [[1 + γ², γ, 0], [γ, 1, 0], [0, 0, 1]]. For random F the level
+    sets map: (F y)ᵀ Σ⁻¹ (F y) = yᵀ Σ⁰⁻¹ y for any y, and det Σ = det² F · det Σ⁰; the result is symmetric and
+    SPD (also in float32 while cond F ≤ 100)."""
     seed, g = fresh_seed()
+    msg = lambda m: f"seed {seed}: {m}"  # noqa: E731
+    d = torch.float64
+    s = torch.tensor([0.01, 0.03, 0.002], dtype=d)
+    k = torch.tensor([2.0, 0.5, 3.0], dtype=d)
+    scaled = deform_covariances(torch.diag(k)[None], torch.diag(s**2)[None])[0]
+    assert_close(scaled, torch.diag(torch.tensor([0.02, 0.015, 0.006], dtype=d) ** 2), msg=msg)
+    Q = random_rotations(1, g)[0]
+    turned = deform_covariances(Q[None], torch.diag(s**2)[None])[0]
+    for i in range(3):
+        assert_close(turned @ Q[:, i], s[i] ** 2 * Q[:, i], rtol=0, atol=1e-15, msg=msg)
+    gamma, sigma2 = 0.7, 0.04**2
+    shear = torch.tensor([[1.0, gamma, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]], dtype=d)
+    sheared = deform_covariances(shear[None], sigma2 * torch.eye(3, dtype=d)[None])[0]
+    expect = sigma2 * torch.tensor([[1 + gamma**2, gamma, 0.0], [gamma, 1.0, 0.0], [0.0, 0.0, 1.0]], dtype=d)
+    assert_close(sheared, expect, msg=msg)
+
     n = 500
-    F = torch.randn(n, 3, 3, generator=g, dtype=torch.float64) + 2 * torch.eye(3, dtype=torch.float64)
+    F = torch.randn(n, 3, 3, generator=g, dtype=d) + 2 * torch.eye(3, dtype=d)
     F[torch.linalg.det(F) < 0, :, 0] *= -1  # det F > 0 (physical)
     cov0 = random_spd(n, g, 1e-4, 1e-2)
     cov = deform_covariances(F, cov0)
-    assert_close(cov, F @ cov0 @ F.transpose(1, 2), msg=lambda m: f"seed {seed}: {m}")
+    y = torch.randn(n, 3, generator=g, dtype=d)
+    Fy = (F @ y[..., None])[..., 0]
+    q_def = (Fy * torch.linalg.solve(cov, Fy)).sum(1)
+    q_rest = (y * torch.linalg.solve(cov0, y)).sum(1)
+    assert_close(q_def, q_rest, rtol=1e-8, atol=0, msg=msg)
+    assert_close(torch.linalg.det(cov), torch.linalg.det(F) ** 2 * torch.linalg.det(cov0), rtol=1e-8, atol=0, msg=msg)
     assert_close(cov, cov.transpose(1, 2), rtol=0, atol=0, msg=lambda m: f"seed {seed}: not symmetric {m}")
     assert (torch.linalg.eigvalsh(cov) > 0).all(), f"seed {seed}: not SPD"
     # float32 keeps SPD while cond(F Σ⁰ Fᵀ) stays well under 1/ε₃₂ ≈ 1.7e7 (cond Σ⁰ ≤ 100 here, so cond F ≤ 100)
-    s = torch.linalg.svdvals(F)
-    ok = s[:, 0] / s[:, 2] < 100
+    sv = torch.linalg.svdvals(F)
+    ok = sv[:, 0] / sv[:, 2] < 100
     cov32 = deform_covariances(F[ok].float(), cov0[ok].float())
     assert (torch.linalg.eigvalsh(cov32.double()) > 0).all(), f"seed {seed}: float32 result not SPD"
 
@@ -349,8 +377,11 @@ def test_backend_choice_by_device_never_imports_gsplat_on_cpu():
     assert r.returncode == 0, r.stderr
 
 
-def test_print_cpu_speed_20k_256():
-    """Not a timed assertion: prints the torch backend's CPU time for 20k Gaussians at 256²."""
+@pytest.mark.slow
+def test_cpu_render_20k_256_draws_the_shell_where_it_projects():
+    """20k Gaussians on an ellipsoidal shell at 256² with the torch backend: the pixels the means project into
+    are covered, every pixel outside every Gaussian's 3σ footprint is exactly the background colour, and the
+    shell's front hides its far side (alpha ≈ 1 at the image centre). Prints the CPU time per frame."""
     seed, g = fresh_seed()
     n = 20000
     means = (
@@ -363,14 +394,11 @@ def test_print_cpu_speed_20k_256():
     M = Q * (0.012 * torch.exp(0.5 * torch.randn(n, 3, generator=g)))[:, None, :]
     cov, opac, cols = M @ M.transpose(1, 2), 0.3 + 0.7 * torch.rand(n, generator=g), torch.rand(n, 3, generator=g)
     cam = look_at((0, -2.2, 0.6), (0, 0, 0), (0, 0, 1), 40, 256, 256)
-    render(means, cov, cols, opac, cam)  # warm-up
-    times = []
-    for _ in range(2):
-        t0 = time.perf_counter()
-        out = render(means, cov, cols, opac, cam)
-        times.append(time.perf_counter() - t0)
-    print(
-        f"\n[speed] torch backend, {n} Gaussians, 256x256, {torch.get_num_threads()} threads: "
-        f"best {min(times):.3f} s/frame (seed {seed}, coverage {out.alpha.mean():.2f}; "
-        f"load average {os.getloadavg()[0]:.1f})"
-    )
+    bg = (0.1, 0.2, 0.9)
+    t0 = time.perf_counter()
+    out = render(means, cov, cols, opac, cam, bg)
+    seconds = time.perf_counter() - t0
+    sigma = torch.linalg.eigvalsh(cov.double())[:, -1].sqrt()  # [N] largest axis
+    check_object_where_projected(out.image.numpy(), cam, means, sigma, bg, near_frac=0.99)
+    assert float(out.alpha[128, 128]) > 0.99, f"seed {seed}: the shell's centre is not opaque"
+    print(f"\n[speed] torch backend, {n} Gaussians, 256x256, {torch.get_num_threads()} threads: {seconds:.3f} s/frame")

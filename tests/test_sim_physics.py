@@ -226,15 +226,22 @@ def test_drucker_prager_returns_onto_cone(device, seed):
 
 
 def test_domain_walls_clamp_and_count(device):
-    """A block thrown at the grid edge stays inside; nothing crashes."""
+    """A block thrown at the grid edge at 30 m/s stays inside the clamp bound (node n − wall_cells) and G2P
+    counts the particles it clamped there (at least the block's front layer, 6 × 6 particles, once), while
+    the same block at rest in the middle for the same frames is never clamped (count exactly 0)."""
     x, vol = block((0.4, 0.4, 0.4), (0.5, 0.5, 0.5), 1 / 64)
     v = torch.tensor([30.0, 0.0, 0.0]).expand_as(x)
     sim = S.Simulator(config(32, dt=2e-4), particles(x, vol, E=1e3, v=v), device=device)
+    still = S.Simulator(config(32, dt=2e-4), particles(x, vol, E=1e3), device=device)
     for _ in range(5):
         sim.advance(0.01)
+        still.advance(0.01)
     hi = sim.grid.origin[0] + (sim.grid.shape[0] - sim.cfg.wall_cells) * sim.grid.dx
     assert float(sim.particles.x[:, 0].max()) <= hi + 1e-6
-    assert sim.clamped_count() >= 0
+    at_wall = int((sim.particles.x[:, 0] >= hi - 1e-6).sum())
+    assert at_wall >= 36, "the front layer was pushed onto the bound"
+    assert sim.clamped_count() >= at_wall
+    assert still.clamped_count() == 0
 
 
 def test_timed_particle_regions(device):

@@ -7,7 +7,16 @@ from __future__ import annotations
 
 import torch
 
-from .constitutive import SIGMA_MIN, lame
+# Written here from the formulas, not imported from the kernels' module: a wrong constant or Lamé parameter in
+# the code under test must show up as a kernel-vs-reference difference.
+SIGMA_MIN = 1e-4  # smallest principal stretch whose log is taken (Hencky strain of an inverted element stays finite)
+
+
+def lame(E, nu):
+    """Lamé parameters μ = E / (2(1 + ν)), λ = E ν / ((1 + ν)(1 − 2ν)) (floats or tensors)."""
+    mu = E / (2.0 * (1.0 + nu))
+    lam = E * nu / ((1.0 + nu) * (1.0 - 2.0 * nu))
+    return mu, lam
 
 
 def _svd(F):

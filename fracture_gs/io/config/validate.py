@@ -199,7 +199,7 @@ def _check_sim(c: _Checker, s: SimConfig, frame_dt: float) -> None:
             f"sim.dt = {s.dt!r} is longer than frame_dt = {frame_dt!r}",
             "use a substep no longer than one frame",
         )
-    if not s.adaptive_dt and frame_dt / s.dt > s.max_substeps_per_frame * (1 + 1e-9):
+    if frame_dt / s.dt > s.max_substeps_per_frame * (1 + 1e-9):  # Δt bounds the adaptive step too
         c.fail(
             "sim.max_substeps_per_frame",
             f"frame_dt / sim.dt = {frame_dt / s.dt:.0f} substeps exceeds "
@@ -212,11 +212,11 @@ def _check_sim(c: _Checker, s: SimConfig, frame_dt: float) -> None:
     c.positive("sim.dx", s.dx, "give the grid spacing in metres, e.g. dx = 0.015625")
     c.at_least("sim.wall_cells", s.wall_cells, 0, "use 0 or more cells")
     for i, n in enumerate(s.grid_shape):
-        if n < max(4, 2 * s.wall_cells + 2):
+        if n < max(5, 2 * s.wall_cells + 2):
             c.fail(
                 f"sim.grid_shape[{i}]",
                 f"sim.grid_shape[{i}] = {n} is too small for the B-spline stencil and {s.wall_cells} wall cells",
-                f"use at least {max(4, 2 * s.wall_cells + 2)} nodes per axis",
+                f"use at least {max(5, 2 * s.wall_cells + 2)} nodes per axis",
             )
     c.at_least("sim.grid_margin", s.grid_margin, 0.0, "use a non-negative fraction, e.g. grid_margin = 0.5")
     c.at_least("sim.max_grid_cells", s.max_grid_cells, 125, "allow at least 5×5×5 nodes")

@@ -1,0 +1,96 @@
+"""The test command cosmic-ray runs for one mutant: find what changed, run only the tests that reach it.
+
+cosmic-ray applies a mutant to a file on disk and runs one fixed command; this is that command. It
+compares every target file with the pristine copy `run.py` saved, takes the changed lines, and runs
+
+* the tests that executed those lines (the coverage map `run.py map` recorded per test), or
+* for a line no Python tracer can see (the body of a `@wp.kernel` / `@wp.func`, compiled by Warp),
+  the test files `targets.toml` lists for that module.
+
+Exit status is pytest's: 0 means every selected test passed, so the mutant survived. A changed line
+that no test reaches runs nothing and survives; that is the honest answer.
+"""
+
+from __future__ import annotations
+
+import difflib
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import tomllib
+
+HERE = Path(__file__).resolve().parent
+STATE = HERE / ".state"
+
+
+def changed_lines(original: str, mutated: str) -> list[int]:
+    """1-based line numbers of `original` that the mutant rewrote (one mutant touches one or two lines)."""
+    a, b = original.splitlines(), mutated.splitlines()
+    lines: list[int] = []
+    for tag, i1, i2, _, _ in difflib.SequenceMatcher(a=a, b=b, autojunk=False).get_opcodes():
+        if tag != "equal":
+            lines.extend(range(i1 + 1, max(i2, i1 + 1) + 1))
+    return lines
+
+
+def kernel_lines(source: str) -> set[int]:
+    """Lines inside functions decorated with a Warp decorator (`@wp.kernel`, `@wp.func`, ...)."""
+    import ast
+
+    out: set[int] = set()
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.FunctionDef) and any("wp." in ast.unparse(d) for d in node.decorator_list):
+            out.update(range(node.lineno, (node.end_lineno or node.lineno) + 1))
+    return out
+
+
+def select_tests(module: str, lines: list[int], source: str, cover: dict, fallback: dict) -> list[str]:
+    """Test node ids (or files) that exercise `lines` of `module`: coverage first, the static list for kernels."""
+    kern = kernel_lines(source)
+    by_line = cover.get(module, {})
+    picked: dict[str, None] = {}
+    for line in lines:
+        if line in kern or not by_line:
+            for test in fallback.get(module, []):
+                picked[test] = None
+        for test in by_line.get(str(line), []):
+            picked[test] = None
+    return list(picked)
+
+
+def load_fallback() -> dict[str, list[str]]:
+    spec = tomllib.loads((HERE / "targets.toml").read_text())
+    return {t["module"]: t.get("tests", []) for t in spec.get("target", [])}
+
+
+def main() -> int:
+    manifest = json.loads((STATE / "manifest.json").read_text())
+    cover_path = STATE / "coverage_map.json"
+    cover = json.loads(cover_path.read_text()) if cover_path.exists() else {}
+    fallback = load_fallback()
+    root = Path.cwd()
+    tests: list[str] = []
+    for module in manifest:
+        now = (root / module).read_text()
+        before = (STATE / "orig" / module).read_text()
+        if now != before:
+            tests += select_tests(module, changed_lines(before, now), before, cover, fallback)
+    tests = [t for t in dict.fromkeys(tests) if (root / t.split("::")[0]).exists()]
+    timing_path = STATE / "durations.json"
+    if timing_path.exists():  # fastest first: a killed mutant stops at its first failing test (-x)
+        seconds = json.loads(timing_path.read_text())
+        tests.sort(key=lambda t: seconds.get(t, seconds.get(t.split("::")[0], 1.0)))
+    if not tests:
+        print("no test reaches the mutated line: survived")
+        return 0
+    env = dict(os.environ, PYTHONDONTWRITEBYTECODE="1")
+    cmd = [sys.executable, "-m", "pytest", "-x", "-q", "-p", "no:cacheprovider", "--no-header", *tests]
+    rc = subprocess.call(cmd, env=env, cwd=root)
+    return 0 if rc in (4, 5) else rc  # a selection pytest cannot collect kills nothing: count it as survived
+
+
+if __name__ == "__main__":
+    sys.exit(main())

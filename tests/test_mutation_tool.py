@@ -1,0 +1,66 @@
+"""The mutation tool (mutation/run.py, mutation/pick_tests.py) scores what it claims: a mutant a test
+catches is killed, one no test can tell apart survives, and each mutant runs the tests that reach its line."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+MUTATION = Path(__file__).resolve().parent.parent / "mutation"
+sys.path.insert(0, str(MUTATION))
+import pick_tests  # noqa: E402
+
+
+def test_changed_lines_are_the_rewritten_ones():
+    """A one-token mutant on line 3 of five reports line 3 and nothing else."""
+    before = "a = 1\nb = 2\nif a > b:\n    pass\nc = 3\n"
+    after = before.replace("a > b", "a >= b")
+    assert pick_tests.changed_lines(before, after) == [3]
+
+
+def test_kernel_bodies_fall_back_to_the_listed_tests_and_host_lines_to_coverage():
+    """A line inside a `@wp.kernel` is invisible to the tracer, so its tests come from targets.toml;
+    a host line gets exactly the tests coverage saw on it."""
+    src = "import warp as wp\n\n@wp.kernel\ndef k(x: wp.array(dtype=float)):\n    x[0] = 1.0\n\n"
+    src += "def host():\n    return 2\n"
+    assert pick_tests.kernel_lines(src) == {4, 5}
+    cover = {"m.py": {"8": ["tests/t.py::test_host"]}}
+    fallback = {"m.py": ["tests/test_kernels.py"]}
+    assert pick_tests.select_tests("m.py", [5], src, cover, fallback) == ["tests/test_kernels.py"]
+    assert pick_tests.select_tests("m.py", [8], src, cover, fallback) == ["tests/t.py::test_host"]
+    assert pick_tests.select_tests("m.py", [7], src, cover, fallback) == []  # no test reaches it
+
+
+@pytest.mark.slow
+def test_a_toy_session_kills_what_its_test_catches_and_keeps_the_equivalent(tmp_path):
+    """End to end on a toy package: `v > vmax` → `v < vmax` changes clamp_speed(2, 1) and is killed;
+    `v > vmax` → `v >= vmax` returns vmax at v == vmax either way, so it survives; the score says 2 of 3."""
+    shutil.copytree(MUTATION, tmp_path / "mutation", ignore=shutil.ignore_patterns(".state", "__pycache__"))
+    (tmp_path / "fracture_gs").mkdir()
+    (tmp_path / "fracture_gs" / "__init__.py").write_text("")
+    (tmp_path / "fracture_gs" / "toy.py").write_text(
+        "def clamp_speed(v, vmax):\n    if v > vmax:\n        return vmax\n    return v\n"
+    )
+    (tmp_path / "tests").mkdir()
+    (tmp_path / "tests" / "test_toy.py").write_text(
+        "from fracture_gs.toy import clamp_speed\n\n\ndef test_clamp():\n"
+        "    assert clamp_speed(2.0, 1.0) == 1.0 and clamp_speed(0.5, 1.0) == 0.5\n"
+    )
+    run = [sys.executable, "mutation/run.py"]
+    subprocess.run([*run, "map", "--jobs", "1"], cwd=tmp_path, check=True, capture_output=True, timeout=300)
+    out = subprocess.run(
+        [*run, "run", "fracture_gs/toy.py", "--timeout", "60"],
+        cwd=tmp_path,
+        check=True,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    ).stdout
+    assert "3 to run" in out and "66.7%" in out
+    survivors = json.loads((tmp_path / "mutation" / ".state" / "survivors.json").read_text())
+    assert [s["operator"] for s in survivors] == ["core/ReplaceComparisonOperator_Gt_GtE"]
