@@ -49,7 +49,7 @@ from .layout import (
 )
 from .metrics import SEPARATION, reapproach_ratio  # noqa: F401 (re-exported: the tracker's thresholds)
 from .overlap_kernels import VoxelOverlap
-from .penetration import collider_packed, surface_penetration, unpack_overlap
+from .penetration import calibrate, collider_packed, surface_penetration, unpack_overlap
 from .recorded import Recorded
 
 VOXEL = 0.6  # Δx: voxel edge of the voxel-occupancy overlap (`penetration.fragment_overlap`)
@@ -87,6 +87,7 @@ class Diagnostics:
         self.latch_info: dict | None = None
         self.pairs = None
         self.members = None
+        self.surface_calibration = None  # `penetration.calibrate` at the latest latch: the surface measure's scales
         self.band_index = None
         self.opening0 = None
         self.open_max = -math.inf
@@ -130,6 +131,8 @@ class Diagnostics:
         self._n_topologies = len(sim.topologies)
         self.latch_substeps = sim.substeps  # the realized grid holds the new labels only after a substep
         self.members = M.band_members(P.fragment, P.band)
+        with torch.no_grad():  # the surface measure's scales from the particles at this latch (positions only)
+            self.surface_calibration = calibrate(P.x, P.fragment)
         self.band_index = torch.nonzero(P.band != 0).flatten()
         self.particle_mass = M.per_fragment_sum(P.mass.double(), P.fragment.long(), sim.n_fragments)  # [K], fixed
         if self.latch_info is not None:
@@ -354,13 +357,12 @@ class Diagnostics:
         }
 
     def _surface(self) -> dict:
-        """Depth of particles behind another fragment's kernel-smoothed surface (`penetration.surface_penetration`)
-        with the particles' current volumes V₀·det F; `fragment_crossing` counts those deeper than CROSSING·Δx."""
+        """Depth of particles behind another fragment's kernel-smoothed surface (`penetration.surface_penetration`),
+        scaled by the calibration taken at the latch; `fragment_crossing` counts those deeper than CROSSING·Δx."""
         sim = self.sim
         P, dx = sim.particles, sim.grid.dx
         with torch.no_grad():
-            volume = P.volume * torch.linalg.det(P.F.double()).clamp_min(0.0).to(P.volume.dtype)
-            return surface_penetration(P.x, P.fragment, volume, CROSSING * dx)
+            return surface_penetration(P.x, P.fragment, CROSSING * dx, self.surface_calibration)
 
     def _contact_row(self, h: dict) -> dict:
         stats = h["stats"]

@@ -26,6 +26,7 @@ face can give with no overlap at all. Kept as the cheap, graph-recordable occupa
 from __future__ import annotations
 
 import math
+from typing import Optional
 
 import torch
 
@@ -156,6 +157,8 @@ NEAR = 1.2  # spacings: particles with one of another fragment this close are ev
 CHUNK = 4096  # candidates per chunk: ≈ 2,000 particles gathered each, so ≈ 8 M pairs at a time
 DENSE_LIMIT = 1 << 22  # (candidate, fragment) sums kept dense up to this many entries, else sorted keys
 _BITS = 21  # bits per axis of a cell key
+NN_PER_SPACING = 0.65  # median nearest-neighbour distance over h of a jittered grid (one point anywhere per cell h)
+SAMPLES = 256  # particles per fragment whose own kernel sums calibrate its filled density
 
 
 def _keys(c: torch.Tensor) -> torch.Tensor:  # [..., 3] int64 cell coordinates -> [...] int64 keys
@@ -233,28 +236,97 @@ def depth_from_fraction(c: torch.Tensor) -> torch.Tensor:
     return 0.5 * (lo + hi)
 
 
-def kernel_radius(volume: torch.Tensor, fragment: torch.Tensor) -> float:
-    """SPACINGS mean particle spacings (V^(1/3) of the labelled particles' mean volume) [m]."""
-    v = volume[fragment >= 0].double()
-    return SPACINGS * float(v.mean()) ** (1.0 / 3.0) if v.numel() else 0.0
+def _nearest(x: torch.Tensor, fragment: torch.Tensor, query: torch.Tensor, size: float) -> torch.Tensor:
+    """Distance [m] from each query particle to its nearest other particle of the same fragment within
+    `size` (inf if none): cells of edge `size`, the 27 around the query's."""
+    lo = x.min(0).values
+    cells = _Cells(x, fragment, lo, size)
+    qi, j = cells.gather(cells.coord[query], 1)
+    same = (fragment[j] == fragment[query][qi]) & (j != query[qi])
+    d2 = torch.where(same, ((x[query][qi] - x[j]) ** 2).sum(1), torch.full_like(x[j, 0], float("inf")))
+    return (
+        torch.full((query.numel(),), float("inf"), dtype=x.dtype, device=x.device)
+        .scatter_reduce(0, qi, d2, "amin")
+        .sqrt()
+    )
+
+
+def _sampled(fragment: torch.Tensor, K: int, samples: int) -> torch.Tensor:
+    """Up to `samples` particle indices per fragment id, drawn in a fixed random order (a stride through the
+    index order could pick one lattice layer of a block made by a meshgrid)."""
+    g = torch.Generator().manual_seed(0)
+    perm = torch.randperm(fragment.numel(), generator=g).to(fragment.device)
+    order = perm[torch.argsort(fragment[perm], stable=True)]  # by fragment, random within each
+    count = torch.bincount(fragment, minlength=K)
+    start = torch.cumsum(count, 0) - count
+    rank = torch.arange(order.numel(), device=fragment.device) - start[fragment[order]]
+    return order[rank < samples]
+
+
+def calibrate(x: torch.Tensor, fragment: torch.Tensor, samples: int = SAMPLES) -> dict:
+    """The measure's scales, from the particles' positions alone (stored volumes are not trusted: in the
+    built-in scenes they sum to ≈ 2× the solid and spread 50×).
+
+    radius R = SPACINGS · s, the spacing s = median nearest-neighbour distance / NN_PER_SPACING. filled [K]:
+    per fragment id, the unit-weight kernel sum Σ_j W(|x − x_j|) [1/m³] its particles give a point whose ball
+    they fill, i.e. its number density: the largest of its own particles' sums (up to `samples` of them), raised
+    for a piece too small or thin to fill the ball to the density its spacing implies (the best-filled piece's
+    sum × its nearest-neighbour distance³, over this piece's distance³). Returns {"radius": R [m], "filled":
+    [K] float64, "spacing": s [m]}."""
+    ok = fragment >= 0
+    K = int(fragment.max()) + 1 if bool(ok.any()) else 0
+    out = {"radius": 0.0, "filled": torch.ones(max(K, 1), dtype=torch.float64, device=x.device), "spacing": 0.0}
+    if K == 0:
+        return out
+    idx = torch.nonzero(ok).flatten()
+    xd, frag = x.double()[idx], fragment.long()[idx]
+    box = (xd.max(0).values - xd.min(0).values).clamp_min(1e-12)
+    guess = float(box.prod() / idx.numel()) ** (1.0 / 3.0)  # ≥ the spacing: the box holds the solid
+    pick = _sampled(frag, K, samples)  # [S] sampled particles, per fragment
+    nn = _nearest(xd, frag, pick, guess)  # [S]
+    finite = torch.isfinite(nn)
+    if not bool(finite.any()):
+        return out
+    spacing = float(nn[finite].median()) / NN_PER_SPACING
+    R = SPACINGS * spacing
+    cells = _Cells(xd, frag, xd.min(0).values, R / 3)
+    qi, j = cells.gather(cells.coord[pick], 3)
+    u2 = ((xd[pick][qi] - xd[j]) ** 2).sum(1) / (R * R)
+    keep = (frag[j] == frag[pick][qi]) & (u2 < 1.0)
+    w = 105.0 / (32.0 * math.pi * R**3) * (1.0 - u2[keep]) ** 2
+    own = torch.zeros(pick.numel(), dtype=torch.float64, device=x.device).index_add_(0, qi[keep], w)  # [S]
+    fp = frag[pick]
+    best = torch.zeros(K, dtype=torch.float64, device=x.device).scatter_reduce(0, fp, own, "amax")
+    nn = torch.where(finite, nn, torch.full_like(nn, spacing * NN_PER_SPACING))
+    gap = torch.zeros(K, dtype=torch.float64, device=x.device)
+    for f in torch.unique(fp).tolist():  # median nearest-neighbour distance per fragment
+        gap[f] = nn[fp == f].median()
+    # a filled ball's count from the spacing: a jittered grid's (NN_PER_SPACING / gap)³, or the best-filled
+    # piece's sum × gap³ where higher (another sampler); a thin or small piece fills no ball by itself
+    per_volume = max(float((best * gap**3).max()), NN_PER_SPACING**3)
+    filled = torch.maximum(best, per_volume / gap.clamp_min(1e-30) ** 3)
+    out.update(radius=R, spacing=spacing, filled=torch.where(best > 0, filled, torch.ones_like(filled)))
+    return out
 
 
 def surface_depth(
-    x: torch.Tensor, fragment: torch.Tensor, volume: torch.Tensor, radius: float, chunk: int = CHUNK
+    x: torch.Tensor, fragment: torch.Tensor, calibration: dict, chunk: int = CHUNK
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """Per particle, the deepest depth [m] behind another fragment's surface and that fragment's id.
 
-    x [N, 3], fragment [N] (−1: unlabelled, ignored), volume [N] current particle volumes [m³] (rest volume ×
-    det F), radius R [m] (`kernel_radius`). Returns (depth [N] float64, 0 where no particle lies behind another
-    piece's surface or none was evaluated; into [N] int64, −1 there). A depth saturates at R."""
+    x [N, 3], fragment [N] (−1: unlabelled, ignored), calibration from `calibrate` (radius R, each fragment's
+    filled density; ids beyond it are not evaluated). Returns (depth [N] float64, 0 where no particle lies behind
+    another piece's surface or none was evaluated; into [N] int64, −1 there). A depth saturates at R."""
+    radius, filled = float(calibration["radius"]), calibration["filled"].to(x.device, torch.float64)
     n = x.shape[0]
     depth = torch.zeros(n, dtype=torch.float64, device=x.device)
     into = torch.full((n,), -1, dtype=torch.long, device=x.device)
     ok = fragment >= 0
     if n == 0 or radius <= 0 or not bool(ok.any()):
         return depth, into
+    ok = ok & (fragment < filled.numel())
     frag = torch.where(ok, fragment.long(), torch.full_like(fragment, -1, dtype=torch.long))
-    xd, vol = x.double(), volume.double()
+    xd = x.double()
     lo = torch.where(ok[:, None], xd, torch.full_like(xd, float("inf"))).min(0).values
     spacing = radius / SPACINGS
     small = _Cells(xd, frag, lo, NEAR * spacing)
@@ -276,7 +348,8 @@ def surface_depth(
         fq, fj = frag[q][qi], frag[j]
         u2 = ((xf[q][qi] - xf[j]) ** 2).sum(1) / (radius * radius)
         keep = (fj >= 0) & (fj != fq) & (u2 < 1.0)
-        qi, fj, w = qi[keep], fj[keep], norm * (1.0 - u2[keep].double()) ** 2 * vol[j[keep]]
+        qi, fj = qi[keep], fj[keep]
+        w = norm * (1.0 - u2[keep].double()) ** 2 / filled[fj]  # each particle 1/n_b of b's volume
         m = q.numel()
         if m * K <= DENSE_LIMIT:
             frac = torch.zeros(m * K, dtype=torch.float64, device=x.device).index_add_(0, qi * K + fj, w)
@@ -296,13 +369,16 @@ def surface_depth(
 
 
 def surface_penetration(
-    x: torch.Tensor, fragment: torch.Tensor, volume: torch.Tensor, crossing_at: float, radius=None
+    x: torch.Tensor, fragment: torch.Tensor, crossing_at: float, calibration: Optional[dict] = None
 ) -> dict:
     """`surface_depth` summed up: {"depth": deepest [m] (0 if none), "crossing": particles deeper than
-    `crossing_at` [m], "pairs": {(a, b): deepest depth [m] of a behind b's surface}, "radius": R [m]}."""
-    R = kernel_radius(volume, fragment) if radius is None else float(radius)
-    depth, into = surface_depth(x, fragment, volume, R)
-    out = {"depth": 0.0, "crossing": 0, "pairs": {}, "radius": R}
+    `crossing_at` [m], "pairs": {(a, b): deepest depth [m] of a behind b's surface}, "radius": R [m]}.
+    `calibration`: from `calibrate` (at the latch, say); made from `x` now if None or short of a fragment id."""
+    K = int(fragment.max()) + 1 if fragment.numel() else 0
+    if calibration is None or calibration["filled"].numel() < K:
+        calibration = calibrate(x, fragment)
+    depth, into = surface_depth(x, fragment, calibration)
+    out = {"depth": 0.0, "crossing": 0, "pairs": {}, "radius": float(calibration["radius"])}
     inside = torch.nonzero(into >= 0).flatten()
     if inside.numel() == 0:
         return out
