@@ -8,6 +8,7 @@ import torch
 
 from fracture_gs.io.gaussian_set import quat_to_matrix
 from fracture_gs.sim.penetration import (
+    SPACINGS,
     calibrate,
     depth_from_fraction,
     fraction_of_half_space,
@@ -59,10 +60,10 @@ def test_half_space_share_and_its_inverse():
 
 def test_calibration_finds_the_spacing_and_each_piece_density():
     """From positions alone: the spacing of a jittered grid of h = Δx/2 reads h within 3 %, the kernel radius is
-    6 spacings, and a piece sampled twice as densely gets twice the filled density (within 10 %)."""
+    SPACINGS (4) spacings, and a piece sampled twice as densely gets twice the filled density (within 10 %)."""
     x, frag = pushed_blocks(0.0, torch.eye(3, dtype=torch.float64), 1)
     c = calibrate(x, frag)
-    assert c["spacing"] / DX == pytest.approx(0.5, rel=0.03) and c["radius"] == pytest.approx(6 * c["spacing"])
+    assert c["spacing"] / DX == pytest.approx(0.5, rel=0.03) and c["radius"] == pytest.approx(SPACINGS * c["spacing"])
     x, frag = pushed_blocks(0.0, torch.eye(3, dtype=torch.float64), 1, spacing=(0.5, 0.5 / 2 ** (1 / 3)))
     c = calibrate(x, frag)
     assert float(c["filled"][1] / c["filled"][0]) == pytest.approx(2.0, rel=0.1)

@@ -152,13 +152,17 @@ def collider_crossing(x: torch.Tensor, planes, tolerance: float) -> tuple[int, f
 
 # ---- the continuous measure -------------------------------------------------------------------------
 
-SPACINGS = 6.0  # kernel radius R in mean particle spacings s: depth noise ≈ s·(s/R)^1.5 (DESIGN.md)
+SPACINGS = 6.0  # kernel radius R in particle spacings s: depth noise ≈ s·(s/R)^1.5 (DESIGN.md)
 NEAR = 1.2  # spacings: particles with one of another fragment this close are evaluated
 CHUNK = 4096  # candidates per chunk: ≈ 2,000 particles gathered each, so ≈ 8 M pairs at a time
 DENSE_LIMIT = 1 << 22  # (candidate, fragment) sums kept dense up to this many entries, else sorted keys
 _BITS = 21  # bits per axis of a cell key
 NN_PER_SPACING = 0.65  # median nearest-neighbour distance over h of a jittered grid (one point anywhere per cell h)
 SAMPLES = 256  # particles per fragment whose own kernel sums calibrate its filled density
+CENTRED = 0.01  # a sample whose neighbours' kernel-weighted centroid lies within this × R sees a full ball
+DENSITY_REACH = 4.0  # radius of the small density ball in nearest-neighbour distances (≈ 2.6 spacings)
+SMALL_CENTRED = 0.1  # its centroid test (fewer neighbours, more noise: a face particle's is ≈ 0.3)
+SMALL_TRUST = 0.97  # the small ball's density is trusted to 3 %: below it a piece's own full-ball sum wins
 
 
 def _keys(c: torch.Tensor) -> torch.Tensor:  # [..., 3] int64 cell coordinates -> [...] int64 keys
@@ -263,16 +267,28 @@ def _sampled(fragment: torch.Tensor, K: int, samples: int) -> torch.Tensor:
     return order[rank < samples]
 
 
+def _group_median(values: torch.Tensor, groups: torch.Tensor, K: int) -> tuple[torch.Tensor, torch.Tensor]:
+    """(median [K] of `values` per group id in 0..K−1 (lower middle), count [K]); 0 where a group is empty."""
+    order = torch.argsort(values)
+    order = order[torch.argsort(groups[order], stable=True)]  # by group, ascending values within
+    count = torch.bincount(groups, minlength=K)
+    start = torch.cumsum(count, 0) - count
+    mid = (start + torch.div(count - 1, 2, rounding_mode="floor")).clamp(0, max(values.numel() - 1, 0))
+    med = values[order][mid] if values.numel() else torch.zeros(K, dtype=values.dtype, device=values.device)
+    return torch.where(count > 0, med, torch.zeros_like(med)), count
+
+
 def calibrate(x: torch.Tensor, fragment: torch.Tensor, samples: int = SAMPLES) -> dict:
     """The measure's scales, from the particles' positions alone (stored volumes are not trusted: in the
     built-in scenes they sum to ≈ 2× the solid and spread 50×).
 
     radius R = SPACINGS · s, the spacing s = median nearest-neighbour distance / NN_PER_SPACING. filled [K]:
-    per fragment id, the unit-weight kernel sum Σ_j W(|x − x_j|) [1/m³] its particles give a point whose ball
-    they fill, i.e. its number density: the largest of its own particles' sums (up to `samples` of them), raised
-    for a piece too small or thin to fill the ball to the density its spacing implies (the best-filled piece's
-    sum × its nearest-neighbour distance³, over this piece's distance³). Returns {"radius": R [m], "filled":
-    [K] float64, "spacing": s [m]}."""
+    per fragment id, the unit-weight kernel sum Σ_j W(|x − x_j|) [1/m³] of a ball the piece fills, i.e. its
+    number density: the median sum at its own particles whose kernel-weighted neighbours are centred on them
+    (|centroid offset| < CENTRED·R: a ball no face cuts; up to `samples` tried per piece), and at least the
+    density its spacing implies, (NN_PER_SPACING / its median nearest-neighbour distance)³ — all a piece
+    too small or thin to fill a ball gets. Returns {"radius": R [m], "filled": [K] float64 (1 for an empty id),
+    "spacing": s [m]}."""
     ok = fragment >= 0
     K = int(fragment.max()) + 1 if bool(ok.any()) else 0
     out = {"radius": 0.0, "filled": torch.ones(max(K, 1), dtype=torch.float64, device=x.device), "spacing": 0.0}
@@ -282,30 +298,40 @@ def calibrate(x: torch.Tensor, fragment: torch.Tensor, samples: int = SAMPLES) -
     xd, frag = x.double()[idx], fragment.long()[idx]
     box = (xd.max(0).values - xd.min(0).values).clamp_min(1e-12)
     guess = float(box.prod() / idx.numel()) ** (1.0 / 3.0)  # ≥ the spacing: the box holds the solid
-    pick = _sampled(frag, K, samples)  # [S] sampled particles, per fragment
-    nn = _nearest(xd, frag, pick, guess)  # [S]
+    nn = _nearest(xd, frag, torch.arange(idx.numel(), device=x.device), guess)  # [N']
     finite = torch.isfinite(nn)
     if not bool(finite.any()):
         return out
     spacing = float(nn[finite].median()) / NN_PER_SPACING
     R = SPACINGS * spacing
+    gap, _ = _group_median(torch.where(finite, nn, torch.full_like(nn, spacing * NN_PER_SPACING)), frag, K)
+    pick = _sampled(frag, K, samples)  # [S] sampled particles, per fragment
     cells = _Cells(xd, frag, xd.min(0).values, R / 3)
     qi, j = cells.gather(cells.coord[pick], 3)
-    u2 = ((xd[pick][qi] - xd[j]) ** 2).sum(1) / (R * R)
+    d = xd[j] - xd[pick][qi]  # [P, 3]
+    u2 = (d**2).sum(1) / (R * R)
     keep = (frag[j] == frag[pick][qi]) & (u2 < 1.0)
+    qi, d = qi[keep], d[keep]
     w = 105.0 / (32.0 * math.pi * R**3) * (1.0 - u2[keep]) ** 2
-    own = torch.zeros(pick.numel(), dtype=torch.float64, device=x.device).index_add_(0, qi[keep], w)  # [S]
+    own = torch.zeros(pick.numel(), dtype=torch.float64, device=x.device).index_add_(0, qi, w)  # [S]
+    moment = torch.zeros(pick.numel(), 3, dtype=torch.float64, device=x.device).index_add_(0, qi, w[:, None] * d)
+    centred = moment.norm(dim=1) < CENTRED * R * own  # [S] the neighbours' centroid within CENTRED·R
     fp = frag[pick]
-    best = torch.zeros(K, dtype=torch.float64, device=x.device).scatter_reduce(0, fp, own, "amax")
-    nn = torch.where(finite, nn, torch.full_like(nn, spacing * NN_PER_SPACING))
-    gap = torch.zeros(K, dtype=torch.float64, device=x.device)
-    for f in torch.unique(fp).tolist():  # median nearest-neighbour distance per fragment
-        gap[f] = nn[fp == f].median()
-    # a filled ball's count from the spacing: a jittered grid's (NN_PER_SPACING / gap)³, or the best-filled
-    # piece's sum × gap³ where higher (another sampler); a thin or small piece fills no ball by itself
-    per_volume = max(float((best * gap**3).max()), NN_PER_SPACING**3)
-    filled = torch.maximum(best, per_volume / gap.clamp_min(1e-30) ** 3)
-    out.update(radius=R, spacing=spacing, filled=torch.where(best > 0, filled, torch.ones_like(filled)))
+    inner, n_inner = _group_median(own[centred], fp[centred], K)
+    # the density any sampler gives, from a small ball (DENSITY_REACH nearest-neighbour distances) that fits
+    # inside thin and small pieces: its sums at the particles whose small ball no face cuts
+    r = DENSITY_REACH * gap[fp][qi]  # [P'] per pair, the query's piece's small radius
+    v2 = (d**2).sum(1) / (r * r)
+    ws = torch.where(v2 < 1.0, 105.0 / (32.0 * math.pi * r**3) * (1.0 - v2).clamp_min(0.0) ** 2, torch.zeros_like(v2))
+    small = torch.zeros(pick.numel(), dtype=torch.float64, device=x.device).index_add_(0, qi, ws)  # [S]
+    ms = torch.zeros(pick.numel(), 3, dtype=torch.float64, device=x.device).index_add_(0, qi, ws[:, None] * d)
+    full = ms.norm(dim=1) < SMALL_CENTRED * DENSITY_REACH * gap[fp] * small  # [S]
+    dens, n_dens = _group_median(small[full] * gap[fp[full]] ** 3, fp[full], K)  # density × gap³ per piece
+    typical = float((small[full] * gap[fp[full]] ** 3).median()) if bool(full.any()) else NN_PER_SPACING**3
+    implied = torch.where(n_dens > 0, dens, torch.full_like(dens, typical)) / gap.clamp_min(1e-30) ** 3
+    filled = torch.where(n_inner > 0, torch.maximum(inner, SMALL_TRUST * implied), SMALL_TRUST * implied)
+    present = torch.bincount(frag, minlength=K) > 0
+    out.update(radius=R, spacing=spacing, filled=torch.where(present, filled, torch.ones_like(filled)))
     return out
 
 
