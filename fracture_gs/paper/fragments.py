@@ -126,7 +126,8 @@ def fragments_table(device: str, protocol: str, command: str = "") -> Table:
         + ("" if cuda else ", wall clock of Warp's single-threaded CPU kernels, indicative only")
         + f". Then every piece is driven toward the centroid at up to {PRESS_SPEED} m/s for the frames of "
         f"{PRESS_FRAME} s: the deepest depth of a particle behind another piece's surface (estimated continuously "
-        f"from that piece's particles, a kernel volume fraction over 6 particle spacings; resolves below 0.05Δx), "
+        f"from that piece's particles, a kernel volume fraction over 6 particle spacings, each piece weighed by its "
+        f"own number density at the latch; jittered blocks pushed by a known depth read it within 0.05Δx), "
         f"the voxel-occupancy depth (0.6Δx voxels eroded once: it reads in steps of 0.6Δx, so one voxel is its "
         f"floor, not the physics), the contact projection's largest relative momentum residual, "
         f"contact nodes summed over frames, "

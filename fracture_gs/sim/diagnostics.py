@@ -132,7 +132,7 @@ class Diagnostics:
         self.latch_substeps = sim.substeps  # the realized grid holds the new labels only after a substep
         self.members = M.band_members(P.fragment, P.band)
         with torch.no_grad():  # the surface measure's scales from the particles at this latch (positions only)
-            self.surface_calibration = calibrate(P.x, P.fragment)
+            self.surface_calibration = calibrate(P.x, P.fragment, self._volume_ratio())
         self.band_index = torch.nonzero(P.band != 0).flatten()
         self.particle_mass = M.per_fragment_sum(P.mass.double(), P.fragment.long(), sim.n_fragments)  # [K], fixed
         if self.latch_info is not None:
@@ -358,11 +358,15 @@ class Diagnostics:
 
     def _surface(self) -> dict:
         """Depth of particles behind another fragment's kernel-smoothed surface (`penetration.surface_penetration`),
-        scaled by the calibration taken at the latch; `fragment_crossing` counts those deeper than CROSSING·Δx."""
+        scaled by the calibration taken at the latch, each particle weighted by its volume change det F;
+        `fragment_crossing` counts those deeper than CROSSING·Δx."""
         sim = self.sim
         P, dx = sim.particles, sim.grid.dx
         with torch.no_grad():
-            return surface_penetration(P.x, P.fragment, CROSSING * dx, self.surface_calibration)
+            return surface_penetration(P.x, P.fragment, CROSSING * dx, self.surface_calibration, self._volume_ratio())
+
+    def _volume_ratio(self) -> torch.Tensor:  # [N] det F: each particle's current over its rest volume
+        return torch.linalg.det(self.sim.particles.F.double()).clamp_min(0.0)
 
     def _contact_row(self, h: dict) -> dict:
         stats = h["stats"]

@@ -162,6 +162,7 @@ SAMPLES = 256  # particles per fragment whose own kernel sums calibrate its fill
 CENTRED = 0.01  # a sample whose neighbours' kernel-weighted centroid lies within this × R sees a full ball
 DENSITY_REACH = 4.0  # radius of the small density ball in nearest-neighbour distances (≈ 2.6 spacings)
 SMALL_CENTRED = 0.1  # its centroid test (fewer neighbours, more noise: a face particle's is ≈ 0.3)
+ISOTROPY = 0.8  # and its neighbours' second moment at least this round (smallest / largest eigenvalue)
 SMALL_TRUST = 0.97  # the small ball's density is trusted to 3 %: below it a piece's own full-ball sum wins
 
 
@@ -278,7 +279,9 @@ def _group_median(values: torch.Tensor, groups: torch.Tensor, K: int) -> tuple[t
     return torch.where(count > 0, med, torch.zeros_like(med)), count
 
 
-def calibrate(x: torch.Tensor, fragment: torch.Tensor, samples: int = SAMPLES) -> dict:
+def calibrate(
+    x: torch.Tensor, fragment: torch.Tensor, volume_ratio: Optional[torch.Tensor] = None, samples: int = SAMPLES
+) -> dict:
     """The measure's scales, from the particles' positions alone (stored volumes are not trusted: in the
     built-in scenes they sum to ≈ 2× the solid and spread 50×).
 
@@ -287,8 +290,9 @@ def calibrate(x: torch.Tensor, fragment: torch.Tensor, samples: int = SAMPLES) -
     number density: the median sum at its own particles whose kernel-weighted neighbours are centred on them
     (|centroid offset| < CENTRED·R: a ball no face cuts; up to `samples` tried per piece), and at least the
     density its spacing implies, (NN_PER_SPACING / its median nearest-neighbour distance)³ — all a piece
-    too small or thin to fill a ball gets. Returns {"radius": R [m], "filled": [K] float64 (1 for an empty id),
-    "spacing": s [m]}."""
+    too small or thin to fill a ball gets. `volume_ratio` [N]: each particle's current volume over its rest
+    volume (det F), the sums' weights, so a piece compressed at an impact keeps its rest density (default 1).
+    Returns {"radius": R [m], "filled": [K] float64 (1 for an empty id), "spacing": s [m]}."""
     ok = fragment >= 0
     K = int(fragment.max()) + 1 if bool(ok.any()) else 0
     out = {"radius": 0.0, "filled": torch.ones(max(K, 1), dtype=torch.float64, device=x.device), "spacing": 0.0}
@@ -296,6 +300,7 @@ def calibrate(x: torch.Tensor, fragment: torch.Tensor, samples: int = SAMPLES) -
         return out
     idx = torch.nonzero(ok).flatten()
     xd, frag = x.double()[idx], fragment.long()[idx]
+    J = torch.ones_like(xd[:, 0]) if volume_ratio is None else volume_ratio.double()[idx]  # [N'] weights
     box = (xd.max(0).values - xd.min(0).values).clamp_min(1e-12)
     guess = float(box.prod() / idx.numel()) ** (1.0 / 3.0)  # ≥ the spacing: the box holds the solid
     nn = _nearest(xd, frag, torch.arange(idx.numel(), device=x.device), guess)  # [N']
@@ -311,21 +316,27 @@ def calibrate(x: torch.Tensor, fragment: torch.Tensor, samples: int = SAMPLES) -
     d = xd[j] - xd[pick][qi]  # [P, 3]
     u2 = (d**2).sum(1) / (R * R)
     keep = (frag[j] == frag[pick][qi]) & (u2 < 1.0)
-    qi, d = qi[keep], d[keep]
-    w = 105.0 / (32.0 * math.pi * R**3) * (1.0 - u2[keep]) ** 2
+    w = torch.where(keep, 105.0 / (32.0 * math.pi * R**3) * (1.0 - u2).clamp_min(0.0) ** 2, torch.zeros_like(u2)) * J[j]
     own = torch.zeros(pick.numel(), dtype=torch.float64, device=x.device).index_add_(0, qi, w)  # [S]
     moment = torch.zeros(pick.numel(), 3, dtype=torch.float64, device=x.device).index_add_(0, qi, w[:, None] * d)
     centred = moment.norm(dim=1) < CENTRED * R * own  # [S] the neighbours' centroid within CENTRED·R
     fp = frag[pick]
     inner, n_inner = _group_median(own[centred], fp[centred], K)
     # the density any sampler gives, from a small ball (DENSITY_REACH nearest-neighbour distances) that fits
-    # inside thin and small pieces: its sums at the particles whose small ball no face cuts
-    r = DENSITY_REACH * gap[fp][qi]  # [P'] per pair, the query's piece's small radius
+    # inside thin and small pieces, counting every fragment's particles (at a latch the pieces just cut are one
+    # body, so a thin layer cut from its twin still fills the ball): its sums where no free face cuts the ball
+    r = DENSITY_REACH * gap[fp][qi]  # [P] per pair, the query's piece's small radius
     v2 = (d**2).sum(1) / (r * r)
     ws = torch.where(v2 < 1.0, 105.0 / (32.0 * math.pi * r**3) * (1.0 - v2).clamp_min(0.0) ** 2, torch.zeros_like(v2))
+    ws = ws * J[j]
     small = torch.zeros(pick.numel(), dtype=torch.float64, device=x.device).index_add_(0, qi, ws)  # [S]
     ms = torch.zeros(pick.numel(), 3, dtype=torch.float64, device=x.device).index_add_(0, qi, ws[:, None] * d)
-    full = ms.norm(dim=1) < SMALL_CENTRED * DENSITY_REACH * gap[fp] * small  # [S]
+    cov = torch.zeros(pick.numel(), 3, 3, dtype=torch.float64, device=x.device).index_add_(
+        0, qi, ws[:, None, None] * d[:, :, None] * d[:, None, :]
+    )  # [S, 3, 3] the neighbours' second moment: a ball cut on two sides (a thin plate's) is flat, not round
+    eig = torch.linalg.eigvalsh(cov)  # [S, 3] ascending
+    round_ = eig[:, 0] > ISOTROPY * eig[:, 2]
+    full = (ms.norm(dim=1) < SMALL_CENTRED * DENSITY_REACH * gap[fp] * small) & round_  # [S]
     dens, n_dens = _group_median(small[full] * gap[fp[full]] ** 3, fp[full], K)  # density × gap³ per piece
     typical = float((small[full] * gap[fp[full]] ** 3).median()) if bool(full.any()) else NN_PER_SPACING**3
     implied = torch.where(n_dens > 0, dens, torch.full_like(dens, typical)) / gap.clamp_min(1e-30) ** 3
@@ -336,13 +347,18 @@ def calibrate(x: torch.Tensor, fragment: torch.Tensor, samples: int = SAMPLES) -
 
 
 def surface_depth(
-    x: torch.Tensor, fragment: torch.Tensor, calibration: dict, chunk: int = CHUNK
+    x: torch.Tensor,
+    fragment: torch.Tensor,
+    calibration: dict,
+    volume_ratio: Optional[torch.Tensor] = None,
+    chunk: int = CHUNK,
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """Per particle, the deepest depth [m] behind another fragment's surface and that fragment's id.
 
     x [N, 3], fragment [N] (−1: unlabelled, ignored), calibration from `calibrate` (radius R, each fragment's
     filled density; ids beyond it are not evaluated). Returns (depth [N] float64, 0 where no particle lies behind
-    another piece's surface or none was evaluated; into [N] int64, −1 there). A depth saturates at R."""
+    another piece's surface or none was evaluated; into [N] int64, −1 there). A depth saturates at R.
+    `volume_ratio` [N]: det F per particle, its weight (as in `calibrate`; default 1)."""
     radius, filled = float(calibration["radius"]), calibration["filled"].to(x.device, torch.float64)
     n = x.shape[0]
     depth = torch.zeros(n, dtype=torch.float64, device=x.device)
@@ -375,7 +391,9 @@ def surface_depth(
         u2 = ((xf[q][qi] - xf[j]) ** 2).sum(1) / (radius * radius)
         keep = (fj >= 0) & (fj != fq) & (u2 < 1.0)
         qi, fj = qi[keep], fj[keep]
-        w = norm * (1.0 - u2[keep].double()) ** 2 / filled[fj]  # each particle 1/n_b of b's volume
+        w = norm * (1.0 - u2[keep].double()) ** 2 / filled[fj]  # each particle 1/n_b of b's volume …
+        if volume_ratio is not None:
+            w = w * volume_ratio.double()[j[keep]]  # … times its volume change
         m = q.numel()
         if m * K <= DENSE_LIMIT:
             frac = torch.zeros(m * K, dtype=torch.float64, device=x.device).index_add_(0, qi * K + fj, w)
@@ -395,15 +413,20 @@ def surface_depth(
 
 
 def surface_penetration(
-    x: torch.Tensor, fragment: torch.Tensor, crossing_at: float, calibration: Optional[dict] = None
+    x: torch.Tensor,
+    fragment: torch.Tensor,
+    crossing_at: float,
+    calibration: Optional[dict] = None,
+    volume_ratio: Optional[torch.Tensor] = None,
 ) -> dict:
     """`surface_depth` summed up: {"depth": deepest [m] (0 if none), "crossing": particles deeper than
     `crossing_at` [m], "pairs": {(a, b): deepest depth [m] of a behind b's surface}, "radius": R [m]}.
-    `calibration`: from `calibrate` (at the latch, say); made from `x` now if None or short of a fragment id."""
+    `calibration`: from `calibrate` (at the latch, say); made from `x` now if None or short of a fragment id.
+    `volume_ratio` [N]: det F per particle (see `calibrate`)."""
     K = int(fragment.max()) + 1 if fragment.numel() else 0
     if calibration is None or calibration["filled"].numel() < K:
-        calibration = calibrate(x, fragment)
-    depth, into = surface_depth(x, fragment, calibration)
+        calibration = calibrate(x, fragment, volume_ratio)
+    depth, into = surface_depth(x, fragment, calibration, volume_ratio)
     out = {"depth": 0.0, "crossing": 0, "pairs": {}, "radius": float(calibration["radius"])}
     inside = torch.nonzero(into >= 0).flatten()
     if inside.numel() == 0:
