@@ -381,8 +381,9 @@ def test_voronoi_provider_shatters_on_contact(device):
 def test_fragment_aware_penetration_between_pieces(seed):
     """Two blocks touching face to face (jittered lattices) read less than 0.05Δx behind each other's
     surface, also turned at random (no preferred axis, no voxel staircase); pushed 3Δx into each other they
-    read the kernel radius R (saturated: a lower bound), between fragments 0 and 1 only."""
-    from fracture_gs.sim.penetration import surface_penetration
+    read the kernel radius R (saturated: a lower bound), between fragments 0 and 1 only (scales calibrated
+    while touching, as at a latch)."""
+    from fracture_gs.sim.penetration import calibrate, surface_penetration
 
     dx = 1 / 32
     g = torch.Generator().manual_seed(seed)
@@ -391,9 +392,10 @@ def test_fragment_aware_penetration_between_pieces(seed):
     frag = torch.cat([torch.zeros(len(a)), torch.ones(len(b))]).int()
     R = rand_rotations(1, g)[0].float()
     for rot in (torch.eye(3), R):
-        touching = surface_penetration(torch.cat([a, b]) @ rot.T, frag, 0.1 * dx)
+        scales = calibrate(torch.cat([a, b]) @ rot.T, frag)  # as the tracker does at the latch: touching
+        touching = surface_penetration(torch.cat([a, b]) @ rot.T, frag, 0.1 * dx, scales)
         assert touching["depth"] < 0.05 * dx and touching["crossing"] == 0, (seed, touching)
-        pushed = surface_penetration(torch.cat([a, b - torch.tensor([3 * dx, 0, 0])]) @ rot.T, frag, 0.1 * dx)
+        pushed = surface_penetration(torch.cat([a, b - torch.tensor([3 * dx, 0, 0])]) @ rot.T, frag, 0.1 * dx, scales)
         assert pushed["depth"] > 0.99 * pushed["radius"] and pushed["crossing"] > 0, (seed, pushed["depth"] / dx)
         assert set(pushed["pairs"]) <= {(0, 1), (1, 0)}
 

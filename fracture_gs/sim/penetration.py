@@ -421,7 +421,8 @@ def surface_penetration(
 ) -> dict:
     """`surface_depth` summed up: {"depth": deepest [m] (0 if none), "crossing": particles deeper than
     `crossing_at` [m], "pairs": {(a, b): deepest depth [m] of a behind b's surface}, "radius": R [m]}.
-    `calibration`: from `calibrate` (at the latch, say); made from `x` now if None or short of a fragment id.
+    `calibration`: from `calibrate` at the latch, while no piece overlaps another (pieces overlapping then
+    count their overlap as density); made from `x` now if None or short of a fragment id.
     `volume_ratio` [N]: det F per particle (see `calibrate`)."""
     K = int(fragment.max()) + 1 if fragment.numel() else 0
     if calibration is None or calibration["filled"].numel() < K:
