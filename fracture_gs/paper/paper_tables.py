@@ -242,8 +242,9 @@ FRAGMENT_AWARE_CAPTION = (
     "number density measured from positions at the latch; stored particle volumes are not used). Jittered blocks "
     "pushed together by a known depth read it within 0.05Δx, also with one piece sampled twice as densely; the "
     "plane-drop bar, thinner than the kernel, reads about 0.05Δx shallow (its halves pushed by 0.1/0.2/0.3Δx "
-    "read 0.05/0.16/0.26Δx), so there no particle 0.1Δx deep means none ≈ 0.15Δx deep. Particles > 0.1Δx: the most such particles in one frame; behind plane: the deepest "
-    "particle behind the plane collider. Their Task Success: no particle more than 0.1Δx behind another piece's "
+    "read 0.05/0.16/0.26Δx), so there no particle 0.1Δx deep means none ≈ 0.15Δx deep. Particles > 0.1Δx: the "
+    "most such particles in one frame; behind plane: the deepest particle behind the plane collider. Their Task "
+    "Success: no particle more than 0.1Δx behind another piece's "
     "surface and none more than half a cell behind the collider (a node-based collider acts on the nodes behind "
     "the plane, so resting particles sit up to half a cell past it; the paper's plane penetration reads this)."
 )
