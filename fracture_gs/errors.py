@@ -49,3 +49,8 @@ class OutputError(FractureGSError, OSError):
 
 class RenderError(FractureGSError, ValueError):
     """A render setting that cannot be honoured (unknown mode or backend, a camera that sees nothing)."""
+
+
+class ArgumentError(FractureGSError, TypeError, ValueError):
+    """A Python API argument of the wrong type, shape or value: `<function>: <argument> <problem>; <fix>.`
+    Both a TypeError and a ValueError, so code that caught what torch or os raised before keeps working."""

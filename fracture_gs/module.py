@@ -16,11 +16,14 @@ from typing import Iterator, Optional, Union
 
 import torch
 
-from .config import SceneConfig
-from .errors import SimulationError
+from .config import VARIANTS, MaterialMapEntry, SceneConfig
+from .errors import ArgumentError, ConfigError, SimulationError
 from .io import GaussianSet
+from .io.gaussian_set import as_tensor, check_gaussians
 from .linalg import eigh_chunked
 from .pipeline import FrameOutput, make_simulator, simulate
+
+FORWARD = "FractureSim.forward"
 
 
 def _quats_from_rotations(R: torch.Tensor) -> torch.Tensor:  # [N,3,3] -> [N,4] wxyz
@@ -58,27 +61,123 @@ def _quats_from_rotations(R: torch.Tensor) -> torch.Tensor:  # [N,3,3] -> [N,4] 
 
 
 def gaussians_from_tensors(
-    means, opacities, sh, quats=None, scales=None, covars=None, interior=None, labels=None
+    means, opacities, sh, quats=None, scales=None, covars=None, interior=None, labels=None, where: str = FORWARD
 ) -> GaussianSet:
-    """A GaussianSet from raw tensors; covariances are factored into rotation and scales."""
-    if covars is not None:
-        evals, evecs = eigh_chunked(covars.double())
-        evecs = evecs * torch.sign(torch.det(evecs))[:, None, None]  # proper rotation
-        quats = _quats_from_rotations(evecs).to(means.dtype)
-        scales = evals.clamp_min(1e-20).sqrt().to(means.dtype)
-    if quats is None or scales is None:
-        raise SimulationError("FractureSim needs either quats and scales, or covars, for every Gaussian")
-    if sh.ndim == 2:
+    """A GaussianSet from raw tensors; covariances are factored into rotation and scales. Every argument is
+    checked (`io.gaussian_set.check_gaussians`): one ArgumentError sentence naming it and the fix."""
+    means = as_tensor(where, "means", means, "[N, 3]")
+    opacities = as_tensor(where, "opacities", opacities, "[N]")
+    if opacities.dim() == 2 and opacities.shape[1] == 1:  # [N, 1] as some trainers keep them
+        opacities = opacities.reshape(-1)
+    sh = as_tensor(where, "sh", sh, "[N, K, 3] or [N, 3]")
+    if sh.dim() == 2:
         sh = sh[:, None, :]
-    return GaussianSet(
+    if covars is not None:
+        if quats is not None or scales is not None:
+            raise ArgumentError(
+                f"{where}: covars and quats/scales were both given, and covars would replace them; pass either "
+                "quats and scales, or covars."
+            )
+        quats, scales = _factor_covariances(where, means, covars)
+    if quats is None or scales is None:
+        missing = "quats" if quats is None else "scales"
+        raise ArgumentError(
+            f"{where}: {missing} is missing; pass quats [N, 4] and scales [N, 3], or covars [N, 3, 3], "
+            "for every Gaussian."
+        )
+    arrays = check_gaussians(
+        where,
         means=means,
         quats=quats,
         scales=scales,
-        opacities=opacities.reshape(-1),
+        opacities=opacities,
         sh=sh,
         interior=interior,
         labels=labels,
     )
+    return GaussianSet(**arrays)
+
+
+def _factor_covariances(where: str, means, covars) -> tuple[torch.Tensor, torch.Tensor]:
+    """(quats [N, 4], scales [N, 3]) of covariances [N, 3, 3] that are finite, symmetric and positive
+    semi-definite (within float rounding)."""
+    means = check_gaussians(where, means=means)["means"]
+    cov = as_tensor(where, "covars", covars, "[N, 3, 3]")
+    if cov.dim() != 3 or tuple(cov.shape) != (len(means), 3, 3):
+        raise ArgumentError(
+            f"{where}: covars has shape {list(cov.shape)}, not [N, 3, 3] with N = {len(means)} (the number of "
+            "means); pass one 3×3 covariance per Gaussian."
+        )
+    if cov.is_complex() or cov.dtype == torch.bool:
+        raise ArgumentError(f"{where}: covars has dtype {cov.dtype}; pass real numbers (float32).")
+    c = cov.detach().double()
+    if len(c) == 0:
+        return means.new_zeros(0, 4), means.new_zeros(0, 3)
+    evals, evecs = eigh_chunked(c) if bool(torch.isfinite(c).all()) else (None, None)
+    scale = c.abs().amax((1, 2)).clamp_min(1e-300)
+    bad = None
+    if evals is None:
+        bad = "NaN or infinite entries"
+    elif bool(((c - c.transpose(1, 2)).abs().amax((1, 2)) > 1e-5 * scale).any()):
+        bad = "entries that are not symmetric"
+    elif bool((evals.amin(1) < -1e-6 * scale).any()):
+        bad = "negative eigenvalues (not positive semi-definite)"
+    if bad is not None:
+        raise ArgumentError(
+            f"{where}: covars has {bad}; pass covariances R S Sᵀ Rᵀ (symmetric, positive semi-definite, finite)."
+        )
+    evecs = evecs * torch.sign(torch.det(evecs))[:, None, None]  # proper rotation
+    dtype = means.dtype
+    return _quats_from_rotations(evecs).to(dtype), evals.clamp_min(1e-20).sqrt().to(dtype)
+
+
+def _material_argument(name: str, value, n: int) -> torch.Tensor:
+    """E, nu or density of the differentiable forward: a scalar or [N], finite, within the range the config
+    allows (`io.config.validate`'s material rules, the one statement of those ranges)."""
+    t = as_tensor(FORWARD, name, value, "a scalar or [N]")
+    if t.is_complex() or t.dtype == torch.bool:
+        raise ArgumentError(f"{FORWARD}: {name} has dtype {t.dtype}; pass real numbers.")
+    if not t.is_floating_point():
+        t = t.to(torch.float32)
+    if t.dim() > 1 or (t.dim() == 1 and len(t) != n):
+        raise ArgumentError(
+            f"{FORWARD}: {name} has shape {list(t.shape)}, not a scalar or [N] with N = {n} (the number of means); "
+            "pass one value, or one per Gaussian."
+        )
+    if t.numel():
+        d = t.detach()
+        for v in [float("nan")] if bool(torch.isnan(d).any()) else torch.stack([d.min(), d.max()]).tolist():
+            problem = _material_problem(name, v)
+            if problem is not None:
+                shown = float(f"{v:{'.15g' if d.dtype == torch.float64 else '.7g'}}")  # 0.7, not 0.699999988
+                raise ArgumentError(_material_problem(name, shown) or problem)
+    return t
+
+
+def _material_problem(name: str, value: float) -> Optional[str]:
+    """The config's sentence for material.<name> = value (`io.config.validate`), as the argument `name`."""
+    from .io.config.validate import _check_material, _Checker
+
+    try:
+        _check_material(_Checker(FORWARD), "material", MaterialMapEntry(**{name: value}))
+    except ConfigError as exc:
+        return str(exc).replace(f"material.{name}", name)
+    return None
+
+
+def _velocity_argument(value, n: int) -> torch.Tensor:
+    """The initial velocity: [3] or [N, 3] finite values [m/s]."""
+    t = as_tensor(FORWARD, "velocity", value, "[3] or [N, 3]")
+    if t.is_complex() or t.dtype == torch.bool:
+        raise ArgumentError(f"{FORWARD}: velocity has dtype {t.dtype}; pass real numbers in m/s.")
+    if tuple(t.shape) not in ((3,), (n, 3)):
+        raise ArgumentError(
+            f"{FORWARD}: velocity has shape {list(t.shape)}, not [3] or [N, 3] with N = {n} (the number of means); "
+            "pass one velocity for all Gaussians or one per Gaussian (m/s)."
+        )
+    if not bool(torch.isfinite(t.detach()).all()):
+        raise ArgumentError(f"{FORWARD}: velocity has NaN or infinite entries; pass finite velocities (m/s).")
+    return t
 
 
 class FractureSim(torch.nn.Module):
@@ -104,8 +203,19 @@ class FractureSim(torch.nn.Module):
             from .io.config import load_config
 
             cfg = load_config(cfg)
+        if not isinstance(cfg, SceneConfig):
+            raise ArgumentError(
+                f"FractureSim: cfg must be a SceneConfig, got {type(cfg).__name__}; pass a config (fracture_gs.io."
+                "load_config) or the name or path of one, e.g. FractureSim('bread')."
+            )
         self.cfg = copy.deepcopy(cfg)
         self.variant = variant or (self.cfg.variants[-1] if self.cfg.variants else self.cfg.sim.variant)
+        if self.variant not in VARIANTS:
+            raise ArgumentError(f"FractureSim: variant {self.variant!r} is unknown; use one of {', '.join(VARIANTS)}.")
+        if device is not None:
+            from .io.ply import as_device
+
+            as_device("FractureSim", device)
         self.device_name = device
         self.topology = topology
         self.diagnostics = diagnostics
@@ -114,6 +224,11 @@ class FractureSim(torch.nn.Module):
 
     def frames(self, gs: GaussianSet) -> Iterator[FrameOutput]:
         """Stream FrameOutputs (frame 0 = input state) without stacking them."""
+        if not isinstance(gs, GaussianSet):
+            raise ArgumentError(
+                f"FractureSim.frames: gs is a {type(gs).__name__}, not a GaussianSet; call the module with tensors "
+                "(sim(means, opacities, sh, quats=..., scales=...)) or build a fracture_gs.io.GaussianSet."
+            )
         device = self._device(gs)
         sim = make_simulator(self.cfg, gs, self.variant, device, topology=self.topology)
         self.last_simulator = sim
@@ -144,11 +259,18 @@ class FractureSim(torch.nn.Module):
         if self.differentiable:
             from .differentiable import differentiable_forward
 
+            n = len(gs)
+            E, nu, density = (
+                None if v is None else _material_argument(k, v, n)
+                for k, v in (("E", E), ("nu", nu), ("density", density))
+            )
+            velocity = None if velocity is None else _velocity_argument(velocity, n)
             return differentiable_forward(self, gs, E, nu, density, velocity)
-        if any(t is not None for t in (E, nu, density, velocity)):
+        given = [k for k, t in (("E", E), ("nu", nu), ("density", density), ("velocity", velocity)) if t is not None]
+        if given:
             raise SimulationError(
-                "E, nu, density and velocity are inputs of the differentiable mode; "
-                "create FractureSim(..., differentiable=True) or set them in the config"
+                f"{FORWARD}: {', '.join(given)} would be ignored: E, nu, density and velocity are inputs of the "
+                "differentiable mode; create FractureSim(..., differentiable=True) or set them in the config."
             )
         with torch.no_grad():
             outs = list(self.frames(gs))

@@ -21,8 +21,10 @@ case $phase in
     python mutation/run.py map --jobs "${1:-56}"
     grep -h "s call\|s setup" mutation/.state/map.*.log | sort -rn | head -400 > "$OUT/durations.txt"
     tail -n 3 mutation/.state/map.*.log | grep -v "^$" > "$OUT/map_tail.txt" ;;
-  run)
+  run)  # a map made elsewhere travels gzipped (carry mutation/.state/coverage_map.json.gz and durations.json)
+    [[ -f mutation/.state/coverage_map.json.gz ]] && gunzip -kf mutation/.state/coverage_map.json.gz
     python mutation/run.py run "$@"
     pkill -f pick_tests.py; pkill -f "pytest -x -q -p no:cacheprovider"
-    cp mutation/.state/report.txt mutation/.state/survivors.json "$OUT/" ;;
+    cp mutation/.state/report.txt mutation/.state/survivors.json "$OUT/"
+    gzip -c mutation/.state/session.sqlite > "$OUT/session.sqlite.gz" ;;
 esac

@@ -56,7 +56,11 @@ def select_tests(module: str, lines: list[int], source: str, cover: dict, fallba
         if line in kern or not by_line:
             for test in fallback.get(module, []):
                 picked[test] = None
-        for test in by_line.get(str(line), []):
+        tests = by_line.get(str(line))
+        if tests is None and line not in kern:  # a line written after the map: the tests of its neighbours
+            near = [by_line[str(n)] for d in range(1, 6) for n in (line - d, line + d) if str(n) in by_line]
+            tests = near[0] + (near[1] if len(near) > 1 else []) if near else []
+        for test in tests or []:
             picked[test] = None
     return list(picked)
 

@@ -65,7 +65,7 @@ def target_files(patterns: list[str]) -> list[str]:
 def cmd_map(args) -> int:
     """Run the suite under coverage with one context per test; keep {module: {line: [test ids]}}."""
     STATE.mkdir(exist_ok=True)
-    files = sorted(str(p.relative_to(ROOT)) for p in (ROOT / "tests").glob(args.tests))
+    files = sorted({str(p.relative_to(ROOT)) for g in args.tests.split(",") for p in (ROOT / "tests").glob(g)})
     shards = [files[i :: args.jobs] for i in range(args.jobs)]
     procs = []
     for i, shard in enumerate(shards):
@@ -85,10 +85,20 @@ def cmd_map(args) -> int:
     import coverage
 
     broken, seconds = _failing_tests(len(procs))
-    (STATE / "durations.json").write_text(json.dumps(seconds))
     if broken:
         print(f"{len(broken)} tests fail without any mutant and are left out of the map:", *sorted(broken), sep="\n  ")
     cov_map: dict[str, dict[str, list[str]]] = defaultdict(lambda: defaultdict(list))
+    old_path = STATE / "coverage_map.json"
+    if args.merge and old_path.exists():  # keep what other test files recorded; replace only those re-run here
+        rerun = tuple(f"{f}::" for f in files)
+        for mod, by_line in json.loads(old_path.read_text()).items():
+            shift = _line_shift(mod)  # the modules may have changed since the map was made
+            for line, tests in by_line.items():
+                if (now := shift.get(int(line))) is not None:
+                    cov_map[mod][str(now)] = [t for t in tests if not t.startswith(rerun)]
+        old = json.loads((STATE / "durations.json").read_text()) if (STATE / "durations.json").exists() else {}
+        seconds = {**{k: v for k, v in old.items() if not k.startswith(rerun)}, **seconds}
+    (STATE / "durations.json").write_text(json.dumps(seconds))
     for i in range(len(procs)):
         data = coverage.CoverageData(basename=str(STATE / f".coverage.{i}"))
         data.read()
@@ -100,8 +110,31 @@ def cmd_map(args) -> int:
                     if test and test not in broken:
                         cov_map[rel][str(line)].append(test)
     (STATE / "coverage_map.json").write_text(json.dumps(cov_map))
+    for mod in cov_map:  # the sources the line numbers refer to, for the next --merge
+        if (ROOT / mod).is_file():
+            (STATE / "mapped_src" / mod).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copyfile(ROOT / mod, STATE / "mapped_src" / mod)
     print(f"coverage map: {len(cov_map)} modules -> {STATE / 'coverage_map.json'}")
     return 1 if failed else 0
+
+
+def _line_shift(module: str) -> dict[int, int]:
+    """Old line -> current line of `module`, from the source the map was made on (`mapped_src`) to today's; lines
+    since deleted or rewritten have none. Without a saved source the map is taken as current."""
+    import difflib
+
+    old_path, now_path = STATE / "mapped_src" / module, ROOT / module
+    if not now_path.is_file():
+        return {}
+    now = now_path.read_text().splitlines()
+    if not old_path.is_file():
+        return {i: i for i in range(1, len(now) + 1)}
+    old = old_path.read_text().splitlines()
+    shift: dict[int, int] = {}
+    for tag, i1, i2, j1, _ in difflib.SequenceMatcher(a=old, b=now, autojunk=False).get_opcodes():
+        if tag == "equal":
+            shift.update({i1 + k + 1: j1 + k + 1 for k in range(i2 - i1)})
+    return shift
 
 
 def _failing_tests(shards: int) -> tuple[set[str], dict[str, float]]:
@@ -235,14 +268,17 @@ def _equivalent(mutation, diff: str, equivalents: list[dict]) -> str | None:
     """The reason a surviving mutant changes no behaviour, when `equivalent.toml` gives one.
 
     An entry names the module, the operator and the exact source line the mutant rewrote (the `-`
-    line of its diff), so it follows the line when code above it moves, and a reason a reader can check.
+    line of its diff), so it follows the line when code above it moves, and a reason a reader can check;
+    an optional `mutant` (the `+` line) narrows it to one of several mutants of that operator on that line.
     """
     removed = [ln[1:].strip() for ln in diff.splitlines() if ln.startswith("-") and not ln.startswith("---")]
+    added = [ln[1:].strip() for ln in diff.splitlines() if ln.startswith("+") and not ln.startswith("+++")]
     for e in equivalents:
         if (
             e["module"] == str(mutation.module_path)
             and mutation.operator_name.endswith(e["operator"])
             and e["line"].strip() in removed
+            and ("mutant" not in e or e["mutant"].strip() in added)
         ):
             return e["reason"]
     return None
@@ -313,7 +349,8 @@ def main(argv=None) -> int:
     sub = ap.add_subparsers(dest="cmd", required=True)
     m = sub.add_parser("map", help="record which test executes which line (coverage contexts)")
     m.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="parallel pytest shards")
-    m.add_argument("--tests", default="test_*.py", help="glob of test files under tests/")
+    m.add_argument("--tests", default="test_*.py", help="globs of test files under tests/, comma-separated")
+    m.add_argument("--merge", action="store_true", help="add to the existing map instead of replacing it")
     m.add_argument("pytest_args", nargs="*", help="extra pytest arguments, e.g. -m 'not slow'")
     r = sub.add_parser("run", help="mutate the targets and run the tests that reach each mutant")
     r.add_argument("targets", nargs="*", help=f"folders, files or globs (default: {' '.join(DEFAULT_TARGETS)})")

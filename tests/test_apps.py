@@ -19,6 +19,7 @@ def _run(args: list[str], cwd: Path, timeout: int = 600) -> str:
     return proc.stdout
 
 
+@pytest.mark.slow
 def test_soak_holds_no_memory_and_repeats_its_metrics(tmp_path):
     """apps/soak.py: two render-sim + bench runs on the CPU give identical metrics (the simulation is
     deterministic on one device) and the loop's summary says so."""
@@ -32,6 +33,7 @@ def test_soak_holds_no_memory_and_repeats_its_metrics(tmp_path):
     assert summary["runs"] == 2 and summary["all_same_metrics"] and summary["max_held_bytes"] == 0
 
 
+@pytest.mark.slow
 def test_bench_fragments_smoke(tmp_path):
     """apps/bench_fragments.py: the K-fragment Table 2 on a tiny ficus prints a row per K and grid storage,
     with positive times; no multi-fragment node overflows its slots at K ≤ 4 and no stencil left its box."""
@@ -76,6 +78,7 @@ def test_bench_fragments_times_every_branch_in_each_trial():
     assert [len(s) for s in samples] == [2, 2]
 
 
+@pytest.mark.slow
 def test_bench_diff_smoke(tmp_path):
     """apps/bench_diff.py: forward and backward of a substep both run and report positive times."""
     text = _run(
@@ -86,11 +89,13 @@ def test_bench_diff_smoke(tmp_path):
     assert report["forward_ms_per_substep"] > 0 and report["backward_ms_per_substep"] > 0, report
 
 
+@pytest.mark.slow
 def test_check_render_gpu_cpu_dry_run(tmp_path):
     """apps/check_render_gpu.py --cpu-dry-run: the cross-check's own bookkeeping passes on the CPU."""
     assert "OK" in _run([str(APPS / "check_render_gpu.py"), "--cpu-dry-run", "--repeats", "1", "--no-assets"], tmp_path)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("script", ["bench.py", "accuracy.py", "make_figures.py"])
 def test_forwards_reach_the_cli(script, tmp_path):
     """The thin forwards print the CLI subcommand's own --help (same flags as `fracture-gs ...`)."""
@@ -98,6 +103,7 @@ def test_forwards_reach_the_cli(script, tmp_path):
     assert "--device" in text or "--protocol" in text
 
 
+@pytest.mark.slow
 def test_fragment_boxes_counts_nodes_as_by_hand(tmp_path):
     """apps/fragment_boxes.py: two particles of fragment 0 whose stencils share one node and a particle of
     fragment 1 on the second one's stencil: boxes of 5³ and 3³ nodes, 53 and 27 nodes reached, the 27 of
@@ -128,6 +134,7 @@ def test_fragment_boxes_counts_nodes_as_by_hand(tmp_path):
     assert rows[1]["nodes_of_two_or_more"] > rows[0]["nodes_of_two_or_more"], "more pieces, more faces"
 
 
+@pytest.mark.slow
 def test_capture_targets_reads_back_what_a_user_gets(tmp_path):
     """apps/capture_targets.py on a 5,000-Gaussian real .splat subset, 4 frames of a drop: the run is timed from the
     shell and its row reads the pieces, separation and edge strength back from the run's own outputs (a 4-frame

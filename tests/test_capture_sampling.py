@@ -47,6 +47,7 @@ def box_surface(lo, hi, spacing: float, seed: int = 0) -> GaussianSet:
     return GaussianSet(x.float(), quats, torch.cat(scales), torch.full((n,), 0.9), sh)
 
 
+@pytest.mark.slow
 def test_thin_plate_thickness_is_measured():
     """A plate 0.5 m wide and 30 mm thick: the probe's thin parts are as thick as the plate (within a probe voxel
     of 0.5/128 m either way), and a 120 mm block reads about four times thicker."""
@@ -59,6 +60,7 @@ def test_thin_plate_thickness_is_measured():
     assert 3.0 < thick / thin < 5.0, (thick, thin)
 
 
+@pytest.mark.slow
 def test_resolution_resolves_thin_parts_within_the_budget():
     """Δx = half the thin parts' thickness within the quality's bounds (two cells across, or finer); a part too thin
     for the CPU's budget is reported as under-resolved, and the GPU's budget goes finer."""
@@ -79,6 +81,7 @@ def test_resolution_resolves_thin_parts_within_the_budget():
     assert given.cells == 40 and given.dx == pytest.approx(0.5 / 40) and "capture.cells_across" in given.note
 
 
+@pytest.mark.slow
 def test_particle_count_follows_the_spacing_not_the_gaussians():
     """Four times the Gaussians on the same surface give the same number of simulated particles (one per voxel
     of the spacing), and every Gaussian is carried by its nearest particle."""
@@ -189,6 +192,7 @@ def test_crack_faces_trim_gaussians_to_their_own_side():
     assert torch.equal(faces.trimmed(torch.full_like(frag, -1)), cov0), "no fragments, nothing trimmed"
 
 
+@pytest.mark.slow
 def test_a_carried_capture_simulates_its_particles(tmp_path):
     """Through the pipeline, a capture with more Gaussians than its grid needs simulates only the carrier's
     particles, and frame 0 puts every drawn Gaussian exactly where the capture has it."""
@@ -210,6 +214,7 @@ def test_a_carried_capture_simulates_its_particles(tmp_path):
     torch.testing.assert_close(first.means, gs.means.float(), atol=1e-6, rtol=0)
 
 
+@pytest.mark.slow
 def test_material_regions_set_the_particles_material(tmp_path):
     """A `[[capture.regions]]` box of wood on a ceramic capture: the simulated particles inside it get wood's
     Young's modulus and density, those outside keep ceramic's, and resolving the written config again adds no

@@ -45,6 +45,7 @@ def assert_one_line_error(code: int, err: str) -> None:
 # ---------------------------------------------------------------- subprocess (the real entry point)
 
 
+@pytest.mark.slow
 def test_subprocess_validate_info_and_error(tmp_path):
     bad = tmp_path / "bad.toml"
     bad.write_text("[sim]\ngravty = [0, 0, -9.8]\n")
@@ -98,7 +99,7 @@ BAD_CALLS = [
     (["validate", "INVALID_VALUE"], "material.nu"),
     (["render-sim", "bread", "--device", "gpu"], "not a device"),
     (["render-sim", "bread", "--device", "cuda:7"], "cuda:7"),
-    (["render-sim", "bread", "--resolution", "640by480"], "WIDTHxHEIGHT"),
+    (["render-sim", "bread", "--resolution", "640by480"], "must be WxH with positive integers, got 640by480"),
     (["render-sim", "bread", "--resolution", "1x480"], "too small"),
     (["render-sim", "bread", "--variants", "baseline,fulll"], "did you mean 'full'"),
     (["render-sim", "bread", "--preset", "huge"], "--preset"),
@@ -221,3 +222,21 @@ def test_info_reports_the_video_encoder(capsys, monkeypatch):
     assert cli.main(["info"]) == 0
     line = next(line for line in capsys.readouterr().out.splitlines() if line.startswith("video"))
     assert "unavailable" in line and "pip install imageio-ffmpeg" in line
+
+
+def test_a_bare_value_error_is_reported_as_a_bug_not_as_bad_input(monkeypatch, capsys):
+    """Every bad input is refused as a package error where it enters (exit 2, naming the key); a ValueError from
+    elsewhere is a bug in fracture-gs, so it must not pose as the user's mistake: exit 1, one line that says so
+    and how to get the traceback, no traceback printed."""
+    import fracture_gs.cli as cli
+
+    def broken(args):
+        raise ValueError("invalid literal for int() with base 10: 'x'")
+
+    monkeypatch.setattr(cli, "_commands", lambda: {"info": broken})
+    assert cli.main(["info"]) == 1
+    err = capsys.readouterr().err
+    assert "internal error: ValueError" in err and "FRACTURE_GS_DEBUG=1" in err and "Traceback" not in err
+    monkeypatch.setenv("FRACTURE_GS_DEBUG", "1")
+    with pytest.raises(ValueError):
+        cli.main(["info"])

@@ -43,6 +43,7 @@ def video_frames(path) -> list:
         return [np.asarray(f) for f in reader]
 
 
+@pytest.mark.slow
 def test_render_sim_writes_every_output(recontact_run):
     res, out = recontact_run
     assert res.returncode == 0, res.stderr[-2000:]
@@ -96,6 +97,7 @@ def test_render_sim_writes_every_output(recontact_run):
     assert load_config(out / "config.toml").particles == 1500
 
 
+@pytest.mark.slow
 def test_divergence_keeps_partial_outputs(tmp_path):
     """10x over the CFL bound: exit 1, one error line naming the frame, frames and metrics kept."""
     cfg = tmp_path / "unstable.toml"
@@ -111,6 +113,7 @@ def test_divergence_keeps_partial_outputs(tmp_path):
     assert read_video(out / "full.mp4")[0] == len(rows) - 1
 
 
+@pytest.mark.slow
 def test_ctrl_c_keeps_partial_outputs(tmp_path):
     """SIGINT mid-run: exit 130, the message says where the partial outputs are, and they parse."""
     out = tmp_path / "out"
@@ -179,6 +182,7 @@ def test_ctrl_c_dropped_inside_a_finalizer_still_sets_the_stop_event():
     assert dropped == [KeyboardInterrupt]
 
 
+@pytest.mark.slow
 def test_stop_event_interrupts_the_run_and_keeps_its_outputs(tmp_path):
     """A set stop event (an interrupt whose exception was dropped) stops render-sim at the next frame
     as Ctrl-C does: KeyboardInterrupt, summary.json marked interrupted, the frames so far kept."""
@@ -205,6 +209,7 @@ def test_stop_event_interrupts_the_run_and_keeps_its_outputs(tmp_path):
     assert 1 <= len(rows) < cfg.frames
 
 
+@pytest.mark.slow
 def test_bad_ply_is_one_sentence(tmp_path):
     bad = tmp_path / "broken.ply"
     bad.write_text("this is not a ply file\n")
@@ -216,6 +221,7 @@ def test_bad_ply_is_one_sentence(tmp_path):
     assert len(lines) == 1 and "broken.ply" in lines[0] and "Traceback" not in res.stderr
 
 
+@pytest.mark.slow
 def test_module_matches_cli(recontact_run):
     """FractureSim on the same Gaussians reproduces the CLI's trajectories (CPU: exactly): the final positions of
     the Gaussians the CLI exported (`--export-ply 4`: every drawn Gaussian at frame 4) are the module's positions
@@ -253,6 +259,7 @@ def test_module_matches_cli(recontact_run):
     assert torch.equal(result["fragment"][-1], sim.last_simulator.particles.fragment)
 
 
+@pytest.mark.slow
 def test_module_accepts_covariances(recontact_run):
     """Covariances in (factored into rotation and scales) give the same first-frame Σ back."""
     import fracture_gs as fgs

@@ -17,6 +17,7 @@ from fracture_gs.sim.topology import Topology
 pytestmark = pytest.mark.usefixtures("one_thread")
 
 
+@pytest.mark.slow
 def test_two_workers_match_the_sequential_run(tmp_path):
     variants = ["stress_zero", "full", "baseline"]
     runner.run_render_sim(tiny_bread(), variants, "cpu", tmp_path / "seq")
@@ -62,6 +63,7 @@ def explode(cfg, gs, variant, device, *args, **kwargs):
     raise ValueError(f"boom in {variant}")
 
 
+@pytest.mark.slow
 def test_a_failing_worker_is_reported_with_its_error(tmp_path):
     """An error inside a worker process reaches the caller as WorkerFailed naming the device, the error and
     the worker's traceback; the other workers stop and no temporary files are left behind."""
@@ -89,6 +91,7 @@ def test_a_failing_worker_is_reported_with_its_error(tmp_path):
     assert not list(tmp_path.glob(".*"))
 
 
+@pytest.mark.slow
 def test_a_run_that_never_latches_on_two_workers(tmp_path):
     """Too few frames for the stress event to latch: both workers finish, no topology.npz is written (as in
     the sequential run) and every variant is ok (an empty history once crashed the topology writer)."""
@@ -109,6 +112,7 @@ def crash_the_follower(cfg, gs, variant, device, *args, **kwargs):
     return {"variant": variant, "status": "ok", "interrupted": False}, None
 
 
+@pytest.mark.slow
 def test_a_worker_process_that_dies_is_named(tmp_path):
     """A worker process that exits without reporting (killed, crashed) is a WorkerFailed naming the process
     and its exit code, not a hang and not a silently missing variant."""
@@ -173,6 +177,7 @@ def test_frame_sink_draws_what_the_painter_draws(device, tmp_path):
         assert np.array_equal(a, b)
 
 
+@pytest.mark.slow
 def test_painter_draws_the_same_with_and_without_the_topology_version(device):
     """A painter that knows each frame's topology version (and so finds the visible Gaussians only when a
     fracture changed them) draws every frame of a run, before and after the latch and with exposed

@@ -6,11 +6,14 @@ graph is recorded again)."""
 
 import math
 
+import pytest
+
 from fracture_gs.sim import metrics as M
 from fracture_gs.sim.diagnostics import COLLIDER_TOLERANCE, VOXEL
 from fracture_gs.sim.penetration import collider_crossing, fragment_overlap
 
 
+@pytest.mark.slow
 def test_reported_particle_numbers_equal_their_twins_every_frame(device):
     from fracture_gs.io.config import load_config
     from fracture_gs.pipeline import load_scene, make_simulator

@@ -76,12 +76,14 @@ def check(sim, x0, v0, vol, E0=1e3, frames=3):
     return out
 
 
+@pytest.mark.slow
 def test_gradients_match_finite_differences_baseline():
     """Shared field, no fracture: E, v0, x0 gradients within 1e-3 of float64 central differences."""
     sim, x, v0, vol = scene("baseline")
     check(sim, x, v0, vol)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("friction", [0.0, 0.4])
 def test_gradients_match_finite_differences_across_a_latch(friction):
     """FractureFields latching after frame 1 (topology held fixed, the halves pushed together so the
@@ -112,6 +114,7 @@ def test_no_nan_gradients_on_hard_cases():
     assert stiff.plans[0].n > 1 and torch.isfinite(E.grad).all() and torch.isfinite(v.grad).all()
 
 
+@pytest.mark.slow
 def test_fit_material_example_recovers_E(tmp_path):
     """apps/fit_material.py (the CPU run, small sagging beam): from E = 5e3 Pa, gradient descent through
     the simulation and the torch rasterizer on an image loss recovers E = 2e4 Pa within 5 %, and writes

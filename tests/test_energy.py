@@ -151,6 +151,7 @@ def drop(device, frames=24):
     return rows, lowest
 
 
+@pytest.mark.slow
 def test_drop_never_gains_energy_and_the_floor_takes_some(device):
     """A block dropped onto a slip floor: (1) in free fall kinetic energy gained equals potential energy
     lost within 2 % (symplectic Euler loses O(Δt)); (2) from frame to frame the total never rises by more
@@ -174,6 +175,7 @@ def test_drop_never_gains_energy_and_the_floor_takes_some(device):
     assert not any(r["energy_driven"] for r in rows), "a static floor is not a driver"
 
 
+@pytest.mark.slow
 def test_fracture_events_add_no_energy_in_a_real_run(device):
     """plate_drop at 3,000 particles with FractureFields: the stress provider latches again and again at
     the impact. Across every latch frame and the frame after it (the first simulated with the new

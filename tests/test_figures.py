@@ -136,6 +136,7 @@ def test_teaser_and_multiscene_png(tmp_path):
     assert (tmp_path / "grid.png").stat().st_size < 1 << 20
 
 
+@pytest.mark.slow
 def test_curves_png(tmp_path):
     t = np.linspace(0.1, 0.9, 20)
     series = {
@@ -199,7 +200,13 @@ def test_method_slice_and_figure(tmp_path, storage):
     assert np.abs(d["impulse"][d["category"] < 4]).max() == 0
     assert set(np.unique(d["fragment"]).tolist()) == {0, 1} and len(d["px"]) == len(d["fragment"])
     method_figure(d, tmp_path / "method.png", dpi=50)
-    assert cv2.imread(str(tmp_path / "method.png")).shape == (230, 400, 3)  # figsize (8, 4.6) × 50 dpi
+    img = cv2.imread(str(tmp_path / "method.png"))
+    assert img.shape == (230, 400, 3)  # figsize (8, 4.6) × 50 dpi
+    ink = (img < 200).any(-1).mean()
+    assert 0.02 < ink < 0.8, f"{ink:.3f} of the method figure is drawn: blank or filled"
+    d2 = dict(d, impulse=-np.asarray(d["impulse"]))  # the arrows are the data: reversing the impulse redraws them
+    method_figure(d2, tmp_path / "method2.png", dpi=50)
+    assert np.any(cv2.imread(str(tmp_path / "method2.png")) != img), "the impulse arrows are not drawn from the data"
     assert method_slice(two_blocks("stress_zero")) is None  # a single-field variant has no field sets
     json.dumps({k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in d.items()})  # cacheable
 
@@ -250,9 +257,15 @@ def test_accuracy_helpers(tmp_path):
     rows = list(csv.DictReader(io.StringIO((tmp_path / "accuracy.csv").read_text())))
     assert [x["pareto"] for x in rows] == ["yes", "yes"] and rows[0]["dx"] == "1/16"
     accuracy.pareto_figure(r, tmp_path / "p.png", dpi=50)
-    assert cv2.imread(str(tmp_path / "p.png")).shape[:2] == (190, 215)  # figsize (4.3 per case, 3.8) × dpi
+    img = cv2.imread(str(tmp_path / "p.png"))
+    assert img.shape[:2] == (190, 215)  # figsize (4.3 per case, 3.8) × dpi
+    assert 0.01 < (img < 200).any(-1).mean() < 0.6, "the Pareto figure is blank or filled"
+    r[1] = accuracy.Result("bar", "dt", 1 / 32, 5e-4, 0.2, 512, 161, 0.1, 0.05, "rel. period error", {}, "y")
+    accuracy.pareto_figure(r, tmp_path / "p2.png", dpi=50)
+    assert np.any(cv2.imread(str(tmp_path / "p2.png")) != img), "a point's error does not move it in the figure"
 
 
+@pytest.mark.slow
 def test_accuracy_cases_against_known_answers():
     """The bar's first period against 2L/c within 3 % at Δx = 1/16 (0.5 % at 1/32); the spinning
     cube's energy within 0.2 % over a revolution with its angular momentum kept; no
@@ -290,6 +303,7 @@ def test_partial_rerun_keeps_the_figures_an_earlier_call_made(tmp_path):
     assert merged_figures(tmp_path / "nowhere", now) == now  # no earlier summary: this call's only
 
 
+@pytest.mark.slow
 def test_fragment_rows_press_the_shattered_ficus_with_momentum_conserved():
     """The figures' K table (`paper.fragments`): per K the timing of both branches, and the pieces pressed into
     each other: contact fires on more nodes for more pieces, the projection conserves momentum (relative

@@ -432,6 +432,7 @@ def test_exported_ply_is_still_read_by_load_ply(tmp_path):
 # ----------------------------------------------------------------------------- the command line
 
 
+@pytest.mark.slow
 def test_render_sim_on_an_spz_capture_exports_spz_frames_in_the_scene_frame(tmp_path):
     """`render-sim capture.spz --export-ply 2 --export-format spz` simulates a real SPZ capture and writes
     frames 0 and 2 as .spz files that read back; frame 0's Gaussians sit where the capture's own Gaussians
@@ -460,6 +461,7 @@ def test_render_sim_on_an_spz_capture_exports_spz_frames_in_the_scene_frame(tmp_
     assert len(read_gaussians(out / "ply" / "baseline" / "frame_0002.spz")[0]) == len(frame0)
 
 
+@pytest.mark.slow
 def test_init_reads_a_splat_whose_suffix_lies(tmp_path, capsys):
     """`fracture-gs init` takes a real .splat saved as `seal.bin`: the content decides, the starter TOML names
     the file, and loading that TOML gives the same scene."""

@@ -234,6 +234,7 @@ def recontact(device, variant, frames=40):
     return tracker.history
 
 
+@pytest.mark.slow
 def test_recontact_full_vs_local_multifield(device):
     full = recontact(device, "full")
     free = recontact(device, "local_multifield")
@@ -322,6 +323,7 @@ def test_active_box_skips_only_empty_nodes(seed, variant):
         assert torch.equal(getattr(runs[0], k), getattr(runs[1], k)), f"{k} (seed {seed})"
 
 
+@pytest.mark.slow
 def test_table2_bench_times_every_build_of_every_branch():
     """fracture_gs.paper.bench's Table 2: every branch is built `placements` times and each build is timed
     in every trial (round-robin), on the same latched state; FractureFields keeps the dense grid (for the time

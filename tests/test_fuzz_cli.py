@@ -26,7 +26,7 @@ FLAGS = {
         "--particles": (["300", "500"], ["0", "-5", "many"]),
         "--resolution": (["64x48", "32X32", "16×16"], ["0x0", "²x²", "9000x10", "64", "axb"]),
         "--load": (["pull", "drop", "impact", "none"], ["throw"]),
-        "--devices": (["cpu", "cpu,cpu"], ["gpu", "cuda:9", ","]),
+        "--devices": (["cpu"], ["gpu", "cuda:9", ",", "cpu,cpu", "cpu,auto"]),
         "--export-ply": (["1", "5"], ["0", "-2"]),
         "--profile": (None, None),
         "--device": (["cpu", "auto", "CPU"], ["gpu", "", "cuda:0", "cuda:x"]),
@@ -122,6 +122,7 @@ class Recorder:
         return {"ok": True}
 
 
+@pytest.mark.slow
 @pytest.mark.usefixtures("one_thread")
 def test_fuzz_cli(tmp_path, monkeypatch, capsys):
     import fracture_gs.paper.bench as bench

@@ -216,6 +216,7 @@ def outcome(tally: Tally, category: str, path, must_fail: bool = False) -> None:
         tally.add(category, "clean load")
 
 
+@pytest.mark.slow
 @pytest.mark.usefixtures("one_thread")
 def test_fuzz_config(tmp_path_factory, capsys):
     tally = Tally("config")

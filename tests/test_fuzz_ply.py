@@ -174,6 +174,7 @@ def assert_usable(gs) -> None:
     assert ((gs.opacities >= 0) & (gs.opacities <= 1)).all()
 
 
+@pytest.mark.slow
 def test_fuzz_ply(tmp_path_factory, capsys):
     tally = Tally("PLY")
     folder = tmp_path_factory.mktemp("fuzz_ply")

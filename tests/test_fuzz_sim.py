@@ -65,6 +65,7 @@ def state(draw):
     return P, cfg, stress
 
 
+@pytest.mark.slow
 @pytest.mark.usefixtures("one_thread")
 def test_fuzz_sim(capsys):
     tally = Tally("simulation")

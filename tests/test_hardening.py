@@ -237,7 +237,7 @@ def test_item8_config_files_that_are_not_plain_utf8_toml(tmp_path, capsys):
 @pytest.mark.parametrize(
     "argv,needle",
     [
-        (["--resolution", "²x²"], "--resolution '²x²' is not WIDTHxHEIGHT"),
+        (["--resolution", "²x²"], "--resolution must be WxH with positive integers, got ²x²"),
         (["--resolution", "9000x100"], "over 8192"),
         (["--device", ""], "--device '' is not a device"),
         (["--device", " "], "is not a device"),
@@ -301,6 +301,7 @@ def test_api_errors_share_one_base_class():
         assert isinstance(err.value, FractureGSError) and isinstance(err.value, ValueError)
 
 
+@pytest.mark.slow
 def test_a_run_leaves_no_tensors_in_reference_cycles(tmp_path):
     """Memory comes back when a run ends, without waiting for Python's cycle collector (which a GPU out
     of memory never triggers): after render-sim, nothing the run allocated sits in a reference cycle

@@ -7,6 +7,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 PKG = Path(__file__).resolve().parents[1] / "fracture_gs"
 
 
@@ -41,6 +43,7 @@ def import_graph() -> dict[str, set[str]]:
     return graph
 
 
+@pytest.mark.slow
 def test_no_module_of_the_package_imports_apps():
     bad = {m: sorted(t for t in ts if t == "apps" or t.startswith("apps.")) for m, ts in import_graph().items()}
     assert not {m: t for m, t in bad.items() if t}, "the package must not import apps/ (it is not installed)"
@@ -106,6 +109,7 @@ print(len(names))
 """
 
 
+@pytest.mark.slow
 def test_importing_every_module_has_no_side_effects():
     out = subprocess.run(
         [sys.executable, "-c", IMPORT_EVERYTHING], capture_output=True, text=True, cwd=PKG.parent, timeout=300

@@ -52,6 +52,7 @@ def run(installed, *args, timeout=900):
     )
 
 
+@pytest.mark.slow
 def test_installed_package_is_the_one_imported(installed):
     target, work, env = installed
     out = subprocess.run(
@@ -67,6 +68,7 @@ def test_installed_package_is_the_one_imported(installed):
     assert not (target / "apps").exists()
 
 
+@pytest.mark.slow
 def test_installed_bench_writes_table2(installed):
     out = run(
         installed,
@@ -89,6 +91,7 @@ def test_installed_bench_writes_table2(installed):
     assert "| FractureFields | 1/1/0 |" in md and "| Shared Field | 1/1/0 |" in md
 
 
+@pytest.mark.slow
 def test_installed_figures_writes_a_measured_table2(installed):
     """The failure this guards against: Table 2 silently 'pending' because the benchmark lived outside the package."""
     out = run(installed, "figures", "--device", "cpu", "--only", "bench", "--out", "figs")
@@ -99,6 +102,7 @@ def test_installed_figures_writes_a_measured_table2(installed):
     assert (installed[1] / "figs" / "README.md").exists()
 
 
+@pytest.mark.slow
 def test_installed_sweep_finds_its_builtin_specs(installed):
     """The sweep specs ship as package data: `fracture-gs sweep accuracy_full --list` from the installed
     package lists the 30 cells of the full speed-against-error sweep, and `accuracy` its 18."""

@@ -67,6 +67,7 @@ def test_crush_places_a_plate_over_the_object_that_stops_above_the_floor():
     assert plan.gravity[2] < 0 and plan.max_events == 8 and "would stop" in plan.note  # 1.2 s, after the run
 
 
+@pytest.mark.slow
 def test_the_grid_holds_the_ball_path_and_the_plate(tmp_path):
     """A captured scene resolved with each load: the explicit grid, inside its walls, holds the ball where it
     starts and where it is at the end of the run, and the plate where it starts above the object. The ball is

@@ -43,6 +43,7 @@ def voronoi_state(seed, device, cells=5, slots=8, n=3000, variant="full", storag
     return sim, topo
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("normal", ["latched", "mass_gradient"])
 def test_k_field_transfer_matches_reference(device, seed, normal):
     """With K = 5 fragments and enough slots, P2G (mass, momentum, band mass) and G2P without contact
@@ -266,6 +267,7 @@ def sliding_block(device, mu, theta_deg, seconds=0.3, storage="auto", normal="au
     return torch.tensor(ts), torch.tensor(vs), g, th
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("storage, normal", [("slots", "latched"), ("boxes", "latched")])
 def test_friction_decelerates_at_mu_g_and_sticks_below_threshold(device, storage, normal):
     """Coulomb friction between fragments: on a slope steeper than the friction angle the block
@@ -353,6 +355,7 @@ def test_history_round_trip_and_replay(tmp_path, device):
     assert [t.latch_frame for t in sim.topologies] == [1, 3] and sim.n_fragments == 4
 
 
+@pytest.mark.slow
 def test_voronoi_provider_shatters_on_contact(device):
     """A slab dropped on a floor shatters into the configured number of cells at its first contact,
     deterministically per seed; the band marks particles near cell faces."""
@@ -412,6 +415,7 @@ def run_scene(name, particles, frames, variant="full"):
     return sim, rows
 
 
+@pytest.mark.slow
 def test_plate_drop_shatters_into_eight_or_more_pieces_without_interpenetration():
     """The plate hits the floor and the stress provider cuts it again and again: at least 8 pieces,
     every event impulse-free, no particle of one piece inside another's occupied voxels, none more than half a
@@ -435,6 +439,7 @@ def test_plate_drop_shatters_into_eight_or_more_pieces_without_interpenetration(
     assert max(max(r["mass_residual"]) for r in post) < 1e-5
 
 
+@pytest.mark.slow
 def test_bread_pulled_three_ways_tears_twice():
     """Held in the middle and pulled at both ends, the loaf is over-stressed in two separate places at
     once; the provider cuts each with its own plane in the same frame: three pieces, the middle one
@@ -446,6 +451,7 @@ def test_bread_pulled_three_ways_tears_twice():
     assert xs[0] < 0.47 < 0.53 < xs[1], xs
 
 
+@pytest.mark.slow
 def test_solo_particles_skip_slot_claims_bitwise():
     """Particles no other fragment can reach this frame deposit into and read from the dense slot
     without claiming it; the fields and the trajectory equal those of claiming at every node (CPU,

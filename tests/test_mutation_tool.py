@@ -25,7 +25,7 @@ def test_changed_lines_are_the_rewritten_ones():
 
 def test_kernel_bodies_fall_back_to_the_listed_tests_and_host_lines_to_coverage():
     """A line inside a `@wp.kernel` is invisible to the tracer, so its tests come from targets.toml;
-    a host line gets exactly the tests coverage saw on it."""
+    a host line gets exactly the tests coverage saw on it, a line written after the map its neighbours' tests."""
     src = "import warp as wp\n\n@wp.kernel\ndef k(x: wp.array(dtype=float)):\n    x[0] = 1.0\n\n"
     src += "def host():\n    return 2\n"
     assert pick_tests.kernel_lines(src) == {4, 5}
@@ -33,7 +33,9 @@ def test_kernel_bodies_fall_back_to_the_listed_tests_and_host_lines_to_coverage(
     fallback = {"m.py": ["tests/test_kernels.py"]}
     assert pick_tests.select_tests("m.py", [5], src, cover, fallback) == ["tests/test_kernels.py"]
     assert pick_tests.select_tests("m.py", [8], src, cover, fallback) == ["tests/t.py::test_host"]
-    assert pick_tests.select_tests("m.py", [7], src, cover, fallback) == []  # no test reaches it
+    # a line the map has not seen (written after it) takes its neighbours' tests; one far from any gets none
+    assert pick_tests.select_tests("m.py", [7], src, cover, fallback) == ["tests/t.py::test_host"]
+    assert pick_tests.select_tests("m.py", [8], src, {"m.py": {"20": ["tests/t.py::test_far"]}}, fallback) == []
 
 
 @pytest.mark.slow

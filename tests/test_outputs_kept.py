@@ -24,6 +24,7 @@ def tiny(frames=5):
     return cfg
 
 
+@pytest.mark.slow
 def test_interrupt_keeps_a_row_per_variant_and_the_held_frame(tmp_path, monkeypatch):
     cfg = tiny()
     real = pipeline.simulate
@@ -49,6 +50,7 @@ def test_interrupt_keeps_a_row_per_variant_and_the_held_frame(tmp_path, monkeypa
     assert reader.count_frames() == cfg.frames + 1, "the comparison runs to the longest variant, the other one held"
 
 
+@pytest.mark.slow
 def test_three_variants_interrupted_in_the_second(tmp_path, monkeypatch):
     cfg = tiny(3)
     real = pipeline.simulate
@@ -68,6 +70,7 @@ def test_three_variants_interrupted_in_the_second(tmp_path, monkeypatch):
     assert [r["status"] for r in rows] == ["ok", "interrupted at frame 0", "not run (interrupted before it)"]
 
 
+@pytest.mark.slow
 def test_divergence_states_its_cause_in_every_output(tmp_path):
     cfg = tmp_path / "stiff.toml"
     cfg.write_text(

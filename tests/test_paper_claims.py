@@ -59,6 +59,7 @@ def recontact():
     return run_experiment(prep, ["local_multifield", "full"], "cpu", state_frames=extents, progress=False)
 
 
+@pytest.mark.slow
 def test_bread_latches_at_the_paper_frame(bread):
     assert bread.latch_frame == 10, "the bread protocol latches at frame 10 (paper section 5.1)"
     assert all(r.status == "ok" for r in bread.runs.values())
@@ -97,6 +98,7 @@ def test_full_stringing_below_stress_zero(bread):
     assert full["stringing"] < 0.5 * sz["stringing"], (full["stringing"], sz["stringing"])
 
 
+@pytest.mark.slow
 def test_panel_b_contact_prevents_interpenetration(recontact):
     dx = recontact.prepared.cfg.sim.dx
     full, free = recontact.runs["full"], recontact.runs["local_multifield"]

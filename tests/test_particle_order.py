@@ -43,6 +43,7 @@ def test_cell_order_is_the_scene_permuted_with_each_gaussian_whole():
     assert bool((key[1:] >= key[:-1]).all()), "consecutive particles' stencil base cells never decrease"
 
 
+@pytest.mark.slow
 def test_a_run_in_cell_order_moves_like_the_scene_order_run(device):
     x, x0 = {}, {}
     for order in ("scene", "cell"):

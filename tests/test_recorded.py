@@ -4,6 +4,7 @@ the CPU the query simply runs. The solver's solo flags come out the same either 
 
 import math
 
+import pytest
 import torch
 
 from fracture_gs.sim.recorded import Recorded
@@ -23,6 +24,7 @@ def test_a_recorded_query_answers_as_running_it_again(device):
     assert len(rec.graphs) == (2 if rec.records else 0)
 
 
+@pytest.mark.slow
 def test_solo_flags_from_the_recorded_mask_equal_the_mask(device):
     """Each frame's solo flags (recorded on CUDA, one graph per neighbourhood radius) equal `solo_mask`
     run on that frame's state."""

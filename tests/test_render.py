@@ -101,8 +101,8 @@ def test_deform_covariances_is_F_cov_Ft_and_spd():
     Fy = (F @ y[..., None])[..., 0]
     q_def = (Fy * torch.linalg.solve(cov, Fy)).sum(1)
     q_rest = (y * torch.linalg.solve(cov0, y)).sum(1)
-    assert_close(q_def, q_rest, rtol=1e-8, atol=0, msg=msg)
-    assert_close(torch.linalg.det(cov), torch.linalg.det(F) ** 2 * torch.linalg.det(cov0), rtol=1e-8, atol=0, msg=msg)
+    assert_close(q_def, q_rest, rtol=1e-6, atol=0, msg=msg)  # a wrong formula is off by O(1); near-singular F
+    assert_close(torch.linalg.det(cov), torch.linalg.det(F) ** 2 * torch.linalg.det(cov0), rtol=1e-6, atol=0, msg=msg)
     assert_close(cov, cov.transpose(1, 2), rtol=0, atol=0, msg=lambda m: f"seed {seed}: not symmetric {m}")
     assert (torch.linalg.eigvalsh(cov) > 0).all(), f"seed {seed}: not SPD"
     # float32 keeps SPD while cond(F Σ⁰ Fᵀ) stays well under 1/ε₃₂ ≈ 1.7e7 (cond Σ⁰ ≤ 100 here, so cond F ≤ 100)
@@ -199,6 +199,7 @@ def test_rigid_rotation_renders_like_inverse_rotated_camera():
     assert (img_norot - img_rest).abs().max() > 1e-2, f"seed {seed}: SH rotation has no effect"
 
 
+@pytest.mark.slow
 def test_exposed_interior_colors_and_visible_mask():
     seed, g = fresh_seed()
     inner, surf = torch.randn(333, 3, generator=g), torch.randn(250, 3, generator=g)
@@ -316,6 +317,7 @@ def _threshold_ambiguous(means, cov, opac, cam, mode, pixels, rel=1e-4):
     return out
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("mode", ["classic", "antialiased"])
 @pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
 def test_torch_backend_matches_float64_reference(mode, dtype):
@@ -358,6 +360,7 @@ def test_empty_and_offscreen_scenes_render_background():
     assert_close(out.alpha, torch.zeros(18, 20))
 
 
+@pytest.mark.slow
 def test_backend_choice_by_device_never_imports_gsplat_on_cpu():
     cam = look_at((0, -2, 0), (0, 0, 0), (0, 0, 1), 40, 16, 16)
     args = (torch.zeros(1, 3), 0.01 * torch.eye(3)[None], torch.ones(1, 3), torch.ones(1), cam)

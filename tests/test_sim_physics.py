@@ -36,6 +36,7 @@ def spinning_body(device, seed, steps=500):
     return S.Simulator(cfg, P, device=device)
 
 
+@pytest.mark.slow
 def test_momentum_and_angular_momentum_conserved(device, seed):
     """No gravity, no boundaries: APIC/MLS-MPM conserves P and L (symmetric Kirchhoff stress)."""
     sim = spinning_body(device, seed)
@@ -50,6 +51,7 @@ def test_momentum_and_angular_momentum_conserved(device, seed):
     assert (L1 - L0).norm() / L0.norm() <= 1e-5, f"angular momentum drift (seed {seed})"
 
 
+@pytest.mark.slow
 def test_rigid_rotation_stays_rigid(device, seed):
     """A body spun rigidly keeps F a rotation: max ‖F − R(F)‖ stays small over 500 substeps."""
     sim = spinning_body(device, seed)
@@ -75,6 +77,7 @@ def drop_on_plane(device, mode, vt=1.0, frames=12):
     return sim, lowest
 
 
+@pytest.mark.slow
 def test_plane_modes(device):
     """A cube dropped on a slip plane never penetrates more than 0.5Δx and keeps sliding; sticky
     stops it; Coulomb friction lies in between."""
@@ -100,6 +103,7 @@ def stiff_block(device, dt_scale, adaptive):
     return S.Simulator(config(32, dt=dt, adaptive_dt=adaptive), P, device=device)
 
 
+@pytest.mark.slow
 def test_stiff_material_stable_at_cfl(device):
     """E = 1e8, ρ = 1000: 1,000 CFL-chosen substeps stay finite and bounded."""
     sim = stiff_block(device, 1.0, adaptive=True)
@@ -225,6 +229,7 @@ def test_drucker_prager_returns_onto_cone(device, seed):
     assert torch.allclose(P.F.double().cpu(), F_ref, atol=1e-5)
 
 
+@pytest.mark.slow
 def test_domain_walls_clamp_and_count(device):
     """A block thrown at the grid edge at 30 m/s stays inside the clamp bound (node n − wall_cells) and G2P
     counts the particles it clamped there (at least the block's front layer, 6 × 6 particles, once), while
@@ -330,6 +335,7 @@ def test_material_map_sets_per_particle_parameters():
     assert torch.allclose(P.mass, 200.0 * P.volume)
 
 
+@pytest.mark.slow
 def test_cpu_per_particle_kernels_split_over_cores_bitwise():
     """On the CPU the per-particle kernels (stress, G2P) run as one launch per core's share of the
     particles; the result, clamp counter included, equals one launch over all of them to the bit."""

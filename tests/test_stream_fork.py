@@ -5,6 +5,7 @@ fork is a no-op and the same launches run in order."""
 
 import contextlib
 
+import pytest
 import torch
 import warp as wp
 
@@ -63,6 +64,7 @@ def _check_eagerly_and_recorded(device, launches, tensors, streams):
                 assert (tensors[3].cpu() == 4.0).all(), "the recorded graph keeps both edges"
 
 
+@pytest.mark.slow
 def test_a_fork_waits_for_what_came_before_and_the_join_for_the_fork(device):
     tensors, (a, b, c, d) = _arrays(device)
     fork = StreamFork(device)
@@ -81,6 +83,7 @@ def test_a_fork_waits_for_what_came_before_and_the_join_for_the_fork(device):
     _check_eagerly_and_recorded(device, launches, tensors, streams)
 
 
+@pytest.mark.slow
 def test_a_fork_opened_early_waits_only_for_what_came_before_it(device):
     """`fork.open()` marks the fork point; a launch issued on the current stream after it and a launch inside the
     fork issued later still start from that point (the simulator issues G2P first and the next P2G's clear beside

@@ -142,6 +142,7 @@ def test_particles_that_are_not_solo_fan_out_one_thread_per_node(device, seed, f
             assert float((b - a).abs().max()) <= bound, f"C (seed {seed})"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("fragments", [2, 6])
 def test_independent_launches_beside_each_other_change_nothing(device, seed, fragments):
     """On a GPU the pool's reset, the P2G fan-out and the pool pass run on a second stream beside the dense

@@ -23,6 +23,7 @@ from fracture_gs.sim.topology import Topology
 pytestmark = pytest.mark.usefixtures("one_thread")
 
 
+@pytest.mark.slow
 def test_threads_equal_the_run_in_turn(tmp_path):
     variants = ["stress_zero", "full", "baseline"]
     runner.run_render_sim(tiny_bread(), variants, "cpu", tmp_path / "turn", schedule="in_turn")

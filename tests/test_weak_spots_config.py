@@ -111,8 +111,9 @@ def test_a_cached_row_is_reused_only_for_the_same_cell_parameters(tmp_path):
     Bugs tried: `load` without the parameters check (a cached row reused without checking the cell's parameters),
     without the id check; each fails here."""
     mine = cell({"case": "drop", "cells": 16})
-    cache.store(tmp_path, mine, {"device": "cpu", "error": 0.1})
-    assert cache.load(tmp_path, mine) == {"device": "cpu", "error": 0.1}
+    row = {"status": "failed", "device": "cpu", "error": 0.1}  # a row the strict reader takes (cache.check_row)
+    cache.store(tmp_path, mine, row)
+    assert cache.load(tmp_path, mine) == row
     assert cache.load(tmp_path, cell({"case": "drop", "cells": 32})) is None, "same id, other parameters"
     other = cell({"case": "drop", "cells": 16}, cell_id="ba9876543210")
     cache.cache_path(tmp_path, other.id).write_text(cache.cache_path(tmp_path, mine.id).read_text())
@@ -126,7 +127,7 @@ def test_a_cached_row_is_reused_only_on_the_same_device_type(tmp_path):
     Bugs tried: `scan` without the device check (a cached row reused on another device), comparing the full device
     string (`cuda:1` ≠ `cuda`), defaulting a missing device to `cuda`; each fails here."""
     cells = [cell({"n": i}, cell_id=f"{i:012x}") for i in range(4)]
-    rows = [{"device": "cpu"}, {"device": "cuda:1"}, {"device": "cuda"}, {}]
+    rows = [{"status": "failed", "device": d} for d in ("cpu", "cuda:1", "cuda")] + [{"status": "failed"}]
     for c, r in zip(cells, rows):
         cache.store(tmp_path, c, r)
     assert sorted(cache.scan(tmp_path, cells, "cpu")) == [cells[0].id, cells[3].id]

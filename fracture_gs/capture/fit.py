@@ -20,6 +20,7 @@ import torch
 
 from ..config import CaptureConfig
 from ..errors import SceneError
+from ..io.config.validate import ROTATION_TOLERANCE
 from .transform import SceneTransform
 
 AXES = {
@@ -64,30 +65,103 @@ def find_cameras_json(ply: Path, explicit: Optional[str]) -> Optional[Path]:
     return None
 
 
+MAX_IMAGE_SIDE = 100_000
+"""Pixels: the largest image side a cameras.json view may claim."""
+_CAMERA_FIX = (
+    "fix that entry, point capture.cameras_json at the trainer's file, or set capture.up and "
+    'capture.camera = "auto" so the file is not needed'
+)
+
+
 def read_cameras(path: Path) -> list[TrainerCamera]:
-    """The views of a cameras.json written by the reference 3DGS trainer."""
+    """The views of a cameras.json written by the reference 3DGS trainer; a view with a missing key, a value
+    of the wrong type, NaN or inf, a non-positive focal length or image size, or a rotation that is not a
+    proper rotation raises SceneError naming the file, the view and the key."""
     try:
         data = json.loads(Path(path).read_text())
-        cams = [
-            TrainerCamera(
-                position=torch.tensor(c["position"], dtype=torch.float64),
-                rotation=torch.tensor(c["rotation"], dtype=torch.float64),
-                fx=float(c["fx"]),
-                fy=float(c["fy"]),
-                width=int(c["width"]),
-                height=int(c["height"]),
-                name=str(c.get("img_name", "")),
-            )
-            for c in data
-        ]
-    except (OSError, ValueError, KeyError, TypeError) as exc:
+    except (OSError, ValueError) as exc:
         raise SceneError(
-            f"{path}: not a trainer cameras.json ({exc}); point capture.cameras_json at the trainer's file or "
-            f'set capture.up and capture.camera = "auto".'
+            f"{path}: not a trainer cameras.json ({' '.join(str(exc).split())}); point capture.cameras_json at the "
+            f'trainer\'s file or set capture.up and capture.camera = "auto".'
         ) from None
-    if not cams or any(c.rotation.shape != (3, 3) or c.position.shape != (3,) for c in cams):
-        raise SceneError(f'{path}: cameras.json holds no usable view; set capture.up and capture.camera = "auto".')
-    return cams
+    if not isinstance(data, list) or not data:
+        raise SceneError(
+            f"{path}: cameras.json must be a non-empty list of views, not {_describe(data)}; point "
+            f'capture.cameras_json at the trainer\'s file or set capture.up and capture.camera = "auto".'
+        )
+    return [_camera(path, i, c) for i, c in enumerate(data)]
+
+
+def _describe(v) -> str:
+    if isinstance(v, bool):
+        return f"the boolean {str(v).lower()}"
+    if isinstance(v, (int, float)):
+        return f"the number {v!r}" if math.isfinite(v) else f"the non-finite number {v!r}"
+    if isinstance(v, str):
+        return f"the string {v[:40]!r}"
+    if isinstance(v, list):
+        return f"a list of {len(v)}"
+    if isinstance(v, dict):
+        return "an object"
+    return "null" if v is None else type(v).__name__
+
+
+def _is_number(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def _camera(path: Path, i: int, c) -> TrainerCamera:
+    """One view of cameras.json, checked key by key."""
+    name = c.get("img_name") if isinstance(c, dict) else None
+    where = f"{path}: camera {i}" + (f" ({name})" if isinstance(name, str) and name else "")
+
+    def bad(key: str, problem: str) -> SceneError:
+        return SceneError(f"{where}: {key} {problem}; {_CAMERA_FIX}.")
+
+    if not isinstance(c, dict):
+        raise SceneError(
+            f"{where} is {_describe(c)}, not an object with position, rotation, fx, fy, width and height; "
+            f"{_CAMERA_FIX}."
+        )
+    for key in ("position", "rotation", "fx", "fy", "width", "height"):
+        if key not in c:
+            raise bad(key, "is missing")
+    pos = c["position"]
+    if not isinstance(pos, list) or len(pos) != 3:
+        raise bad("position", f"must be 3 finite numbers, not {_describe(pos)}")
+    if not all(_is_number(v) for v in pos):
+        raise bad(
+            "position", f"holds {_describe(next(v for v in pos if not _is_number(v)))}; it must be 3 finite numbers"
+        )
+    rot = c["rotation"]
+    rows_ok = isinstance(rot, list) and len(rot) == 3 and all(isinstance(r, list) and len(r) == 3 for r in rot)
+    if not rows_ok:
+        raise bad("rotation", f"must be a 3×3 array of finite numbers, not {_describe(rot)}")
+    wrong = next((v for r in rot for v in r if not _is_number(v)), None)
+    if wrong is not None or any(not _is_number(v) for r in rot for v in r):
+        raise bad("rotation", f"holds {_describe(wrong)}; it must be a 3×3 array of finite numbers")
+    R = torch.tensor(rot, dtype=torch.float64)
+    err = float((R.T @ R - torch.eye(3, dtype=torch.float64)).abs().max())
+    if err > ROTATION_TOLERANCE:
+        raise bad("rotation", f"is not a rotation (RᵀR differs from the identity by {err:.3g})")
+    if float(torch.linalg.det(R)) < 0:
+        raise bad("rotation", "is a reflection (determinant −1), not a camera rotation")
+    for key in ("fx", "fy"):
+        if not _is_number(c[key]) or not c[key] > 0:
+            raise bad(key, f"must be a positive focal length in pixels, not {_describe(c[key])}")
+    for key in ("width", "height"):
+        v = c[key]
+        if not (_is_number(v) and float(v).is_integer() and 1 <= v <= MAX_IMAGE_SIDE):
+            raise bad(key, f"must be a whole number of pixels from 1 to {MAX_IMAGE_SIDE:,}, not {_describe(v)}")
+    return TrainerCamera(
+        position=torch.tensor(pos, dtype=torch.float64),
+        rotation=R,
+        fx=float(c["fx"]),
+        fy=float(c["fy"]),
+        width=int(c["width"]),
+        height=int(c["height"]),
+        name=str(name) if isinstance(name, (str, int)) and not isinstance(name, bool) else "",
+    )
 
 
 def detect_up(cap: CaptureConfig, cameras: list[TrainerCamera]) -> tuple[torch.Tensor, str]:
@@ -171,32 +245,56 @@ def auto_roi_connected(x: torch.Tensor, core_lo, core_hi, h: float) -> tuple[tor
     return lo - pad, hi + pad
 
 
-def fit_transform(points: torch.Tensor, up: torch.Tensor, size: float) -> SceneTransform:
+def fit_transform(
+    points: torch.Tensor,
+    up: torch.Tensor,
+    size: float,
+    scale: Optional[float] = None,
+    rotation: Optional[torch.Tensor] = None,
+    offset: Optional[torch.Tensor] = None,
+) -> SceneTransform:
     """Up onto +z, the longest horizontal principal axis onto x, longest side = size [m], bounding-box
-    centre at CENTRE. points: the object's Gaussian means in scene coordinates [N, 3]."""
+    centre at CENTRE. points: the object's Gaussian means in scene coordinates [N, 3]. Each of `scale`,
+    `rotation` [3, 3] (a proper rotation) and `offset` [3] given replaces its automatic value, alone or
+    together: the automatic parts are found around the given ones."""
     x = points.to(torch.float64)
-    Q = rotation_onto_z(up)
-    y = x @ Q.T
-    h = y[:, :2] - y[:, :2].mean(0)
-    if len(h) >= 3:
-        evals, evecs = torch.linalg.eigh(h.T @ h)
-        a = evecs[:, 1]  # major horizontal axis
-        theta = -math.atan2(float(a[1]), float(a[0]))
-        c, s = math.cos(theta), math.sin(theta)
-        Q = torch.tensor([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]], dtype=torch.float64) @ Q
+    if rotation is not None:
+        Q = rotation.to(torch.float64)
+    else:
+        Q = rotation_onto_z(up)
+        y = x @ Q.T
+        h = y[:, :2] - y[:, :2].mean(0)
+        if len(h) >= 3:
+            evals, evecs = torch.linalg.eigh(h.T @ h)
+            a = evecs[:, 1]  # major horizontal axis
+            theta = -math.atan2(float(a[1]), float(a[0]))
+            c, s = math.cos(theta), math.sin(theta)
+            Q = torch.tensor([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]], dtype=torch.float64) @ Q
     y = x @ Q.T
     lo, hi = y.min(0).values, y.max(0).values
     longest = float((hi - lo).max())
     if not math.isfinite(longest) or longest <= 0:
         raise SceneError("the object has no extent after clean-up (every Gaussian at one point)")
-    scale = size / longest
-    offset = torch.tensor(CENTRE, dtype=torch.float64) - scale * 0.5 * (lo + hi)
-    return SceneTransform(scale, Q, offset)
+    s_ = float(scale) if scale is not None else size / longest
+    if offset is None:
+        offset = torch.tensor(CENTRE, dtype=torch.float64) - s_ * 0.5 * (lo + hi)
+    return SceneTransform(s_, Q, offset.to(torch.float64))
+
+
+def config_rotation(cap: CaptureConfig) -> Optional[torch.Tensor]:
+    """capture.rotation as a proper rotation [3, 3] float64 (validated within ROTATION_TOLERANCE of one, then
+    made exactly orthonormal by the polar decomposition), or None."""
+    if cap.rotation is None:
+        return None
+    R = torch.tensor(cap.rotation, dtype=torch.float64)
+    if float((R.T @ R - torch.eye(3, dtype=torch.float64)).abs().max()) < 1e-12:
+        return R  # as written (a resolved config's rotation comes back bit for bit)
+    U, _, Vh = torch.linalg.svd(R)
+    return U @ Vh
 
 
 def transform_from_config(cap: CaptureConfig) -> Optional[SceneTransform]:
-    """The stored fit, when the config holds one (scale, rotation and offset all set)."""
+    """The stored fit, when the config holds all of it (scale, rotation and offset)."""
     if cap.scale is None or cap.rotation is None or cap.offset is None:
         return None
-    Q = torch.tensor(cap.rotation, dtype=torch.float64)
-    return SceneTransform(float(cap.scale), Q, torch.tensor(cap.offset, dtype=torch.float64))
+    return SceneTransform(float(cap.scale), config_rotation(cap), torch.tensor(cap.offset, dtype=torch.float64))

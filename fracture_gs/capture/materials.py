@@ -5,8 +5,8 @@ c = √((λ + 2μ)/ρ). A real ceramic (c ≈ 5 km/s) would need ~10⁵ substeps
 stiffest value a run can afford, c ≈ 13–18 m/s (the soft `bread` keeps the built-in loaf's 6 m/s). What that
 costs and keeps, at the fitted size of 0.5 m:
 
-* sag under its own weight: strain ≈ ρ g H / E ≈ g H / c² ≈ 1–2 % (a 6 kPa jelly sags 40 %);
-* strength: σ_R above 2.5× the self-weight stress ρ g H of a 0.5 m tall object, so it stands, and below the
+* sag under its own weight: strain ≈ ρ g H / E ≈ g H / c² ≈ 1–2.5 % (plant 4 %; a 6 kPa jelly sags 40 %);
+* strength: σ_R above 2× the self-weight stress ρ g H of a 0.5 m tall object, so it stands, and below the
   impact stress ρ c v of a 1.5 m/s drop or a 3 m/s projectile, so a load breaks it;
 * the interior colour shown on crack faces (`render.interior_color = "material"`).
 

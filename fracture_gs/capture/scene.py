@@ -24,7 +24,7 @@ from ..errors import SceneError
 from ..io.gaussian_set import GaussianSet
 from .camera import frame_box, trainer_view
 from .clean import clean
-from .fit import auto_roi, detect_up, find_cameras_json, fit_transform, read_cameras, roi_mask, transform_from_config
+from .fit import auto_roi, config_rotation, detect_up, find_cameras_json, fit_transform, read_cameras, roi_mask
 from .ground import find_ground
 from .loads import apply_load, auto_load, plan_load
 from .materials import apply_material, apply_regions, substep_note
@@ -57,10 +57,12 @@ def is_capture(cfg: SceneConfig) -> bool:
 def resolve(cfg: SceneConfig, device: str = "cpu") -> Capture:
     """See the module doc. `device` decides the resolution budget and the panel size. Raises SceneError (one
     sentence naming the file and the fix) for scenes that leave nothing to simulate."""
+    from ..io.config import validate
     from ..io.formats import read_gaussians
 
     cfg = copy.deepcopy(cfg)
     path = Path(cfg.scene)
+    validate(cfg, f"{path} (captured scene)")  # a config built in Python, not loaded, is checked here too
     if not path.is_file():
         raise SceneError(
             f"{path}: no such file; check the path (or use a built-in scene: {', '.join(assets.names())})."
@@ -81,13 +83,14 @@ def resolve(cfg: SceneConfig, device: str = "cpu") -> Capture:
             f"or raise capture.outlier_std."
         )
     kept = gs.subset(keep)
+    Q = config_rotation(cap)
     cams_path = find_cameras_json(path, cap.cameras_json)
-    cameras = read_cameras(cams_path) if cams_path else []
-    fit = transform_from_config(cap)
-    if fit is None:
+    needs_cameras = (cap.up == "auto" and Q is None) or cap.camera == "trainer"
+    cameras = read_cameras(cams_path) if cams_path and needs_cameras else []
+    if Q is None:
         up, up_note = detect_up(cap, cameras)
     else:
-        up, up_note = fit.rotation[2].clone(), "up axis from the config's fit"  # the scene axis the fit takes to +z
+        up, up_note = Q[2].clone(), "up axis from capture.rotation"  # the scene axis the fit takes to +z
     above = _above_ground(kept.means, up, cap, notes)
     roi_note = "region of interest: automatic (robust bounds grown to what connects to them)"
     if cap.roi == "auto":  # resolved to a box, so the written config repeats it
@@ -107,11 +110,7 @@ def resolve(cfg: SceneConfig, device: str = "cpu") -> Capture:
     obj, bg = kept.subset(inside), kept.subset(~inside)
     if cap.regions:
         notes.append(apply_regions(cfg, obj))
-    if fit is None:
-        fit = fit_transform(obj.means, up, cap.size)
-        notes.append(f"{up_note}; scale {fit.scale:.4g} m per scene unit, longest side {cap.size:g} m")
-    else:
-        notes.append(f"fit from the config: scale {fit.scale:.4g} m per scene unit")
+    fit = _fit(obj, up, up_note, Q, cap, path, notes)
     cap.scale, cap.rotation, cap.offset = fit.scale, fit.to_config()["rotation"], fit.to_config()["offset"]
     obj = fit.gaussians(obj)
     bg = fit.gaussians(bg) if len(bg) else None
@@ -149,9 +148,40 @@ def resolve(cfg: SceneConfig, device: str = "cpu") -> Capture:
         cap.panel = "config"
     _camera(cfg, cameras, fit, lo, hi, room_lo, room_hi, notes)
     cfg.sim.max_fragments = max(cfg.sim.max_fragments, 2 * cfg.topology.max_events + 2)
-    from ..io.config import validate
-
     return Capture(validate(cfg, f"{path} (captured scene)"), obj, bg, fit, notes)
+
+
+def _fit(obj: GaussianSet, up, up_note: str, Q, cap, path: Path, notes: list) -> SceneTransform:
+    """The scene → simulation transform: capture.scale, rotation and offset as given (each alone or together),
+    the rest automatic. A given scale decides the object's size: capture.size follows it, within its range."""
+    offset = None if cap.offset is None else torch.tensor(cap.offset, dtype=torch.float64)
+    fit = fit_transform(obj.means, up, cap.size, scale=cap.scale, rotation=Q, offset=offset)
+    given = [k for k in ("scale", "rotation", "offset") if getattr(cap, k) is not None]
+    if cap.scale is not None:
+        q = obj.means.to(torch.float64) @ fit.rotation.T
+        size = fit.scale * float((q.max(0).values - q.min(0).values).max())
+        from ..io.config.validate import MAX_CAPTURE_SIZE, MIN_CAPTURE_SIZE
+
+        if not MIN_CAPTURE_SIZE <= size <= MAX_CAPTURE_SIZE:
+            raise SceneError(
+                f"{path}: capture.scale = {cap.scale:g} makes the object's longest side {size:.4g} m, outside "
+                f"{MIN_CAPTURE_SIZE:g} to {MAX_CAPTURE_SIZE:g} m; give a scale near "
+                f"{cap.size * fit.scale / size:.4g} (capture.size over the longest side), or remove capture.scale."
+            )
+        if abs(size - cap.size) > 1e-6 * size:
+            notes.append(f"capture.size {cap.size:g} m follows capture.scale: the longest side is {size:.4g} m")
+            cap.size = size
+    if not given:
+        notes.append(f"{up_note}; scale {fit.scale:.4g} m per scene unit, longest side {cap.size:g} m")
+    elif len(given) == 3:
+        notes.append(f"fit from the config: scale {fit.scale:.4g} m per scene unit")
+    else:
+        auto = [k for k in ("scale", "rotation", "offset") if k not in given]
+        notes.append(
+            f"fit: {' and '.join(f'capture.{k}' for k in given)} from the config, {' and '.join(auto)} automatic "
+            f"({up_note}); scale {fit.scale:.4g} m per scene unit, longest side {cap.size:g} m"
+        )
+    return fit
 
 
 def _above_ground(means: torch.Tensor, up: torch.Tensor, cap, notes: list) -> torch.Tensor:  # -> [N] bool

@@ -6,7 +6,7 @@ import os
 import re
 import sys
 
-from .parser import CliError
+from . import CliError
 
 DEVICE_RE = re.compile(r"^(auto|cpu|cuda(:\d+)?)$")
 

@@ -8,18 +8,23 @@ from typing import get_args
 
 from ..config import CaptureMaterial, CaptureQuality, LoadKind, ParticleOrder
 from ..io.formats import FORMATS
+from . import PROG, CliError
 from .sweep import add_sweep_parser
 
-PROG = "fracture-gs"
 DEVICE_RE = re.compile(r"^(auto|cpu|cuda(:\d+)?)$")
-
-
-class CliError(Exception):
-    """A user-facing error: its message is one sentence, printed without a traceback."""
+RESOLUTION_RE = re.compile(r"\s*([0-9]+)\s*[xX×]\s*([0-9]+)\s*")
+BENCH_DEFAULTS = {"steps": 200, "warmup": 20, "trials": 3, "grid": 128, "sort": "cell"}
+"""bench's defaults, applied by `cmd_bench` (the flags default to None, so a flag typed is told from one not)."""
 
 
 class _Parser(argparse.ArgumentParser):
-    """ArgumentParser whose usage errors become CliError (one line, exit 2)."""
+    """ArgumentParser whose usage errors become CliError (one line, exit 2). A token that starts with '-' and
+    a digit (`-64x48`, `-5`) is a value, never an option, so `--resolution -64x48` reaches the flag's check
+    instead of failing as "expected one argument" (no flag of fracture-gs looks like a negative number)."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = re.compile(r"^-\.?[0-9]")
 
     def error(self, message: str):  # type: ignore[override]
         raise CliError(f"{message} (see '{self.prog} --help')")
@@ -126,7 +131,6 @@ code 0 when valid, 2 with a one-sentence error otherwise. --dump prints the full
 def _add_common_run_flags(p: argparse.ArgumentParser, out_help: str) -> None:
     p.add_argument(
         "--device",
-        default="auto",
         metavar="DEVICE",
         help="auto (default: cuda:0 if available, else cpu), cpu, cuda or cuda:N",
     )
@@ -173,7 +177,9 @@ def build_parser() -> argparse.ArgumentParser:
         type=_positive_int,
         help="built-in scenes only: override the preset's particle count (quick looks)",
     )
-    p.add_argument("--resolution", metavar="WxH", help="image size, e.g. 640x480 (default: the config's)")
+    p.add_argument(
+        "--resolution", metavar="WxH", type=_resolution, help="image size, e.g. 640x480 (default: the config's)"
+    )
     p.add_argument(
         "--load",
         choices=get_args(LoadKind),
@@ -190,10 +196,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--schedule",
         choices=("in-turn", "threads"),
-        default="in-turn",
         help="on one device: simulate the variants one after another (in-turn) or at once, a thread each (threads: "
         "one's host work overlaps another's kernels: 4%% faster on 2 CPU cores, not faster on a GPU, whose frames "
-        "are Python-bound). The outputs are the same; with threads metrics.jsonl's rows interleave",
+        "are Python-bound; default in-turn). The outputs are the same; with threads metrics.jsonl's rows interleave",
     )
     p.add_argument(
         "--particle-order",
@@ -238,23 +243,20 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--particles", metavar="N", type=_positive_int, help="ficus particle count (default: the paper's 171,553)"
     )
-    p.add_argument(
-        "--steps", metavar="N", type=_positive_int, default=200, help="substeps per timing sample (default 200)"
-    )
-    p.add_argument("--warmup", metavar="N", type=_positive_int, default=20, help="untimed substeps first (default 20)")
-    p.add_argument("--trials", metavar="N", type=_positive_int, default=3, help="timing samples per build (default 3)")
+    p.add_argument("--steps", metavar="N", type=_positive_int, help="substeps per timing sample (default 200)")
+    p.add_argument("--warmup", metavar="N", type=_positive_int, help="untimed substeps first (default 20)")
+    p.add_argument("--trials", metavar="N", type=_positive_int, help="timing samples per build (default 3)")
     p.add_argument(
         "--placements",
         metavar="N",
         type=_positive_int,
         help="fresh-memory builds per branch (default: 5 on CUDA, 1 on the CPU)",
     )
-    p.add_argument("--grid", metavar="N", type=_positive_int, default=128, help="N³ grid, Δx = 1/N (default 128)")
+    p.add_argument("--grid", metavar="N", type=_positive_int, help="N³ grid, Δx = 1/N (default 128)")
     p.add_argument("--no-graph", action="store_true", help="time plain launches, no CUDA graph")
     p.add_argument(
         "--sort",
         choices=("cell", "interleaved"),
-        default="cell",
         help="particle order (default cell: on a GPU, P2G then sums each thread's run of particles that share a"
         " cell before its atomics)",
     )
@@ -345,3 +347,14 @@ def _positive_int(text: str) -> int:
     if value < 1:
         raise argparse.ArgumentTypeError(f"{value} must be at least 1")
     return value
+
+
+def _resolution(text: str) -> str:
+    """argparse type for --resolution: WxH with positive integers (sizes are checked by the config's overrides).
+    Raises CliError itself, so the sentence is printed as written, before any scene is loaded."""
+    match = RESOLUTION_RE.fullmatch(text)
+    if not match or min(int(match[1]), int(match[2])) < 1:
+        raise CliError(
+            f"--resolution must be WxH with positive integers, got {text}; write it like --resolution 640x480."
+        )
+    return text

@@ -10,7 +10,7 @@ import sys
 from pathlib import Path
 from typing import Any, Optional, Sequence
 
-from .devices import _cuda_devices
+from . import devices  # looked up at call time: tests pretend a GPU by patching devices._cuda_devices
 
 
 def _version_of(module: str) -> tuple[Optional[Any], str]:
@@ -48,7 +48,7 @@ def _info_lines() -> list[tuple[str, str]]:
     ]
     torch, version = _version_of("torch")
     rows.append(("torch", version))
-    available, count, reason = _cuda_devices()
+    available, count, reason = devices._cuda_devices()
     if torch is not None:
         rows.append(
             ("cuda", f"{count} device(s), CUDA {torch.version.cuda}" if available else f"not available: {reason}")

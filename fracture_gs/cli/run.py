@@ -12,8 +12,10 @@ from pathlib import Path
 from typing import Any
 
 from ..io.outputs import output_dir, output_file
+from . import CliError
 from .devices import resolve_device
-from .parser import CliError
+from .ignored import refuse_bench, refuse_figures, refuse_render_sim, run_devices
+from .parser import BENCH_DEFAULTS
 
 
 @contextlib.contextmanager
@@ -51,7 +53,7 @@ def _print_summary(summary: Any) -> None:
 
 
 def cmd_render_sim(args: argparse.Namespace) -> int:
-    """render-sim: load, override, validate, then hand over to fracture_gs.runner."""
+    """render-sim: load, override, validate, refuse flags that would do nothing, then run (fracture_gs.runner)."""
     from ..io.config import apply_overrides, find_config, load_config
 
     export_format = getattr(args, "export_format", None)
@@ -59,13 +61,7 @@ def cmd_render_sim(args: argparse.Namespace) -> int:
         raise CliError(f"--export-format {export_format} needs --export-ply N (which frames to write in it).")
     path = find_config(args.config)
     cfg = load_config(path)
-    device = resolve_device(args.device)
-    devices = None
-    if getattr(args, "devices", None):
-        devices = [resolve_device(d) for d in args.devices.split(",") if d.strip()]
-        if not devices:
-            raise CliError(f"--devices {args.devices!r} names no device; write it like --devices cuda:0,cuda:1.")
-        device = devices[0]
+    device, devices = run_devices(args)
     cfg = apply_overrides(
         cfg,
         preset=args.preset,
@@ -74,6 +70,7 @@ def cmd_render_sim(args: argparse.Namespace) -> int:
         variants=args.variants,
         source=f"{path} with command-line overrides",
     )
+    refuse_render_sim(cfg, args, devices)
     out_dir = output_dir(args.out if args.out is not None else Path("runs") / cfg.name)
     from ..runner import run_render_sim as run
 
@@ -92,7 +89,7 @@ def cmd_render_sim(args: argparse.Namespace) -> int:
         extra["export_format"] = export_format
     if devices and len(devices) > 1:
         extra["devices"] = devices
-    if getattr(args, "schedule", "in-turn") != "in-turn":
+    if getattr(args, "schedule", None) and args.schedule != "in-turn":
         extra["schedule"] = args.schedule.replace("-", "_")
     with sigint_event() as stop:
         summary = run(cfg, list(cfg.variants), device, out_dir, profile=args.profile, stop=stop, **extra) or {}
@@ -121,6 +118,8 @@ def cmd_render_sim(args: argparse.Namespace) -> int:
 
 def cmd_bench(args: argparse.Namespace) -> int:
     """bench: Table 2 branches (fracture_gs.paper.bench) or the accuracy sweeps (fracture_gs.paper.accuracy)."""
+    device = None if args.accuracy and args.from_json else resolve_device(args.device)
+    refuse_bench(args, device)
     if args.accuracy:
         from ..paper import accuracy
 
@@ -133,26 +132,23 @@ def cmd_bench(args: argparse.Namespace) -> int:
             unknown = sorted(set(cases or ()) - set(accuracy.CASES))
             if unknown:
                 raise CliError(f"--cases {', '.join(unknown)} unknown; choose from {', '.join(accuracy.CASES)}.")
-            _print_summary(accuracy.run_accuracy(resolve_device(args.device), out_dir, quick=args.quick, cases=cases))
+            _print_summary(accuracy.run_accuracy(device, out_dir, quick=args.quick, cases=cases))
         print((out_dir / "accuracy.md").read_text())
         return 0
     from ..paper.bench import run_bench
 
     out_dir = output_dir(args.out if args.out is not None else Path("runs") / "bench")
     args.partial_out = out_dir
+    sizes = {k: getattr(args, k) if getattr(args, k) is not None else v for k, v in BENCH_DEFAULTS.items()}
     _print_summary(
         run_bench(
-            device=resolve_device(args.device),
+            device=device,
             out_dir=out_dir,
             particles=args.particles,
-            steps=args.steps,
-            warmup=args.warmup,
-            trials=args.trials,
             graph=not args.no_graph,
-            sort=args.sort,
             placements=args.placements,
-            grid=args.grid,
             command="fracture-gs " + " ".join(args.argv),
+            **sizes,
         )
     )
     return 0
@@ -163,6 +159,7 @@ def cmd_figures(args: argparse.Namespace) -> int:
     from ..paper.figures import GROUPS, run_figures
     from ..paper.readme import refresh_readme
 
+    refuse_figures(args)
     out_dir = output_dir(args.out if args.out is not None else Path("figures") / "out")
     if args.readme_only:
         print(refresh_readme(out_dir))

@@ -32,6 +32,9 @@ A SPEC is a TOML file or a built-in name ({names}). Tables, each a cross product
                [scene.set] "any.config.key" = [...], render = false (true: render-sim's videos too)
 (the format: fracture_gs/sweep/spec.py; the built-in specs are commented examples).
 
+A spec may multiply out to at most 10,000 cells ([sweep] max_cells or --max-cells N raises the cap); the
+count is checked before any cell is made, and --list prints the cells as they are made.
+
 Cells are dealt out by estimated cost (longest first to the least-loaded rank, so ranks finish together;
 `--list` shows the plan); each finished cell is cached in OUT/cells/<id>.json (id = a hash of
 its parameters and resolved config), so rerunning the same command, with any number of ranks, runs only
@@ -52,6 +55,16 @@ def _positive_seconds(text: str) -> float:
         raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds; write it like 300") from None
     if not value > 0:
         raise argparse.ArgumentTypeError(f"{value:g} must be a positive number of seconds")
+    return value
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text.replace("_", "").replace(",", ""))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number; write it like 20000") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"{value} must be a positive number of cells")
     return value
 
 
@@ -88,43 +101,97 @@ def add_sweep_parser(subparsers, parser_class: Optional[type] = None) -> argpars
     p.add_argument("--rerun-failed", action="store_true", help="run cells whose cached result is a failure again")
     p.add_argument("--fresh", action="store_true", help="ignore the cache and run every cell again")
     p.add_argument(
+        "--max-cells",
+        metavar="N",
+        type=_positive_int,
+        help="the most cells the spec may multiply out to (default: its [sweep] max_cells, else 10,000)",
+    )
+    p.add_argument(
         "--rank-timeout",
         metavar="S",
         type=_positive_seconds,
-        default=300.0,
+        default=None,
         help="seconds without a heartbeat after which a rank counts as dead (default 300)",
     )
     return p
 
 
-def _print_list(spec_path, opts) -> None:
+def _print_list(spec_path, opts, total: int) -> None:
+    """The cells with their cache status and rank, printed as the spec expands (the first lines come at once
+    with one rank), then the counts."""
     from ..sweep.distributed import launch_from_env
-    from ..sweep.driver import list_cells
+    from ..sweep.driver import iter_listing
 
     launch = launch_from_env()
-    listing = list_cells(spec_path, opts)
+    listing = iter_listing(spec_path, opts)
     if launch.rank != 0:
+        for _ in listing:
+            pass
         return
-    counts = {s: sum(1 for _, st, _ in listing if st == s) for s in ("ok", "failed", "pending")}
-    print(
-        f"{len(listing)} cells in {spec_path} (cache {opts.out_dir / 'cells'}): {counts['ok']} ok, "
-        f"{counts['failed']} failed, {counts['pending']} to run on {launch.world_size} rank(s)"
-    )
-    print(f"{'#':>4}  {'id':<12}  {'kind':<8}  {'cache':<7}  {'rank':>4}  cell")
+    print(f"{spec_path}: up to {total:,} cells (cache {opts.out_dir / 'cells'})", flush=True)
+    print(f"{'#':>4}  {'id':<12}  {'kind':<8}  {'cache':<7}  {'rank':>4}  cell", flush=True)
+    counts = {"ok": 0, "failed": 0, "pending": 0}
     for cell, status, rank in listing:
         where = "-" if rank is None else str(rank)
-        print(f"{cell.index + 1:>4}  {cell.id:<12}  {cell.kind:<8}  {status:<7}  {where:>4}  {cell.describe}")
+        print(
+            f"{cell.index + 1:>4}  {cell.id:<12}  {cell.kind:<8}  {status:<7}  {where:>4}  {cell.describe}", flush=True
+        )
+        counts[status if status in counts else "failed"] += 1
+    print(
+        f"{sum(counts.values())} cells in {spec_path} (cache {opts.out_dir / 'cells'}): {counts['ok']} ok, "
+        f"{counts['failed']} failed, {counts['pending']} to run on {launch.world_size} rank(s)"
+    )
+
+
+def _progress(echo_every_s: float = 5.0):
+    """A progress callback for a long expansion: one line every few seconds (none for a quick one)."""
+    import time
+
+    start = last = time.monotonic()
+
+    def report(made: int, total: int) -> None:
+        nonlocal last
+        now = time.monotonic()
+        if now - last >= echo_every_s:
+            last = now
+            print(f"sweep: made {made:,} of {total:,} cells ({now - start:.0f} s)", flush=True)
+
+    return report
+
+
+def _refuse_ignored(args: argparse.Namespace) -> None:
+    """Flags that would change nothing are refused (cli/ignored.py's rule): --list only reads the cache."""
+    from . import CliError
+
+    if args.list:
+        for flag, given in (
+            ("--fresh", args.fresh),
+            ("--rerun-failed", args.rerun_failed),
+            ("--rank-timeout", args.rank_timeout is not None),
+        ):
+            if given:
+                raise CliError(f"{flag} does nothing with --list, which only reads the cache; drop {flag} or --list.")
+    if args.fresh and args.rerun_failed:
+        raise CliError("--rerun-failed does nothing beside --fresh, which runs every cell again; keep one of them.")
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:
-    """sweep: run (or --list) a spec's cells on this rank; rank 0 prints the summary and the table."""
+    """sweep: run (or --list) a spec's cells on this rank; rank 0 prints the summary and the table. Bad input
+    raises the package's errors (one line from the CLI)."""
+    _refuse_ignored(args)
     from ..io.outputs import output_dir
     from ..sweep import expand, find_spec, load_spec
     from ..sweep.distributed import RankFailure, launch_from_env, resolve_device
     from ..sweep.driver import SweepOptions, run_sweep
 
     path = find_spec(args.spec)
-    expand(load_spec(path))  # a bad spec, launch or device is one sentence before any folder is made
+    cells, total = None, 0
+    if args.list:  # checks the size only: the cells are checked as they are listed
+        from ..sweep.expansion import check_size
+
+        total = check_size(load_spec(path), args.max_cells)
+    else:  # a bad spec, launch or device is one sentence before any folder is made
+        cells = expand(load_spec(path), args.max_cells, _progress())
     resolve_device(args.device, launch_from_env())
     out = Path(args.out) if args.out is not None else Path("runs") / path.stem
     if not args.list:  # --list only reads the cache
@@ -136,14 +203,15 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         device=args.device,
         fresh=args.fresh,
         rerun_failed=args.rerun_failed,
-        rank_timeout_s=args.rank_timeout,
+        rank_timeout_s=300.0 if args.rank_timeout is None else args.rank_timeout,
         command="fracture-gs " + " ".join(argv),
+        max_cells=args.max_cells,
     )
     if args.list:
-        _print_list(path, opts)
+        _print_list(path, opts, total)
         return 0
     try:
-        report = run_sweep(path, opts)
+        report = run_sweep(path, opts, cells)
     except RankFailure as exc:
         print(f"{PROG}: error: {' '.join(str(exc).split())}", file=sys.stderr)
         return 3

@@ -37,7 +37,7 @@ import torch
 from ..errors import PlyError
 from . import gsply_io, splat_file
 from .gaussian_set import GaussianSet
-from .ply import SIGMA_RANGE, load_ply_lenient, save_ply
+from .ply import SIGMA_RANGE, as_device, as_gaussians, as_path, load_ply_lenient, save_ply, write_failed
 
 FORMATS = ("ply", "compressed-ply", "splat", "spz")
 """The formats read and written (`--export-format`)."""
@@ -172,7 +172,9 @@ def _text_kind(head: bytes, path) -> str | None:
 def detect_format(path) -> str:
     """The format of a splat file from its bytes: "ply", "compressed-ply", "spz", "splat" or "ksplat".
     Raises PlyError (one sentence: what the file looks like, the formats read, the fix) otherwise."""
-    path = os.fspath(path)
+    path = as_path("detect_format", path)
+    if os.path.isdir(path):
+        raise PlyError(f"{path}: is a folder, not a file; pass the scene file inside it ({READ} are read).")
     if not os.path.isfile(path):
         raise PlyError(f"{path}: no such file; check the path to the scene ({READ} are read).")
     size = os.path.getsize(path)
@@ -214,7 +216,7 @@ def detect_format(path) -> str:
 def is_splat_file(path) -> bool:
     """Whether a scene path names a splat file: its suffix is one of SCENE_SUFFIXES, or the file exists
     and its content is a splat format (whatever its suffix says)."""
-    text = os.fspath(path)
+    text = as_path("is_splat_file", path)
     if text.lower().endswith(SCENE_SUFFIXES):
         return True
     if not os.path.isfile(text):
@@ -282,7 +284,8 @@ def _arrays(path, fmt: str) -> dict:
 def read_gaussians(path, device="cpu") -> tuple[GaussianSet, int, str]:
     """(Gaussians, rows dropped as unreadable, format name) of any splat file FORMATS lists.
     Raises PlyError for other files, a `.ksplat`, and files with no usable Gaussian."""
-    path = os.fspath(path)
+    path = as_path("read_gaussians", path)
+    as_device("read_gaussians", device)
     fmt = detect_format(path)
     if fmt == "ksplat":
         raise PlyError(
@@ -331,17 +334,21 @@ def _checked(gs: GaussianSet, path) -> dict:
 
 def write_gaussians(gs: GaussianSet, path, fmt: str = "ply") -> Path:
     """Write `gs` to `path` in one of FORMATS (what each keeps: the module doc); returns the path."""
-    if fmt not in FORMATS:
-        raise PlyError(f"format {fmt!r} is not written; choose one of {', '.join(FORMATS)}.")
-    path = Path(path)
+    gs = as_gaussians("write_gaussians", gs)
+    path = Path(as_path("write_gaussians", path))
+    if not isinstance(fmt, str) or fmt not in FORMATS:
+        raise PlyError(f"write_gaussians: format {fmt!r} is not written; choose one of {', '.join(FORMATS)}.")
     if fmt == "ply":
         save_ply(gs if gs.device.type == "cpu" else gs.to("cpu"), path)  # a CPU set keeps load_ply's raw values
         return path
     a = _checked(gs, path)
-    if fmt == "splat":
-        path.write_bytes(splat_file.encode(a["means"], a["scales"], a["quats"], a["opacities"], a["sh"][:, 0]))
-    elif fmt == "compressed-ply":
-        gsply_io.write_compressed_ply(a, path)
-    else:
-        gsply_io.write_spz(a, path)
+    try:
+        if fmt == "splat":
+            path.write_bytes(splat_file.encode(a["means"], a["scales"], a["quats"], a["opacities"], a["sh"][:, 0]))
+        elif fmt == "compressed-ply":
+            gsply_io.write_compressed_ply(a, path)
+        else:
+            gsply_io.write_spz(a, path)
+    except OSError as err:
+        raise write_failed(path, err) from None
     return path

@@ -1,11 +1,22 @@
-"""`GaussianSet`: a 3D Gaussian scene as torch tensors (the type io, assets and users share)."""
+"""`GaussianSet`: a 3D Gaussian scene as torch tensors (the type io, assets and users share), and the rules
+its values follow, checked where a set is made (`check_gaussians`): shapes [N, 3] / [N, 4] / [N, 3] / [N] /
+[N, K, 3] with K = (degree+1)², one device, finite values, σ within SIGMA_RANGE (the PLY rule), quaternions
+≠ 0, opacities in [0, 1], labels non-negative. A list or numpy array of numbers is taken as a tensor; any
+other type, shape or value is one `ArgumentError` sentence naming the argument and the fix.
+"""
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, fields, replace
-from typing import Optional
+from typing import Any, Optional
 
+import numpy as np
 import torch
+
+from ..errors import ArgumentError
+
+SIGMA_RANGE = (1e-18, 1e18)  # σ whose σ² is a normal, finite float32 (the covariance stays invertible)
 
 
 @dataclass
@@ -28,6 +39,18 @@ class GaussianSet:
     carrier: Optional[Carrier] = None  # simulate carrier.particles, these Gaussians follow them (None: 1:1)
 
     def __post_init__(self):
+        checked = check_gaussians(
+            "GaussianSet",
+            means=self.means,
+            quats=self.quats,
+            scales=self.scales,
+            opacities=self.opacities,
+            sh=self.sh,
+            interior=self.interior,
+            labels=self.labels,
+        )
+        for name, value in checked.items():
+            setattr(self, name, value)
         n = self.means.shape[0]
         if self.interior is None:
             self.interior = torch.zeros(n, dtype=torch.bool, device=self.means.device)
@@ -127,3 +150,135 @@ class Carrier:
         Fg = F.index_select(0, self.index)
         means = x.index_select(0, self.index) + (Fg @ self.offset.to(F.dtype)[:, :, None])[:, :, 0]
         return means, Fg
+
+
+# ----------------------------------------------------------------------------- checks
+
+_SHAPES = {"means": "[N, 3]", "quats": "[N, 4]", "scales": "[N, 3]", "opacities": "[N]", "sh": "[N, K, 3]"}
+
+
+def as_tensor(where: str, name: str, value: Any, shape: str) -> torch.Tensor:
+    """`value` as a tensor: a tensor as it is, a list, tuple or numpy array of numbers converted
+    (`torch.as_tensor`); anything else is an ArgumentError naming `where`'s argument `name`."""
+    if torch.is_tensor(value):
+        return value
+    if isinstance(value, (list, tuple, np.ndarray, np.generic, int, float)) and not isinstance(value, bool):
+        try:
+            return torch.as_tensor(value)
+        except (TypeError, ValueError, RuntimeError, OverflowError):
+            pass
+    raise ArgumentError(
+        f"{where}: {name} must be numbers of shape {shape}, got {_describe(value)}; pass a torch tensor "
+        f"(a list or numpy array of numbers is converted)."
+    )
+
+
+def _describe(value: Any) -> str:
+    if isinstance(value, np.ndarray):
+        return f"a numpy array of dtype {value.dtype}"
+    if isinstance(value, (list, tuple)):
+        return f"a {type(value).__name__} that is not a rectangular array of numbers"
+    return f"a {type(value).__name__}" if value is not None else "None"
+
+
+def _floating(where: str, name: str, t: torch.Tensor) -> torch.Tensor:
+    """A real floating tensor: integers become float32; bool and complex are refused."""
+    if t.is_floating_point():
+        return t
+    if t.dtype == torch.bool or t.is_complex():
+        raise ArgumentError(
+            f"{where}: {name} has dtype {t.dtype}; pass real numbers (float32), e.g. {name}.float() if they are."
+        )
+    return t.to(torch.float32)
+
+
+def _shaped(where: str, name: str, t: torch.Tensor, dims: tuple, n: Optional[int]) -> None:
+    """`t` has len(dims) dimensions, the first n (when given), the others dims[1:] (None: any size)."""
+    want = list(dims)
+    if n is not None:
+        want[0] = n
+    ok = t.dim() == len(dims) and all(w is None or s == w for s, w in zip(t.shape, want))
+    if not ok:
+        of = f" with N = {n} (the number of means)" if n is not None else ""
+        raise ArgumentError(
+            f"{where}: {name} has shape {list(t.shape)}, not {_SHAPES.get(name, '[N]')}{of}; pass one row per Gaussian."
+        )
+
+
+def check_gaussians(where: str, **arrays: Any) -> dict:
+    """The Gaussian arrays given (means, quats, scales, opacities, sh, interior, labels; None skipped) as tensors
+    that follow the module doc's rules, or ArgumentError: one sentence naming `where` (the function or class that
+    received them), the argument, what is wrong and the fix. One host sync for all value checks."""
+    out: dict = {}
+    means = _floating(where, "means", as_tensor(where, "means", arrays["means"], "[N, 3]"))
+    _shaped(where, "means", means, (None, 3), None)
+    n, device = means.shape[0], means.device
+    out["means"] = means
+    for name, dims in (("quats", (None, 4)), ("scales", (None, 3)), ("opacities", (None,)), ("sh", (None, None, 3))):
+        if arrays.get(name) is None:
+            continue
+        t = _floating(where, name, as_tensor(where, name, arrays[name], _SHAPES[name]))
+        _shaped(where, name, t, dims, n)
+        out[name] = t
+    if "sh" in out:
+        k = out["sh"].shape[1]
+        if k < 1 or math.isqrt(k) ** 2 != k:
+            raise ArgumentError(
+                f"{where}: sh has K = {k} coefficients per channel; pass [N, (degree+1)², 3] (1, 4, 9 or 16)."
+            )
+    if arrays.get("interior") is not None:
+        t = as_tensor(where, "interior", arrays["interior"], "[N] bool")
+        if t.dtype != torch.bool:
+            raise ArgumentError(f"{where}: interior has dtype {t.dtype}, not bool; pass a bool mask, e.g. mask != 0.")
+        _shaped(where, "interior", t, (None,), n)
+        out["interior"] = t
+    if arrays.get("labels") is not None:
+        t = as_tensor(where, "labels", arrays["labels"], "[N] int")
+        if t.is_floating_point() or t.is_complex() or t.dtype == torch.bool:
+            raise ArgumentError(f"{where}: labels has dtype {t.dtype}; pass integer material labels (int32).")
+        _shaped(where, "labels", t, (None,), n)
+        out["labels"] = t
+    for name, t in out.items():
+        if t.device != device:
+            raise ArgumentError(
+                f"{where}: {name} is on {t.device} but means on {device}; move them to one device (.to(means.device))."
+            )
+    _check_values(where, out)
+    return out
+
+
+def _value_rules(out: dict) -> list:
+    """(argument, [N] or [N, ...] bool tensor of bad entries, what they are, the fix), in the order checked."""
+    rules = [("means", ~torch.isfinite(out["means"]), "NaN or infinite values", "give finite positions")]
+    if "quats" in out:
+        q = out["quats"]
+        bad = ~torch.isfinite(q).all(-1) | (q.abs().amax(-1) == 0)
+        rules.append(("quats", bad, "zero or non-finite quaternions", "give rotations as non-zero wxyz quaternions"))
+    if "scales" in out:
+        s = out["scales"]
+        bad = ~(torch.isfinite(s) & (s >= SIGMA_RANGE[0]) & (s <= SIGMA_RANGE[1]))
+        why = f"values outside [{SIGMA_RANGE[0]:g}, {SIGMA_RANGE[1]:g}] (or NaN)"
+        rules.append(("scales", bad, why, "scales are standard deviations: pass torch.exp(log_scales)"))
+    if "opacities" in out:
+        o = out["opacities"]
+        bad = ~((o >= 0) & (o <= 1))
+        rules.append(("opacities", bad, "values outside [0, 1] (or NaN)", "pass torch.sigmoid(logits)"))
+    if "sh" in out:
+        rules.append(("sh", ~torch.isfinite(out["sh"]), "NaN or infinite coefficients", "give finite SH values"))
+    if "labels" in out:
+        lab = out["labels"]
+        rules.append(("labels", lab < 0, "negative labels", "give non-negative material labels"))
+    return rules
+
+
+def _check_values(where: str, out: dict) -> None:
+    if len(out["means"]) == 0:
+        return
+    rules = [(name, bad.reshape(len(bad), -1).any(1), what, fix) for name, bad, what, fix in _value_rules(out)]
+    counts = torch.stack([bad.sum() for _, bad, _, _ in rules]).tolist()  # one host sync
+    for (name, bad, what, fix), count in zip(rules, counts):
+        if count:
+            row = int(bad.nonzero()[0, 0])
+            value = out[name][row].detach()
+            shown = f", {[round(v, 6) for v in value.reshape(-1).tolist()]}" if value.numel() <= 4 else ""
+            raise ArgumentError(f"{where}: {name} has {count} row(s) with {what} (first: row {row}{shown}); {fix}.")

@@ -27,8 +27,8 @@ import numpy as np
 import torch
 from plyfile import PlyData, PlyElement
 
-from ..errors import PlyError
-from .gaussian_set import GaussianSet
+from ..errors import ArgumentError, OutputError, PlyError
+from .gaussian_set import SIGMA_RANGE, GaussianSet
 
 INTERIOR_PROP = "fgs_interior"
 LABEL_PROP = "fgs_label"
@@ -82,6 +82,53 @@ def inverse_opacity(p: np.ndarray) -> np.ndarray:
     return np.clip(logit, -_LOGIT_CLAMP, _LOGIT_CLAMP).astype(np.float32)
 
 
+# ----------------------------------------------------------------------------- arguments
+
+
+def as_path(where: str, value, name: str = "path") -> str:
+    """A path argument of the public functions as str (str, bytes or os.PathLike); another type or an empty
+    path is an ArgumentError naming `where`'s argument `name`."""
+    try:
+        text = os.fsdecode(value) if isinstance(value, (str, bytes, os.PathLike)) else None
+    except (TypeError, UnicodeDecodeError):
+        text = None
+    if text is None:
+        raise ArgumentError(
+            f"{where}: {name} must be a file path (str or pathlib.Path), got {type(value).__name__} {value!r:.40}; "
+            "pass e.g. 'scene.ply'."
+        )
+    if not text.strip():
+        raise ArgumentError(f"{where}: {name} is empty; pass the file's path, e.g. 'scene.ply'.")
+    return text
+
+
+def as_device(where: str, device) -> torch.device:
+    """A device argument (`"cpu"`, `"cuda:0"`, a torch.device), or an ArgumentError naming it."""
+    try:
+        return torch.device(device)
+    except (RuntimeError, TypeError, ValueError):
+        raise ArgumentError(
+            f"{where}: device {device!r:.40} is not a torch device; pass 'cpu', 'cuda' or 'cuda:N'."
+        ) from None
+
+
+def as_gaussians(where: str, gs) -> GaussianSet:
+    """The GaussianSet argument of a writer, or an ArgumentError naming it."""
+    if not isinstance(gs, GaussianSet):
+        raise ArgumentError(
+            f"{where}: gs must be a GaussianSet, got {type(gs).__name__}; build one with "
+            "fracture_gs.io.GaussianSet(means=..., quats=..., scales=..., opacities=..., sh=...)."
+        )
+    return gs
+
+
+def write_failed(path, err: OSError) -> OutputError:
+    """The one sentence for a splat file that cannot be written (a missing folder, a folder in the way, no
+    permission)."""
+    why = err.strerror or type(err).__name__
+    return OutputError(f"{path}: cannot write the file ({why}); check that its folder exists and is writable.")
+
+
 # ----------------------------------------------------------------------------- reading
 
 
@@ -91,6 +138,8 @@ def _fail(path, msg: str) -> PlyError:
 
 def _read_vertex(path) -> tuple[np.ndarray, list]:
     """The structured vertex array of a PLY file and its property names (errors wrapped)."""
+    if os.path.isdir(path):
+        raise _fail(path, "is a folder, not a file; pass the .ply file inside it")
     if not os.path.isfile(path):
         raise _fail(path, "no such file; check the path to the 3DGS .ply")
     try:
@@ -202,9 +251,6 @@ def _extra_tensor(path, data, name: str, device) -> torch.Tensor | None:
     return torch.from_numpy(_native(col)).to(device)
 
 
-SIGMA_RANGE = (1e-18, 1e18)  # σ whose σ² is a normal, finite float32 (the covariance stays invertible)
-
-
 def _sigma_ok(act: np.ndarray) -> np.ndarray:  # [N, 3] -> [N, 3] bool
     a = act.astype(np.float64)
     return np.isfinite(a) & (a >= SIGMA_RANGE[0]) & (a <= SIGMA_RANGE[1])
@@ -270,7 +316,8 @@ def load_ply_lenient(path, device="cpu") -> tuple[GaussianSet, int]:
     """`load_ply` that drops the Gaussians with NaN/inf values, degenerate scales or zero quaternions
     (a trainer's stray output) instead of refusing the file: (Gaussians, how many were dropped).
     Raises PlyError when the file is malformed or nothing usable is left."""
-    path = os.fspath(path)
+    path = as_path("load_ply_lenient", path)
+    as_device("load_ply_lenient", device)
     data, names = _read_vertex(path)
     _require(path, names, _REQUIRED)
     ok = _usable_rows(data, names)
@@ -287,7 +334,8 @@ _REQUIRED = ["x", "y", "z", "f_dc_0", "f_dc_1", "f_dc_2", "opacity", "scale_0", 
 def load_ply(path, device="cpu", _rows=None) -> GaussianSet:
     """Read a 3DGS PLY into a `GaussianSet` with activated values (exp scales, sigmoid opacities,
     normalized wxyz quaternions, SH [N, K, 3] DC first); raises `PlyError` on malformed input."""
-    path = os.fspath(path)
+    path = as_path("load_ply", path)
+    as_device("load_ply", device)
     data, names = _read_vertex(path)
     scale_n = [f"scale_{i}" for i in range(3)]
     rot_n = [f"rot_{i}" for i in range(4)]
@@ -429,11 +477,15 @@ def save_ply(gs: GaussianSet, path, normals: bool | None = None) -> None:
 
     `normals`: write nx ny nz (zeros unless `gs.extra` holds them); None = as in the source file
     for a set from `load_ply`, else yes (the INRIA layout that fixed-layout viewers expect)."""
-    path = os.fspath(path)
+    gs = as_gaussians("save_ply", gs)
+    path = as_path("save_ply", path)
     _check_writable(gs, path)
     cols = _columns(gs, normals)
     cols = {name: _ply_column(c) for name, c in cols.items()}
     arr = np.empty(len(gs), dtype=[(name, c.dtype.newbyteorder("<")) for name, c in cols.items()])
     for name, c in cols.items():
         arr[name] = c
-    PlyData([PlyElement.describe(arr, "vertex")], byte_order="<").write(path)
+    try:
+        PlyData([PlyElement.describe(arr, "vertex")], byte_order="<").write(path)
+    except OSError as err:
+        raise write_failed(path, err) from None

@@ -6,17 +6,38 @@ failed or not. Writing goes to a temporary file in the same folder and is rename
 name (`os.replace`, atomic on POSIX and Windows), so a rank killed mid-write leaves either the old
 file or none, and concurrent ranks on a shared file system never see half a file. The cache is per
 cell, not per run: any world size, any rank, and a rerun after a crash reuse every finished cell.
+
+Reading is strict (`check_row`): a file that is not this package's JSON, a row whose status, numbers or table
+columns have the wrong type, NaN or inf in a row, a cache file that is a folder, or `cells` that is a file, each
+raises `OutputError` with one sentence naming the path and the fix (delete it, or `--fresh`), instead of
+a traceback, or a wrong number, later in the tables. Writing never produces such a row: non-finite floats
+are written as null.
 """
 
 from __future__ import annotations
 
 import json
+import math
 import os
 import tempfile
 from pathlib import Path
-from typing import Optional
+from typing import Any, Optional
 
+from ..errors import OutputError
 from .expansion import Cell
+
+STATUSES = ("ok", "failed")
+"""The statuses a cached row may hold (`missing` rows are never written)."""
+INT_KEYS = frozenset(
+    {"index", "cells", "seed", "particles", "latch_frame", "fragments", "substeps", "rank", "world_size", "frames"}
+)
+"""Row keys the tables print as integers: an int or null."""
+TEXT_KEYS = frozenset({"id", "kind", "labels", "message", "device", "device_name", "finished", "traceback", "unit"})
+"""Row keys that are text."""
+NUMBER_KEYS = frozenset({"cell_s", "wall_s", "dt", "error", "cfl"})
+"""Row keys the driver and the tables compute with: a finite number or null."""
+ACCURACY_OK_KEYS = ("dt", "particles", "substeps", "wall_s", "error", "unit")
+"""Keys a finished accuracy row needs for its table row and the Pareto front."""
 
 
 def cells_dir(out_dir) -> Path:
@@ -31,11 +52,14 @@ def cache_path(out_dir, cell_id: str) -> Path:
 
 def write_json_atomic(path: Path, payload) -> None:
     """Write JSON to `path` through a temporary file in the same folder and an atomic rename."""
+    check_folder(path.parent)
+    if path.is_dir():
+        raise OutputError(f"{path} is a folder, not a sweep cache file; delete that folder and rerun.")
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     try:
         with os.fdopen(fd, "w") as f:
-            json.dump(payload, f, indent=1, default=_jsonable)
+            json.dump(_finite(payload), f, indent=1, default=_jsonable, allow_nan=False)
             f.flush()
             os.fsync(f.fileno())
         os.replace(tmp, path)
@@ -43,6 +67,30 @@ def write_json_atomic(path: Path, payload) -> None:
         if os.path.exists(tmp):
             os.unlink(tmp)
         raise
+
+
+def check_folder(folder: Path) -> None:
+    """The cache folder (or a folder above it) must not be a file."""
+    for p in (folder, *folder.parents):
+        if p.exists() and not p.is_dir():
+            raise OutputError(
+                f"{p} is a file, not the sweep's cache folder; move or delete it, or pass --out with another folder."
+            )
+        if p.exists():
+            return
+
+
+def _finite(value: Any) -> Any:
+    """Non-finite floats → None, recursively (JSON has no NaN; a reader refuses it)."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_finite(v) for v in value]
+    if hasattr(value, "tolist") and not isinstance(value, (str, bytes)):
+        return _finite(value.tolist())
+    return value
 
 
 def _jsonable(o):
@@ -60,26 +108,129 @@ def store(out_dir, cell: Cell, row: dict) -> None:
 
 
 def load(out_dir, cell: Cell) -> Optional[dict]:
-    """The cached row of `cell`, or None when there is none or the file is not this cell's."""
+    """The cached row of `cell`, or None when there is none or the file is another cell's (another spec, an
+    older cell definition). A file that cannot be this package's raises OutputError (`check_row`)."""
     path = cache_path(out_dir, cell.id)
+    if path.is_dir():
+        raise OutputError(
+            f"{path} is a folder, not a sweep cache file; delete that folder and rerun (the cell runs again)."
+        )
     try:
-        payload = json.loads(path.read_text())
-    except (OSError, ValueError):
+        text = path.read_text()
+    except FileNotFoundError:
         return None
-    if not isinstance(payload, dict) or payload.get("id") != cell.id or payload.get("params") != cell.params:
+    except (OSError, UnicodeDecodeError) as exc:
+        raise OutputError(
+            f"{path} cannot be read as a sweep cache file ({type(exc).__name__}); delete it, or rerun with --fresh."
+        ) from None
+    try:
+        payload = json.loads(text)
+    except ValueError:
+        raise OutputError(
+            f"{path} is not a sweep cache file (not JSON); delete it, or rerun with --fresh to run every cell again."
+        ) from None
+    except RecursionError:
+        raise OutputError(
+            f"{path} nests too deeply for a sweep cache file; delete it, or rerun with --fresh."
+        ) from None
+    if not isinstance(payload, dict) or not isinstance(payload.get("id"), str):
+        raise OutputError(f"{path} is not a sweep cache file (no object with an id); delete it, or rerun with --fresh.")
+    if payload.get("id") != cell.id or payload.get("params") != cell.params:
         return None
-    row = payload.get("row")
-    return row if isinstance(row, dict) else None
+    return check_row(path, cell, payload.get("row"))
+
+
+def _what(v: Any) -> str:
+    if isinstance(v, bool):
+        return f"the boolean {str(v).lower()}"
+    if isinstance(v, (int, float)):
+        return f"the number {v!r}"
+    if isinstance(v, str):
+        return f"the string {v[:40]!r}"
+    if v is None:
+        return "null"
+    return "a list" if isinstance(v, list) else "an object" if isinstance(v, dict) else type(v).__name__
+
+
+def _is_number(v: Any) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+def _non_finite(value: Any) -> Optional[str]:
+    """The path (e.g. `.latch.time` or `[3]`) of the first NaN or inf inside nested JSON, or None (iterative:
+    a deeply nested file cannot exhaust the stack)."""
+    todo = [("", value)]
+    while todo:
+        where, v = todo.pop()
+        if isinstance(v, float) and not math.isfinite(v):
+            return where
+        if isinstance(v, dict):
+            todo.extend((f"{where}.{k}", x) for k, x in v.items())
+        elif isinstance(v, list):
+            todo.extend((f"{where}[{i}]", x) for i, x in enumerate(v))
+    return None
+
+
+def check_row(path: Path, cell: Cell, row: Any) -> dict:
+    """A cached row as the driver and the tables read it, or OutputError naming the file, the key and the fix."""
+
+    def bad(key: str, problem: str) -> OutputError:
+        return OutputError(
+            f"{path}: the cached row's {key} {problem}; delete the file, or rerun with --fresh, to run the cell again."
+        )
+
+    if not isinstance(row, dict):
+        raise bad("row", f"is {_what(row)}, not an object")
+    status = row.get("status")
+    if status not in STATUSES:
+        raise bad("status", f"is {_what(status)}, not one of {', '.join(STATUSES)}")
+    for key, v in row.items():
+        if not isinstance(key, str):
+            raise bad(repr(key), "is not a text key")
+        if key == "extra":
+            if not isinstance(v, dict):
+                raise bad(key, f"is {_what(v)}, not an object")
+            where = _non_finite(v)
+            if where is not None:
+                raise bad(f"extra{where}", "is not a finite number")
+            continue
+        if isinstance(v, float) and not math.isfinite(v):
+            raise bad(key, f"is {v!r}, not a finite number")
+        if v is None:
+            continue
+        if not isinstance(v, (bool, int, float, str)):
+            raise bad(key, f"is {_what(v)}, not a number, text, true/false or null")
+        if key in INT_KEYS and (isinstance(v, bool) or not isinstance(v, int)):
+            raise bad(key, f"is {_what(v)}, not an integer")
+        if key in NUMBER_KEYS and not _is_number(v):
+            raise bad(key, f"is {_what(v)}, not a number")
+        if key in TEXT_KEYS and not isinstance(v, str):
+            raise bad(key, f"is {_what(v)}, not text")
+    if status == "ok" and cell.kind == "accuracy":
+        for key in ACCURACY_OK_KEYS:
+            if row.get(key) is None:
+                raise bad(key, "is missing from a finished accuracy cell")
+    return row
 
 
 def scan(out_dir, cells: list[Cell], device_type: str) -> dict[str, dict]:
     """{id: row} of the cells cached in `out_dir` by a run on the same device type (cpu or cuda): a
     CPU result is not reused by a GPU run (its wall time would mix into the GPU's speed-vs-error)."""
     found = {}
-    if not cells_dir(out_dir).is_dir():
+    folder = cells_dir(out_dir)
+    check_folder(folder)
+    if not folder.is_dir():
         return found
     for cell in cells:
-        row = load(out_dir, cell)
-        if row is not None and str(row.get("device", "cpu")).split(":")[0] == device_type:
+        row = lookup(out_dir, cell, device_type)
+        if row is not None:
             found[cell.id] = row
     return found
+
+
+def lookup(out_dir, cell: Cell, device_type: str) -> Optional[dict]:
+    """`cell`'s cached row when a run on `device_type` (cpu or cuda) wrote it, else None (see `scan`)."""
+    row = load(out_dir, cell)
+    if row is not None and str(row.get("device", "cpu")).split(":")[0] == device_type:
+        return row
+    return None

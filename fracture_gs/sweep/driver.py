@@ -28,12 +28,12 @@ import time
 import traceback
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Optional
+from typing import Callable, Iterator, Optional
 
 from . import cache
 from .cells import run_cell, warmup
 from .distributed import Launch, coordinator, launch_from_env, resolve_device
-from .expansion import Cell, expand
+from .expansion import Cell, expand, iter_cells
 from .report import write_outputs
 from .spec import SweepSpec, load_spec
 
@@ -59,6 +59,8 @@ class SweepOptions:
     """Heartbeat period [s]."""
     command: str = ""
     """The command line, recorded in sweep.md and sweep.json."""
+    max_cells: Optional[int] = None
+    """The most cells the spec may multiply out to (`--max-cells`); None = the spec's `[sweep] max_cells`."""
     echo: Callable[[str], None] = field(default=lambda line: print(line, flush=True))
     """Where progress lines go."""
 
@@ -172,15 +174,36 @@ def make_plan(cells: list[Cell], statuses: list[dict], world: int, rerun_failed:
 
 def list_cells(spec_path, opts: SweepOptions) -> list[tuple[Cell, str, Optional[int]]]:
     """(cell, cache status, rank it would run on now) for every cell: `ok`/`failed` (cached) or `pending`."""
+    return list(iter_listing(spec_path, opts))
+
+
+def iter_listing(spec_path, opts: SweepOptions) -> Iterator[tuple[Cell, str, Optional[int]]]:
+    """`list_cells` one cell at a time, as the spec expands: with one rank the plan is known per cell (a cell
+    to run goes to rank 0), so the first lines come at once however many cells follow; with several ranks the
+    cost-balanced plan needs every cell first."""
     spec = load_spec(spec_path)
-    cells = expand(spec)
     launch = launch_from_env()
     device = resolve_device(opts.device, launch)
-    found = {} if opts.fresh else cache.scan(opts.out_dir, cells, device.split(":")[0])
+    if not opts.fresh:
+        cache.check_folder(cache.cells_dir(opts.out_dir))  # before the first line, not inside the generator
+    return _listing(spec, launch, device.split(":")[0], opts)
+
+
+def _listing(spec, launch: Launch, device_type: str, opts: SweepOptions) -> Iterator[tuple[Cell, str, Optional[int]]]:
+    if launch.world_size == 1:
+        for cell in iter_cells(spec, opts.max_cells):
+            row = None if opts.fresh else cache.lookup(opts.out_dir, cell, device_type)
+            status = "pending" if row is None else row.get("status", "failed")
+            reused = status == "ok" or (status == "failed" and not opts.rerun_failed)
+            yield cell, status, None if reused else 0
+        return
+    cells = expand(spec, opts.max_cells)
+    found = {} if opts.fresh else cache.scan(opts.out_dir, cells, device_type)
     statuses = [{k: v.get("status", "failed") for k, v in found.items()}]
     plan = make_plan(cells, statuses, launch.world_size, opts.rerun_failed)
     where = {i: r for r, idx in enumerate(plan["assign"]) for i in idx}
-    return [(c, found[c.id].get("status", "failed") if c.id in found else "pending", where.get(c.index)) for c in cells]
+    for c in cells:
+        yield c, found[c.id].get("status", "failed") if c.id in found else "pending", where.get(c.index)
 
 
 def _sigterm_note(launch: Launch, out_dir: Path, counter: list):
@@ -198,10 +221,11 @@ def _sigterm_note(launch: Launch, out_dir: Path, counter: list):
     return handler
 
 
-def run_sweep(spec_path, opts: SweepOptions) -> SweepReport:
-    """Run the sweep on this rank; rank 0 gathers and writes the tables. See the module docstring."""
+def run_sweep(spec_path, opts: SweepOptions, cells: Optional[list[Cell]] = None) -> SweepReport:
+    """Run the sweep on this rank; rank 0 gathers and writes the tables. See the module docstring. `cells`:
+    the spec's expansion when the caller made it already (it takes a while for many scene cells)."""
     spec: SweepSpec = load_spec(spec_path)
-    cells = expand(spec)
+    cells = expand(spec, opts.max_cells) if cells is None else cells
     launch = launch_from_env()
     device = resolve_device(opts.device, launch)
     out = Path(opts.out_dir)

@@ -14,6 +14,11 @@ A scene cell's config: the spec's config (beside the spec first, then a path or 
 then preset → particles, frames → cells → step → material/set overrides → seed → variant, then the
 config loader's own checks. A value that makes it invalid (e.g. `material.nu = 0.6`) is a
 `ConfigError` naming the spec file, the table, the value and the fix, before anything runs.
+
+Size: `count_cells` multiplies the tables' list lengths out without making a cell (it loads each named config
+once, for its default variants), so a spec of millions of cells is refused at once: `iter_cells` (and `expand`)
+raise a ConfigError when the count passes `spec.max_cells` (default 10,000; `[sweep] max_cells` or
+`--max-cells` raises it). `iter_cells` yields the cells one by one, so `--list` prints them as they come.
 """
 
 from __future__ import annotations
@@ -24,12 +29,13 @@ import itertools
 import json
 import math
 from dataclasses import dataclass, field
-from typing import Any, Optional
+from typing import Any, Callable, Iterator, Optional
 
 from ..config import BUILTIN_SCENES
 from ..errors import ConfigError
-from ..io.config import apply_overrides, config_from_dict, config_to_dict, dump_config, find_config
+from ..io.config import apply_overrides, config_from_dict, config_to_dict, find_config
 from ..io.config import load_config as load_scene_config
+from ..io.config.dump import dump_dict
 from ..io.formats import is_splat_file
 from .spec import SceneBlock, SweepSpec
 
@@ -79,31 +85,80 @@ def cell_id(params: dict) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:12]
 
 
-def expand(spec: SweepSpec) -> list[Cell]:
+def count_cells(spec: SweepSpec) -> tuple[int, list[tuple[str, int]]]:
+    """(cells the tables multiply out to, [(table, its count)]) without making any cell: an upper bound on
+    `len(expand(spec))` (cells repeated across tables are merged there). Loads each named scene config once."""
+    per: list[tuple[str, int]] = []
+    for i, block in enumerate(spec.accuracy):
+        per.append((f"accuracy[{i}]", len(block.cases) * len(block.cells) * len(block.cfl)))
+    bases: dict[str, Any] = {}
+    for b, block in enumerate(spec.scenes):
+        prefix = f"scene[{b}]"
+        settings = math.prod(len(v) for _, v in block.overrides)
+        total = 0
+        for name in block.configs:
+            variants = block.variants or tuple(_base_config(spec, prefix, name, bases).variants)
+            total += len(block.cells) * len(block.steps) * settings * len(block.seeds) * len(variants)
+        per.append((prefix, total))
+    return sum(n for _, n in per), per
+
+
+def check_size(spec: SweepSpec, max_cells: Optional[int] = None) -> int:
+    """The spec's cell count (`count_cells`), or ConfigError when it passes the cap (`max_cells`, else
+    `spec.max_cells`): one sentence with the count, the largest table and how to raise the cap."""
+    cap = spec.max_cells if max_cells is None else max_cells
+    total, per = count_cells(spec)
+    if total > cap:
+        table, n = max(per, key=lambda t: t[1])
+        raise ConfigError(
+            spec.source,
+            "sweep.max_cells",
+            f"the tables multiply out to {total:,} cells ({table}: {n:,}), over the cap sweep.max_cells = {cap:,}; "
+            f"list fewer values (each list multiplies the count) or split the spec, or raise the cap with "
+            f"max_cells = {total} in [sweep] or --max-cells {total}.",
+        )
+    return total
+
+
+def expand(
+    spec: SweepSpec, max_cells: Optional[int] = None, progress: Optional[Callable[[int, int], None]] = None
+) -> list[Cell]:
     """Every cell of the spec in order (tables in file order, each a cross product in key order),
-    duplicates merged into the first occurrence."""
+    duplicates merged into the first occurrence; ConfigError when there are more than the cap (`check_size`)."""
+    return list(iter_cells(spec, max_cells, progress))
+
+
+def iter_cells(
+    spec: SweepSpec, max_cells: Optional[int] = None, progress: Optional[Callable[[int, int], None]] = None
+) -> Iterator[Cell]:
+    """`expand`, one cell at a time (the size check comes first, before any cell is made). A cell repeated by
+    a later table is yielded once, at its first occurrence; the later table's label is added to that same
+    Cell object. `progress(made, total)` is called after each cell made."""
+    total = check_size(spec, max_cells)
     cells: dict[str, Cell] = {}
+    made = [0]
 
     def add(kind: str, params: dict, info: dict, label: str, config: Optional[dict] = None, cost: float = 1.0):
+        made[0] += 1
+        if progress is not None:
+            progress(made[0], total)
         cid = cell_id(params)
         if cid in cells:
             if label not in cells[cid].labels:
                 cells[cid].labels += (label,)
-            return
+            return None
         cells[cid] = Cell(len(cells), cid, kind, params, info, (label,), config, cost)
+        return cells[cid]
 
     for block in spec.accuracy:
         for case, n, cfl in itertools.product(block.cases, block.cells, block.cfl):
             params = {"kind": "accuracy", "case": case, "cells": n, "cfl": cfl}
-            add(
-                "accuracy",
-                params,
-                {"case": case, "cells": n, "cfl": cfl},
-                block.label,
-                None,
-                accuracy_cost(case, n, cfl),
-            )
+            info = {"case": case, "cells": n, "cfl": cfl}
+            cell = add("accuracy", params, info, block.label, None, accuracy_cost(case, n, cfl))
+            if cell is not None:
+                yield cell
     bases: dict[str, Any] = {}
+    plain: dict[tuple, dict] = {}
     for b, block in enumerate(spec.scenes):
         prefix = f"scene[{b}]"
         for name in block.configs:
@@ -114,13 +169,14 @@ def expand(spec: SweepSpec) -> list[Cell]:
             for n, step, values in combos:
                 setting = dict(zip(keys, values))
                 for seed, variant in itertools.product(block.seeds, variants):
-                    cfg = scene_config(spec, prefix, name, base, block, n, step, setting, seed, variant)
+                    cfg = scene_config(spec, prefix, name, base, block, n, step, setting, seed, variant, plain)
+                    resolved = config_to_dict(cfg)
                     params = {
                         "kind": "scene",
                         "variant": variant,
                         "seed": seed,
                         "render": block.render,
-                        "config": dump_config(cfg),
+                        "config": dump_dict(resolved),
                     }
                     info = {
                         "config": name,
@@ -134,8 +190,9 @@ def expand(spec: SweepSpec) -> list[Cell]:
                         "frames": cfg.frames,
                         "render": block.render,
                     }
-                    add("scene", params, info, block.label, config_to_dict(cfg), scene_cost(cfg))
-    return list(cells.values())
+                    cell = add("scene", params, info, block.label, resolved, scene_cost(cfg))
+                    if cell is not None:
+                        yield cell
 
 
 SECONDS_PER_SUBSTEP = 0.35e-3  # an H200 on a few thousand particles: launch-bound, about flat up to 50k
@@ -218,13 +275,31 @@ def _set_dotted(d: dict, key: str, value: Any) -> None:
         node[last] = value
 
 
-def scene_config(spec, prefix, name, base, block: SceneBlock, cells, step, setting: dict, seed: int, variant: str):
+def scene_config(
+    spec,
+    prefix,
+    name,
+    base,
+    block: SceneBlock,
+    cells,
+    step,
+    setting: dict,
+    seed: int,
+    variant: str,
+    plain: Optional[dict] = None,
+):
     """The validated SceneConfig of one scene cell (preset → particles, frames → cells → step →
-    material/set overrides → seed → variant)."""
+    material/set overrides → seed → variant). `plain`: a cache of the base configs as dicts, per name and
+    preset, shared by the cells of one expansion."""
     what = f"{prefix} ({name}, {variant}" + "".join(f", {k} = {_short(v)}" for k, v in setting.items()) + ")"
     try:
-        cfg = base if block.preset is None else apply_overrides(base, preset=block.preset, source=spec.source)
-        d = copy.deepcopy(config_to_dict(cfg))
+        key = (name, block.preset)
+        if plain is None or key not in plain:
+            cfg = base if block.preset is None else apply_overrides(base, preset=block.preset, source=spec.source)
+            d0 = config_to_dict(cfg)
+            if plain is not None:
+                plain[key] = d0
+        d = copy.deepcopy(plain[key] if plain is not None else d0)
         if block.particles is not None:
             d["particles"] = block.particles
         if block.frames is not None:

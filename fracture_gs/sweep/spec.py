@@ -5,6 +5,7 @@ File layout (every key but `config`, `case`, `cells` and `cfl` of an accuracy ta
     [sweep]
     title = "Speed against error"   # heading of sweep.md
     warmup = true                   # each rank compiles/loads the kernels before its first timed cell
+    max_cells = 10000               # refuse a spec whose tables multiply out to more cells (--max-cells)
 
     [[accuracy]]                    # case × cells × cfl, fracture_gs.paper.accuracy's cases
     label = "dx"                    # the sweep's name in tables and the Pareto plot (dx: circles)
@@ -62,7 +63,7 @@ ACCURACY_CASES = ("bar", "spin", "recontact")
 
 MATERIAL_KEYS = tuple(f.name for f in dataclasses.fields(MaterialConfig))
 _TOP_KEYS = ("sweep", "accuracy", "scene")
-_SWEEP_KEYS = ("title", "warmup")
+_SWEEP_KEYS = ("title", "warmup", "max_cells")
 _ACCURACY_KEYS = ("label", "case", "cells", "cfl")
 _SCENE_KEYS = (
     "label",
@@ -80,6 +81,9 @@ _SCENE_KEYS = (
     "set",
 )
 MAX_CELLS_PER_AXIS = 4096  # grid cells across; 4096³ is far beyond any GPU
+DEFAULT_MAX_CELLS = 10_000
+"""Cells a spec may multiply out to unless `[sweep] max_cells` or `--max-cells` raises it: a scene cell's
+config takes milliseconds to resolve, so 10,000 cells are about a minute of expansion before the first run."""
 
 
 @dataclass(frozen=True)
@@ -139,6 +143,8 @@ class SweepSpec:
     """Heading of sweep.md."""
     warmup: bool
     """Compile and load the kernels on each rank before its first cell, so no wall time includes them."""
+    max_cells: int = DEFAULT_MAX_CELLS
+    """The most cells the tables may multiply out to (`expand` refuses more, before making any) [cells]."""
     accuracy: tuple[AccuracyBlock, ...] = ()
     """`[[accuracy]]` tables in file order."""
     scenes: tuple[SceneBlock, ...] = ()
@@ -196,13 +202,22 @@ def load_spec(name_or_path) -> SweepSpec:
     warmup = head.get("warmup", True)
     if not isinstance(warmup, bool):
         raise ConfigError(src, "sweep.warmup", f"sweep.warmup = {warmup!r} must be true or false.")
+    max_cells = head.get("max_cells", DEFAULT_MAX_CELLS)
+    if not _is_int(max_cells) or max_cells < 1:
+        raise ConfigError(
+            src,
+            "sweep.max_cells",
+            f"sweep.max_cells = {max_cells!r} must be a positive integer; write it like max_cells = 20000.",
+        )
     acc = tuple(_accuracy_block(src, f"accuracy[{i}]", t) for i, t in enumerate(_tables(src, raw, "accuracy")))
     scenes = tuple(_scene_block(src, f"scene[{i}]", t) for i, t in enumerate(_tables(src, raw, "scene")))
     if not acc and not scenes:
         raise ConfigError(
             src, None, "defines no cells; add an [[accuracy]] or a [[scene]] table (see `fracture-gs sweep --help`)."
         )
-    return SweepSpec(path=path, source=src, title=title, warmup=warmup, accuracy=acc, scenes=scenes)
+    return SweepSpec(
+        path=path, source=src, title=title, warmup=warmup, max_cells=max_cells, accuracy=acc, scenes=scenes
+    )
 
 
 # --------------------------------------------------------------------------------------------
@@ -348,6 +363,15 @@ def _scene_block(src: str, prefix: str, t: dict) -> SceneBlock:
                 f'{prefix}.set.{key} is a table; quote the dotted key: "{key}.field" = [...].',
             )
         overrides.append((key, tuple(_list(src, f"{prefix}.set.{key}", value))))
+    for key in ("frames", "particles", "preset"):  # one value per [[scene]] table: a list would keep only its first
+        value = t.get(key)
+        if isinstance(value, list) and len(value) != 1:
+            raise ConfigError(
+                src,
+                f"{prefix}.{key}",
+                f"{prefix}.{key} takes one value, not a list of {len(value)}; give one value, or one [[scene]] "
+                "table per value.",
+            )
     frames = t.get("frames")
     if frames is not None:
         frames = _ints(src, f"{prefix}.frames", frames, 1, 1_000_000, "e.g. frames = 10")[0]

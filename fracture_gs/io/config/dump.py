@@ -87,6 +87,11 @@ def _emit(lines: list[str], path: str, table: dict) -> None:
 
 def dump_config(cfg: SceneConfig, header: Optional[str] = None) -> str:
     """SceneConfig → TOML text that `load_config` reads back to an equal SceneConfig."""
+    return dump_dict(config_to_dict(cfg), header)
+
+
+def dump_dict(plain: dict, header: Optional[str] = None) -> str:
+    """`config_to_dict`'s dict → the TOML text `dump_config` writes (for a caller that holds the dict already)."""
     lines: list[str] = [f"# {line}" for line in (header or "").splitlines()]
-    _emit(lines, "", config_to_dict(cfg))
+    _emit(lines, "", plain)
     return "\n".join(lines).lstrip("\n") + "\n"

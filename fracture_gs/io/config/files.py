@@ -129,19 +129,22 @@ def _deep_merge(base: dict, over: dict) -> dict:
     return out
 
 
-def _resolve_chain(raw: dict, src: str, base_dir: Optional[Path], seen: tuple[Path, ...]) -> dict:
-    """Apply `extends` recursively; each file's own keys are checked under its own name."""
+def _resolve_chain(
+    raw: dict, src: str, base_dir: Optional[Path], seen: tuple[Path, ...]
+) -> tuple[dict, Optional[SceneConfig]]:
+    """Apply `extends` recursively; each file's own keys are checked under its own name. Returns the merged
+    dict and, when there was no `extends`, the config already built from it (so it is not built twice)."""
     raw = dict(raw)
     parent = raw.pop("extends", None)
-    build_scene(raw, src)  # keys and types of this file alone, so errors name the right file
+    own = build_scene(raw, src)  # keys and types of this file alone, so errors name the right file
     if parent is None:
-        return raw
+        return raw, own
     base_path = _resolve_extends(parent, base_dir, src)
     if base_path.resolve() in seen:
         raise ConfigError(src, "extends", f"extends = {parent!r} forms a cycle; remove one of the extends keys.")
     base_raw = _read_toml(base_path)
-    base = _resolve_chain(base_raw, _display(base_path), base_path.parent, seen + (base_path.resolve(),))
-    return _deep_merge(base, raw)
+    base, _ = _resolve_chain(base_raw, _display(base_path), base_path.parent, seen + (base_path.resolve(),))
+    return _deep_merge(base, raw), None
 
 
 def load_config(path_or_name: Union[str, os.PathLike]) -> SceneConfig:
@@ -152,8 +155,8 @@ def load_config(path_or_name: Union[str, os.PathLike]) -> SceneConfig:
     if is_splat_file(path):
         return ply_config(path)
     src = _display(path)
-    merged = _resolve_chain(_read_toml(path), src, path.parent, (path.resolve(),))
-    cfg = build_scene(merged, src)
+    merged, cfg = _resolve_chain(_read_toml(path), src, path.parent, (path.resolve(),))
+    cfg = cfg or build_scene(merged, src)
     validate(cfg, src)
     return cfg
 
@@ -173,8 +176,8 @@ def config_from_dict(d: dict, source: str = "<dict>") -> SceneConfig:
     An `extends` key resolves relative to the working directory, then to the built-in configs."""
     if not isinstance(d, dict):
         raise ConfigError(source, None, f"a config must be a table (dict), not {describe(d)}; pass a dict of sections.")
-    merged = _resolve_chain(_plain(d), source, Path.cwd(), ())
-    cfg = build_scene(merged, source)
+    merged, cfg = _resolve_chain(_plain(d), source, Path.cwd(), ())
+    cfg = cfg or build_scene(merged, source)
     validate(cfg, source)
     return cfg
 

@@ -37,6 +37,14 @@ MAX_FIELD_SLOTS = 8  # sim.layout.MAX_SLOTS (io does not import sim)
 MAX_IMAGE_SIDE = 8192  # pixels; larger frames exceed H.264 levels and the rasterizers' tile budgets
 MAX_PARTICLES = 100_000_000  # a built-in asset's particle count (≈ 20 GB of state on the GPU)
 MAX_FRAMES = 1_000_000
+MIN_CAPTURE_SIZE = 1e-3  # m: capture.size; a millimetre object is a few cells of any grid
+MAX_CAPTURE_SIZE = 100.0  # m: capture.size; the presets are tuned at 0.5 m, a building is not an object
+PROBE_VOXELS = 128  # capture.resolution.PROBE_CELLS (io does not import capture): voxels across the object
+MAX_FILL_CLOSING = PROBE_VOXELS // 16  # voxels; 8 already bridges holes 16 voxels wide, and the cost grows as k³
+MAX_OUTLIER_NEIGHBOURS = 256  # a k-d tree query of k neighbours holds N·k distances
+MAX_LOAD_SPEED = 100.0  # m/s; the stiffest preset's P-wave speed is ≈ 15 m/s
+MAX_OFFSET = 100.0  # m; float32 positions keep ≈ 8 µm steps there, far below a cell
+ROTATION_TOLERANCE = 1e-3  # max |RᵀR − I| of capture.rotation and a camera's rotation (4 written digits pass)
 _SAFE_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.+ -]{0,127}")
 
 
@@ -107,11 +115,57 @@ def validate(cfg: SceneConfig, source: str = "<config>") -> SceneConfig:
 
 
 def _check_capture(c: _Checker, cap) -> None:
-    """The captured scene's resolution and material regions (the other keys are checked where they are used)."""
+    """Every [capture] key: clean-up, region of interest, fit, resolution, fill, load, camera and regions
+    (types and NaN are checked before; here the ranges and the keys that only mean something together)."""
+    c.within("capture.min_opacity", cap.min_opacity, 0.0, 1.0, "use an opacity in [0, 1), e.g. 0.01", open_high=True)
+    c.within(
+        "capture.outlier_neighbours",
+        cap.outlier_neighbours,
+        0,
+        MAX_OUTLIER_NEIGHBOURS,
+        f"use 0 (off) to {MAX_OUTLIER_NEIGHBOURS} neighbours, e.g. 8",
+    )
+    c.positive("capture.outlier_std", cap.outlier_std, "give a number of standard deviations, e.g. outlier_std = 3")
+    c.within("capture.percentile", cap.percentile, 0.0, 50.0, "use a percentile in [0, 50), e.g. 1", open_high=True)
+    c.within(
+        "capture.size",
+        cap.size,
+        MIN_CAPTURE_SIZE,
+        MAX_CAPTURE_SIZE,
+        f"give the object's longest side in metres, {MIN_CAPTURE_SIZE:g} to {MAX_CAPTURE_SIZE:g} (the presets are "
+        "tuned at 0.5)",
+    )
     if cap.cells_across is not None:
         c.within("capture.cells_across", cap.cells_across, 4, 1024, "use 4 to 1024 cells across the object")
     if cap.max_particles is not None:
-        c.at_least("capture.max_particles", cap.max_particles, 1, "give a positive fill budget, or leave it unset")
+        c.within(
+            "capture.max_particles",
+            cap.max_particles,
+            1,
+            MAX_PARTICLES,
+            f"give a fill budget of 1 to {MAX_PARTICLES:,} particles, or leave it unset",
+        )
+    c.positive("capture.fill_threshold", cap.fill_threshold, "give a voxel density above 0, e.g. fill_threshold = 0.2")
+    c.within(
+        "capture.fill_closing",
+        cap.fill_closing,
+        0,
+        MAX_FILL_CLOSING,
+        f"use 0 to {MAX_FILL_CLOSING} voxels (k voxels bridge holes 2k wide: {MAX_FILL_CLOSING} spans an eighth of "
+        f"the {PROBE_VOXELS}-voxel probe grid across the object, and the cost grows as k³)",
+    )
+    c.within(
+        "capture.load_speed",
+        cap.load_speed,
+        0.0,
+        MAX_LOAD_SPEED,
+        f"use 0 (automatic) or a speed up to {MAX_LOAD_SPEED:g} m/s",
+    )
+    c.at_least("capture.view", cap.view, 0, "use the index of a view in cameras.json, from 0")
+    if cap.cameras_json is not None and not cap.cameras_json.strip():
+        c.fail("capture.cameras_json", "capture.cameras_json is empty", "give the path of the trainer's cameras.json")
+    _check_roi(c, cap)
+    _check_fit(c, cap)
     for i, r in enumerate(cap.regions):
         p = f"capture.regions[{i}]"
         if not all(lo < hi for lo, hi in zip(r.lower, r.upper)):
@@ -122,6 +176,79 @@ def _check_capture(c: _Checker, cap) -> None:
             )
         if r.material == "config":
             c.fail(f"{p}.material", f'{p}.material = "config" names no preset', "use ceramic, wood, plant or bread")
+
+
+def _check_roi(c: _Checker, cap) -> None:
+    """The ROI keys that `capture.roi` uses are given and sound; the ones it would ignore are refused."""
+    uses = {"box": ("roi_lower", "roi_upper"), "sphere": ("roi_center", "roi_radius")}.get(cap.roi, ())
+    for key in ("roi_lower", "roi_upper", "roi_center", "roi_radius"):
+        given = getattr(cap, key) is not None
+        if given and key not in uses:
+            kind = "box" if key in ("roi_lower", "roi_upper") else "sphere"
+            c.fail(
+                f"capture.{key}",
+                f"capture.{key} is set but capture.roi = {cap.roi!r} ignores it",
+                f'set capture.roi = "{kind}" to use it, or remove capture.{key}',
+            )
+        if not given and key in uses:
+            c.fail(
+                f"capture.{key}",
+                f"capture.roi = {cap.roi!r} needs capture.{key}",
+                'add it (scene units), or set capture.roi = "auto"',
+            )
+    if cap.roi == "box" and not all(lo < hi for lo, hi in zip(cap.roi_lower, cap.roi_upper)):
+        c.fail(
+            "capture.roi_lower",
+            f"capture.roi_lower = {list(cap.roi_lower)} is not below capture.roi_upper = {list(cap.roi_upper)} on "
+            "every axis",
+            "give a box with roi_lower < roi_upper on x, y and z (scene units)",
+        )
+    if cap.roi == "sphere":
+        c.positive("capture.roi_radius", cap.roi_radius, "give the sphere's radius in scene units")
+
+
+def _check_fit(c: _Checker, cap) -> None:
+    """capture.scale, rotation and offset (each honoured alone or together): a positive scale, a proper
+    rotation (orthonormal, det = +1), an offset within float32's comfortable range."""
+    if not cap.fit:
+        for key in ("scale", "rotation", "offset"):
+            if getattr(cap, key) is not None:
+                c.fail(
+                    f"capture.{key}",
+                    f"capture.{key} is set but capture.fit = false uses the file's coordinates as written",
+                    f"set capture.fit = true to use it, or remove capture.{key}",
+                )
+    if cap.scale is not None:
+        c.positive("capture.scale", cap.scale, "give metres per scene unit above 0, or remove it (automatic)")
+    if cap.offset is not None and not all(abs(v) <= MAX_OFFSET for v in cap.offset):
+        c.fail(
+            "capture.offset",
+            f"capture.offset = {list(cap.offset)} is more than {MAX_OFFSET:g} m from the origin",
+            f"keep each component within ±{MAX_OFFSET:g} m (positions are float32 in the solver), or remove it",
+        )
+    if cap.rotation is not None:
+        R = cap.rotation
+        err = max(
+            abs(sum(R[k][i] * R[k][j] for k in range(3)) - (1.0 if i == j else 0.0)) for i in range(3) for j in range(3)
+        )
+        if err > ROTATION_TOLERANCE:
+            c.fail(
+                "capture.rotation",
+                f"capture.rotation = {[list(r) for r in R]} is not a rotation (RᵀR differs from the identity by "
+                f"{err:.3g})",
+                "give an orthonormal 3×3 matrix (rows of unit length, at right angles), or remove it (automatic)",
+            )
+        det = (
+            R[0][0] * (R[1][1] * R[2][2] - R[1][2] * R[2][1])
+            - R[0][1] * (R[1][0] * R[2][2] - R[1][2] * R[2][0])
+            + R[0][2] * (R[1][0] * R[2][1] - R[1][1] * R[2][0])
+        )
+        if det < 0:
+            c.fail(
+                "capture.rotation",
+                f"capture.rotation = {[list(r) for r in R]} is a reflection (determinant {det:.3g})",
+                "negate one row to make it a proper rotation (determinant +1), or remove it (automatic)",
+            )
 
 
 def _check_finite(c: _Checker, value: Any, field: str) -> None:

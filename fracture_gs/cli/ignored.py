@@ -1,0 +1,185 @@
+"""Flags that would do nothing in the combination given, refused before any work starts.
+
+A flag the run would silently drop (--particles on a captured scene, --load on a built-in one, --schedule
+beside --devices, bench's Table 2 sizes with --accuracy, ...) is a user error: whoever typed it believes it
+changed the run. Each rule raises CliError with one sentence naming the flag, why it has no effect here and
+what to do instead (exit 2, like any bad flag). The rules read the loaded config and the parsed flags only,
+so they run in milliseconds, before a scene is built or a kernel compiled. Flags whose argparse default is
+None are told apart from flags not typed by that None (`_given`).
+"""
+
+from __future__ import annotations
+
+import argparse
+from typing import Optional
+
+from . import CliError
+from .devices import resolve_device
+
+_TABLE2_FLAGS = ("particles", "steps", "warmup", "trials", "placements", "grid", "no_graph", "sort")
+_ACCURACY_FLAGS = ("quick", "cases", "from_json")
+_FIGURES_RUN_FLAGS = ("protocol", "only", "reuse", "backend", "device")
+
+
+def _given(args: argparse.Namespace, name: str) -> bool:
+    """Whether the flag `name` (its argparse dest) was typed: its value is not the None / False default."""
+    value = getattr(args, name, None)
+    return value is not None and value is not False
+
+
+def _flag(name: str) -> str:
+    return "--" + name.replace("_", "-")
+
+
+def run_devices(args: argparse.Namespace) -> tuple[str, Optional[list[str]]]:
+    """render-sim's (device, devices): --devices resolved, every entry a distinct device, never beside --device."""
+    if not _given(args, "devices"):
+        return resolve_device(args.device), None
+    text = args.devices
+    names = [d.strip() for d in text.split(",")]
+    if not any(names):
+        raise CliError(f"--devices {text!r} names no device; write it like --devices cuda:0,cuda:1.")
+    if not all(names):
+        raise CliError(f"--devices {text!r} has an empty entry; write it like --devices cuda:0,cuda:1.")
+    if _given(args, "device"):
+        raise CliError(
+            f"--device {args.device} has no effect beside --devices {text} (the first of --devices runs in this "
+            "process); drop --device."
+        )
+    devices = [resolve_device(d) for d in names]
+    for j, d in enumerate(devices):
+        if d in devices[:j]:
+            i = devices.index(d)
+            alias = f" ({names[i]} and {names[j]} are both {d} here)" if names[i].lower() != names[j].lower() else ""
+            raise CliError(
+                f"--devices {text} names {d} twice{alias}; each device runs its own share of the variants, so list "
+                "each device once (on one device, --schedule threads runs the variants at once)."
+            )
+    return devices[0], devices
+
+
+def refuse_render_sim(cfg, args: argparse.Namespace, devices: Optional[list[str]]) -> None:
+    """render-sim: flags that the config's scene, frame count, variants or devices would make do nothing."""
+    from ..config import BUILTIN_SCENES
+
+    if cfg.scene in BUILTIN_SCENES:
+        _builtin_scene(cfg, args)
+    else:
+        _captured_scene(cfg, args)
+    every = getattr(args, "export_ply", None)
+    if every is not None and every > cfg.frames:
+        raise CliError(
+            f"--export-ply {every} is beyond the last frame of this run ({cfg.frames}), so only frame 0 would be "
+            f"written; use --export-ply N with N at most {cfg.frames} (or raise --frames)."
+        )
+    variants = list(cfg.variants)
+    if devices and len(devices) > 1:
+        if _given(args, "schedule"):
+            raise CliError(
+                f"--schedule {args.schedule} has no effect with --devices {args.devices}: the variants already run "
+                "side by side, one device each; drop --schedule (it chooses how variants share one device)."
+            )
+        if len(devices) > len(variants):
+            raise CliError(
+                f"--devices {args.devices} names {len(devices)} devices for {len(variants)} variant(s) "
+                f"({', '.join(variants)}), so {len(devices) - len(variants)} would sit idle; list at most "
+                f"{len(variants)} device(s) or more --variants."
+            )
+    elif getattr(args, "schedule", None) == "threads" and len(variants) < 2:
+        raise CliError(
+            f"--schedule threads runs the variants at once, a thread each, but this run has one variant "
+            f"({variants[0]}); drop --schedule or list more --variants."
+        )
+
+
+def _builtin_scene(cfg, args: argparse.Namespace) -> None:
+    """--load, --material and --quality set up a captured scene; a built-in scene has its own."""
+    instead = {
+        "load": "a built-in scene's load is its config's sim.boundaries",
+        "material": "set [material] in a TOML config to change a built-in scene's material",
+        "quality": "--preset sets a built-in scene's resolution",
+    }
+    for name, hint in instead.items():
+        if _given(args, name):
+            raise CliError(
+                f"--{name} applies to captured scenes (a .ply, .splat or .spz file) only, and {cfg.name} simulates "
+                f"the built-in scene {cfg.scene!r}; drop --{name} ({hint})."
+            )
+
+
+def _captured_scene(cfg, args: argparse.Namespace) -> None:
+    """--particles and --preset size a built-in scene; --load, --material and --quality need the capture's fit."""
+    if _given(args, "particles"):
+        raise CliError(
+            f"--particles sets a built-in scene's particle count, and {cfg.name} is a captured scene, whose particles "
+            "are its Gaussians and their interior fill; drop --particles (--quality sets how finely it is filled)."
+        )
+    cap = cfg.capture
+    if not cap.fit:
+        for name in ("load", "material", "quality"):
+            if _given(args, name):
+                raise CliError(
+                    f"--{name} has no effect on {cfg.name}: its capture.fit = false uses the scene as written (no "
+                    f"fit, load, material preset or resolution choice); set capture.fit = true in the config or drop "
+                    f"--{name}."
+                )
+        return
+    if _given(args, "preset"):
+        raise CliError(
+            f"--preset sets a built-in scene's Δx, and {cfg.name} is a captured scene, whose Δx follows from "
+            "--quality (capture.quality, or capture.cells_across); use --quality instead of --preset."
+        )
+    if _given(args, "quality") and cap.cells_across is not None:
+        raise CliError(
+            f"--quality has no effect on {cfg.name}: its capture.cells_across = {cap.cells_across} fixes the "
+            "resolution; remove cells_across from the config or drop --quality."
+        )
+    if _given(args, "load") and cfg.sim.boundaries:
+        raise CliError(
+            f"--load has no effect on {cfg.name}: its {len(cfg.sim.boundaries)} sim.boundaries are its load (a run's "
+            "config.toml keeps the load it chose that way); run the scene file itself with --load, or remove the "
+            "boundaries from the config."
+        )
+
+
+def refuse_bench(args: argparse.Namespace, device: Optional[str]) -> None:
+    """bench: Table 2's flags with --accuracy, the sweep's without it, what --from-json would not use.
+    `device` is the resolved device (None with --from-json, which uses none)."""
+    if not args.accuracy:
+        for name in _ACCURACY_FLAGS:
+            if _given(args, name):
+                raise CliError(
+                    f"{_flag(name)} applies to the speed-against-error sweep only; add --accuracy or drop "
+                    f"{_flag(name)}."
+                )
+        if args.no_graph and device == "cpu":
+            raise CliError(
+                "--no-graph has no effect on the CPU (CUDA graphs exist on CUDA devices only); drop --no-graph or "
+                "use --device cuda."
+            )
+        return
+    for name in _TABLE2_FLAGS:
+        if _given(args, name):
+            raise CliError(
+                f"{_flag(name)} sets up Table 2's timings and has no effect with --accuracy (the sweep sizes its own "
+                f"cases); drop {_flag(name)} or --accuracy."
+            )
+    if _given(args, "from_json"):
+        for name in ("quick", "cases", "device"):
+            if _given(args, name):
+                raise CliError(
+                    f"{_flag(name)} has no effect with --from-json, which only redraws the table and plot of a saved "
+                    f"sweep; drop {_flag(name)} or --from-json."
+                )
+
+
+def refuse_figures(args: argparse.Namespace) -> None:
+    """figures --readme-only rewrites README.md from the folder: the flags of a rerun do nothing."""
+    if not args.readme_only:
+        return
+    for name in _FIGURES_RUN_FLAGS:
+        if _given(args, name):
+            raise CliError(
+                f"{_flag(name)} has no effect with --readme-only, which only rewrites OUT/README.md from what OUT "
+                f"holds; drop {_flag(name)} or --readme-only."
+            )
