@@ -123,7 +123,7 @@ def test_deep_overlap_saturates_at_the_radius():
 
 def test_the_plane_drop_bar_cut_in_two_reads_no_depth():
     """The Panel A bar (quick protocol), its two halves labelled as the oracle latches them and not yet
-    moved, reads below 0.05Δx with no particle 0.1Δx deep — although its particles' stored volumes sum to ≈ 1.6×
+    moved, reads below 0.05Δx with no particle 0.1Δx deep — although its particles' stored volumes sum to ≈ 2.2×
     the capsule and the surface Gaussians crowd its skin: the measure weighs particles by each piece's density
     from positions, not by stored volumes (which read 0.24Δx and 25 crossings here)."""
     from fracture_gs.io.config import load_config
