@@ -1,5 +1,5 @@
 """The per-frame numbers the tracker takes from the particles alone (momentum, kinetic energy, the
-fragment-aware overlap, the plane collider), whether launched one by one (CPU) or replayed from the
+voxel-occupancy overlap, the plane collider), whether launched one by one (CPU) or replayed from the
 recorded CUDA graph (`Diagnostics._particle_numbers`, `--device cuda`), equal their twins computed
 independently from the same state, frame after frame and across later fracture events (when the
 graph is recorded again)."""
@@ -32,7 +32,7 @@ def test_reported_particle_numbers_equal_their_twins_every_frame(device):
         if not sim.latched:
             continue
         twin = fragment_overlap(P.x, P.fragment, VOXEL * dx)
-        assert (row["fragment_crossing"], row["fragment_penetration"]) == (twin["crossing"], twin["depth"] / dx)
+        assert (row["voxel_crossing"], row["voxel_penetration"]) == (twin["crossing"], twin["depth"] / dx)
         below, depth = collider_crossing(P.x, tracker.planes, COLLIDER_TOLERANCE * dx)
         assert (row["collider_crossing"], row["collider_depth"]) == (below, depth / dx)
         checked += 1

@@ -6,7 +6,8 @@ Transfer: counterfactual and realized mixing (Eq. mixing), per-fragment mass res
 mass_error), shared-support node percentage — from a shadow fragment-conditioned P2G of the current
 state (excluded from timings). Interface: opening/Δx, re-approach, stringing, separated,
 penetration, identity crossing — from interface pairs built at the first latch. Fragment-aware:
-crossings and penetration between the pieces themselves, particles behind a plane collider.
+penetration between the pieces themselves, continuous (`penetration.surface_depth`, eager, its own host
+read) and by voxel occupancy (`voxel_*`), particles behind a plane collider.
 Contact: the statistics the grid kernels accumulate, also per fragment pair. Fragment–plane: first
 contact per fragment, penetration into the plane, speeds near it, gravity-compensated momentum.
 Energy: kinetic, gravitational, elastic and total (`energy.py`), and whether a driving boundary acted.
@@ -48,10 +49,11 @@ from .layout import (
 )
 from .metrics import SEPARATION, reapproach_ratio  # noqa: F401 (re-exported: the tracker's thresholds)
 from .overlap_kernels import VoxelOverlap
-from .penetration import collider_packed, unpack_overlap
+from .penetration import calibrate, collider_packed, surface_penetration, unpack_overlap
 from .recorded import Recorded
 
-VOXEL = 0.6  # Δx: voxel edge of the fragment-aware occupied volume (`penetration.py`)
+VOXEL = 0.6  # Δx: voxel edge of the voxel-occupancy overlap (`penetration.fragment_overlap`)
+CROSSING = 0.1  # Δx: a particle deeper than this behind another fragment's surface is a `fragment_crossing`
 COLLIDER_TOLERANCE = 0.5  # Δx: a node-based plane collider holds particles to within half a cell of the plane
 
 
@@ -85,6 +87,7 @@ class Diagnostics:
         self.latch_info: dict | None = None
         self.pairs = None
         self.members = None
+        self.surface_calibration = None  # `penetration.calibrate` at the latest latch: the surface measure's scales
         self.band_index = None
         self.opening0 = None
         self.open_max = -math.inf
@@ -107,8 +110,8 @@ class Diagnostics:
         self.P0 = M.momentum(P)
         self.t0 = sim.time
         self.planes = [b for b in sim.cfg.boundaries if isinstance(b, PlaneBoundary)]
-        self.fragment_penetration = 0.0  # deepest fragment-aware penetration so far [Δx]
-        self.pair_penetration: dict = {}  # (a, b) → deepest penetration of a into b so far [Δx]
+        self.fragment_penetration = 0.0  # deepest depth behind another fragment's surface so far [Δx]
+        self.pair_penetration: dict = {}  # (a, b) → deepest depth of a behind b's surface so far [Δx]
         self.plane_stats = {"first_contact": [None, None], "penetration": 0.0, "max_vt_near": 0.0, "max_vn_post": 0.0}
         self._n_topologies = 0
         self.gravity = tuple(float(a) for a in sim.cfg.gravity)
@@ -128,6 +131,8 @@ class Diagnostics:
         self._n_topologies = len(sim.topologies)
         self.latch_substeps = sim.substeps  # the realized grid holds the new labels only after a substep
         self.members = M.band_members(P.fragment, P.band)
+        with torch.no_grad():  # the surface measure's scales from the particles at this latch (positions only)
+            self.surface_calibration = calibrate(P.x, P.fragment, self._volume_ratio())
         self.band_index = torch.nonzero(P.band != 0).flatten()
         self.particle_mass = M.per_fragment_sum(P.mass.double(), P.fragment.long(), sim.n_fragments)  # [K], fixed
         if self.latch_info is not None:
@@ -331,8 +336,9 @@ class Diagnostics:
         self.open_max = max(self.open_max, opening)
         self.reapproach = max(self.reapproach, reapproach_ratio(self.open_max, opening))
         overlap = unpack_overlap(list(h["overlap"]), max(2, sim.n_fragments))
-        self.fragment_penetration = max(self.fragment_penetration, overlap["depth"] / dx)
-        for pair, depth in overlap["pairs"].items():
+        surface = self._surface()
+        self.fragment_penetration = max(self.fragment_penetration, surface["depth"] / dx)
+        for pair, depth in surface["pairs"].items():
             self.pair_penetration[pair] = max(self.pair_penetration.get(pair, 0.0), depth / dx)
         below, depth = int(h["collider"][0]), float(h["collider"][1])
         return {
@@ -342,11 +348,25 @@ class Diagnostics:
             "separated": opening > SEPARATION,
             "penetration": h["penetration"][0] / dx,
             "identity_crossing": int(h["identity_crossing"][0]),
-            "fragment_crossing": overlap["crossing"],
-            "fragment_penetration": overlap["depth"] / dx,
+            "fragment_crossing": surface["crossing"],
+            "fragment_penetration": surface["depth"] / dx,
+            "voxel_crossing": overlap["crossing"],
+            "voxel_penetration": overlap["depth"] / dx,
             "collider_crossing": below,
             "collider_depth": depth / dx,
         }
+
+    def _surface(self) -> dict:
+        """Depth of particles behind another fragment's kernel-smoothed surface (`penetration.surface_penetration`),
+        scaled by the calibration taken at the latch, each particle weighted by its volume change det F;
+        `fragment_crossing` counts those deeper than CROSSING·Δx."""
+        sim = self.sim
+        P, dx = sim.particles, sim.grid.dx
+        with torch.no_grad():
+            return surface_penetration(P.x, P.fragment, CROSSING * dx, self.surface_calibration, self._volume_ratio())
+
+    def _volume_ratio(self) -> torch.Tensor:  # [N] det F: each particle's current over its rest volume
+        return torch.linalg.det(self.sim.particles.F.double()).clamp_min(0.0)
 
     def _contact_row(self, h: dict) -> dict:
         stats = h["stats"]
@@ -367,7 +387,7 @@ class Diagnostics:
 
     def _pair_row(self, flat: list) -> dict:
         """Per fragment pair "a-b": first contact time, contact-projection momentum residual over the
-        run, deepest fragment-aware penetration/Δx (pairs that touched or overlapped only)."""
+        run, deepest depth/Δx of one behind the other's surface (pairs that touched or overlapped only)."""
         K = math.isqrt(len(flat) // N_PAIR_STATS)  # the K × K block of the fragments in use, as read
         out = {}
         for k in range(K * K):

@@ -1,19 +1,32 @@
-"""Fragment-aware penetration, measured between the pieces themselves (DESIGN.md "Many fragments").
+"""Fragment-aware penetration, measured between the pieces themselves (DESIGN.md "Diagnostics").
 
 The paper's columns measure crossing along the latched normal n_Π, which misreads a piece that
-tumbles (Table 4, Panel A). Here space is cut into voxels of edge h ≈ 0.6 Δx (a little over the
-particle spacing); each voxel belongs to the fragment that has most particles in it, and a
-fragment's *occupied volume* is its voxels eroded once (a voxel counts when its six face
-neighbours belong to the same fragment), so the ragged surface layer, where touching pieces and
-oblique cuts interleave, is excluded. A particle of fragment a inside b's occupied volume is an
-identity crossing; its depth is the number of erosions its voxel survives, times h (a lower bound
-on how far it is inside b). Resolution: where a face is oblique to the voxels, the staircase can
-leave an isolated particle reading one voxel deep (two touching jittered blocks: 1–2 of 9,386
-particles in 3 % of random orientations; tests/test_many_fragments.py). Vectorised torch on the
-particles' device (sorted keys and binary searches, no dense grid).
+tumbles (Table 4, Panel A). Two measures between the pieces live here.
+
+`surface_depth` (the diagnostics' `fragment_penetration`): how far a particle of fragment a lies behind
+fragment b's surface, continuously. Around a particle p, b's volume fraction
+c_b(p) = Σ_{j∈b} V_j W(|x_p − x_j|), with the compact kernel W(r) = 105/(32πR³)·(1 − r²/R²)² (∫W = 1), is
+the share of the ball of radius R around p that b fills. Where b's surface is locally flat that share is
+F(d/R), d the signed depth of p behind the surface and F the kernel's half-space share
+(`fraction_of_half_space`, a polynomial), so d = R·F⁻¹(c_b). The particles sample each piece's volume
+uniformly, so c_b is an unbiased estimate of the true share whatever the particles' lattice or jitter; the
+kernel averages the sampling noise. R is SPACINGS particle spacings; depths beyond R read R (a lower
+bound). Only particles in cells next to another fragment's particles are evaluated (sorted cell keys,
+binary searches, no dense grid), in chunks.
+
+`fragment_overlap` / `overlap_packed` (the diagnostics' `voxel_crossing`, `voxel_penetration`): space
+cut into voxels of edge h ≈ 0.6 Δx, each owned by the fragment with most particles in it and eroded once
+(a voxel counts when its six face neighbours have the same owner); a particle inside another fragment's
+eroded voxels crosses, by the number of erosions its voxel survives times h. Its depth comes in steps
+of h: one voxel (0.6 Δx) is its smallest non-zero reading, which an isolated particle at an oblique
+face can give with no overlap at all. Kept as the cheap, graph-recordable occupancy check
+(`overlap_kernels.py` runs it in Warp launches).
 """
 
 from __future__ import annotations
+
+import math
+from typing import Optional
 
 import torch
 
@@ -135,3 +148,295 @@ def collider_crossing(x: torch.Tensor, planes, tolerance: float) -> tuple[int, f
         if bool(below.any()):
             depth = max(depth, float(-d[below].min()))
     return count, depth
+
+
+# ---- the continuous measure -------------------------------------------------------------------------
+
+SPACINGS = 6.0  # kernel radius R in particle spacings s: depth noise ≈ s·(s/R)^1.5 (DESIGN.md)
+NEAR = 1.2  # spacings: particles with one of another fragment this close are evaluated
+CHUNK = 4096  # candidates per chunk: ≈ 2,000 particles gathered each, so ≈ 8 M pairs at a time
+DENSE_LIMIT = 1 << 22  # (candidate, fragment) sums kept dense up to this many entries, else sorted keys
+_BITS = 21  # bits per axis of a cell key
+NN_PER_SPACING = 0.65  # median nearest-neighbour distance over h of a jittered grid (one point anywhere per cell h)
+SAMPLES = 256  # particles per fragment whose own kernel sums calibrate its filled density
+CENTRED = 0.01  # a sample whose neighbours' kernel-weighted centroid lies within this × R sees a full ball
+DENSITY_REACH = 4.0  # radius of the small density ball in nearest-neighbour distances (≈ 2.6 spacings)
+SMALL_CENTRED = 0.1  # its centroid test (fewer neighbours, more noise: a face particle's is ≈ 0.3)
+ISOTROPY = 0.8  # and its neighbours' second moment at least this round (smallest / largest eigenvalue)
+SMALL_TRUST = 0.97  # the small ball's density is trusted to 3 %: below it a piece's own full-ball sum wins
+
+
+def _keys(c: torch.Tensor) -> torch.Tensor:  # [..., 3] int64 cell coordinates -> [...] int64 keys
+    return (c[..., 0] << (2 * _BITS)) | (c[..., 1] << _BITS) | c[..., 2]
+
+
+def _cube(reach: int, device, ball: bool = False) -> torch.Tensor:  # [C, 3] int64 offsets around a cell
+    """The (2·reach + 1)³ cell offsets; with `ball` only those a point of the centre cell can see within
+    reach cells (the cube's corners dropped)."""
+    r = torch.arange(-reach, reach + 1, device=device)
+    off = torch.stack(torch.meshgrid(r, r, r, indexing="ij"), -1).reshape(-1, 3)
+    if ball:
+        off = off[((off.abs() - 1).clamp_min(0) ** 2).sum(1) < reach * reach]
+    return off
+
+
+class _Cells:
+    """Particles binned into cells of edge `size` by sorted keys (no dense grid): per occupied cell its key,
+    first sorted index, count and smallest/largest fragment id."""
+
+    def __init__(self, x: torch.Tensor, fragment: torch.Tensor, lo: torch.Tensor, size: float):
+        self.coord = (torch.floor((x - lo) / size).long() + 3).clamp(0, (1 << _BITS) - 4)  # [N, 3], 3 free cells
+        self.sorted, self.order = torch.sort(_keys(self.coord))
+        self.keys, self.inverse, self.count = torch.unique_consecutive(
+            self.sorted, return_inverse=True, return_counts=True
+        )
+        self.start = torch.cumsum(self.count, 0) - self.count
+        f = fragment[self.order]
+        self.fmin = torch.full_like(self.keys, 1 << 40).scatter_reduce(0, self.inverse, f, "amin")
+        self.fmax = torch.full_like(self.keys, -1).scatter_reduce(0, self.inverse, f, "amax")
+
+    def find(self, keys: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """(cell index, occupied) of each key."""
+        i = torch.searchsorted(self.keys, keys).clamp_max(self.keys.numel() - 1)
+        return i, self.keys[i] == keys
+
+    def near_foreign(self) -> torch.Tensor:  # [N] bool
+        """Particles whose cell or one of its 26 neighbours holds a particle of another fragment."""
+        mask = (1 << _BITS) - 1
+        c = torch.stack([self.keys >> (2 * _BITS), self.keys >> _BITS, self.keys], 1) & mask  # [V, 3]
+        i, hit = self.find(_keys(c[:, None, :] + _cube(1, c.device)[None]))  # [V, 27]
+        lo = torch.where(hit, self.fmin[i], torch.full_like(i, 1 << 40)).amin(1)
+        hi = torch.where(hit, self.fmax[i], torch.full_like(i, -1)).amax(1)
+        out = torch.zeros(self.order.numel(), dtype=torch.bool, device=self.order.device)
+        out[self.order] = (lo != hi)[self.inverse]
+        return out
+
+    def gather(self, coord: torch.Tensor, reach: int) -> tuple[torch.Tensor, torch.Tensor]:
+        """(query index, particle index) for every particle in the cells within `reach` cells of each query
+        cell [M, 3] (a point of the query cell sees no other particle within reach·size)."""
+        off = _cube(reach, coord.device, ball=True)
+        i, hit = self.find(_keys(coord[:, None, :] + off[None]))  # [M, C]
+        i = i.reshape(-1)
+        n = torch.where(hit.reshape(-1), self.count[i], torch.zeros_like(i))
+        cell = torch.repeat_interleave(torch.arange(n.numel(), device=n.device), n)  # [P]
+        within = torch.arange(cell.numel(), device=n.device) - (torch.cumsum(n, 0) - n)[cell]
+        return torch.div(cell, off.shape[0], rounding_mode="floor"), self.order[self.start[i[cell]] + within]
+
+
+def fraction_of_half_space(u: torch.Tensor) -> torch.Tensor:
+    """Share of the kernel W(r) ∝ (1 − r²/R²)² inside a half-space whose face lies u·R in front of the
+    kernel's centre (u > 0: the centre is inside): 1/2 + 35/32·(u − u³ + 3u⁵/5 − u⁷/7), u clamped to [−1, 1]."""
+    u = u.clamp(-1.0, 1.0)
+    return 0.5 + 35.0 / 32.0 * (u - u**3 + 0.6 * u**5 - u**7 / 7.0)
+
+
+def depth_from_fraction(c: torch.Tensor) -> torch.Tensor:
+    """u ∈ [−1, 1] with `fraction_of_half_space`(u) = c (bisection to 2⁻⁴⁰; F is monotone)."""
+    c = c.clamp(0.0, 1.0)
+    lo, hi = torch.full_like(c, -1.0), torch.ones_like(c)
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        up = fraction_of_half_space(mid) < c
+        lo, hi = torch.where(up, mid, lo), torch.where(up, hi, mid)
+    return 0.5 * (lo + hi)
+
+
+def _nearest(x: torch.Tensor, fragment: torch.Tensor, query: torch.Tensor, size: float) -> torch.Tensor:
+    """Distance [m] from each query particle to its nearest other particle of the same fragment within
+    `size` (inf if none): cells of edge `size`, the 27 around the query's."""
+    lo = x.min(0).values
+    cells = _Cells(x, fragment, lo, size)
+    qi, j = cells.gather(cells.coord[query], 1)
+    same = (fragment[j] == fragment[query][qi]) & (j != query[qi])
+    d2 = torch.where(same, ((x[query][qi] - x[j]) ** 2).sum(1), torch.full_like(x[j, 0], float("inf")))
+    return (
+        torch.full((query.numel(),), float("inf"), dtype=x.dtype, device=x.device)
+        .scatter_reduce(0, qi, d2, "amin")
+        .sqrt()
+    )
+
+
+def _sampled(fragment: torch.Tensor, K: int, samples: int) -> torch.Tensor:
+    """Up to `samples` particle indices per fragment id, drawn in a fixed random order (a stride through the
+    index order could pick one lattice layer of a block made by a meshgrid)."""
+    g = torch.Generator().manual_seed(0)
+    perm = torch.randperm(fragment.numel(), generator=g).to(fragment.device)
+    order = perm[torch.argsort(fragment[perm], stable=True)]  # by fragment, random within each
+    count = torch.bincount(fragment, minlength=K)
+    start = torch.cumsum(count, 0) - count
+    rank = torch.arange(order.numel(), device=fragment.device) - start[fragment[order]]
+    return order[rank < samples]
+
+
+def _group_median(values: torch.Tensor, groups: torch.Tensor, K: int) -> tuple[torch.Tensor, torch.Tensor]:
+    """(median [K] of `values` per group id in 0..K−1 (lower middle), count [K]); 0 where a group is empty."""
+    order = torch.argsort(values)
+    order = order[torch.argsort(groups[order], stable=True)]  # by group, ascending values within
+    count = torch.bincount(groups, minlength=K)
+    start = torch.cumsum(count, 0) - count
+    mid = (start + torch.div(count - 1, 2, rounding_mode="floor")).clamp(0, max(values.numel() - 1, 0))
+    med = values[order][mid] if values.numel() else torch.zeros(K, dtype=values.dtype, device=values.device)
+    return torch.where(count > 0, med, torch.zeros_like(med)), count
+
+
+def calibrate(
+    x: torch.Tensor, fragment: torch.Tensor, volume_ratio: Optional[torch.Tensor] = None, samples: int = SAMPLES
+) -> dict:
+    """The measure's scales, from the particles' positions alone (stored volumes are not trusted: in the
+    built-in scenes they sum to ≈ 2× the solid and spread 50×).
+
+    radius R = SPACINGS · s, the spacing s = median nearest-neighbour distance / NN_PER_SPACING. filled [K]:
+    per fragment id, the unit-weight kernel sum Σ_j W(|x − x_j|) [1/m³] of a ball the piece fills, i.e. its
+    number density: the median sum at its own particles whose kernel-weighted neighbours are centred on them
+    (|centroid offset| < CENTRED·R: a ball no face cuts; up to `samples` tried per piece), and at least the
+    density its spacing implies, (NN_PER_SPACING / its median nearest-neighbour distance)³ — all a piece
+    too small or thin to fill a ball gets. `volume_ratio` [N]: each particle's current volume over its rest
+    volume (det F), the sums' weights, so a piece compressed at an impact keeps its rest density (default 1).
+    Returns {"radius": R [m], "filled": [K] float64 (1 for an empty id), "spacing": s [m]}."""
+    ok = fragment >= 0
+    K = int(fragment.max()) + 1 if bool(ok.any()) else 0
+    out = {"radius": 0.0, "filled": torch.ones(max(K, 1), dtype=torch.float64, device=x.device), "spacing": 0.0}
+    if K == 0:
+        return out
+    idx = torch.nonzero(ok).flatten()
+    xd, frag = x.double()[idx], fragment.long()[idx]
+    J = torch.ones_like(xd[:, 0]) if volume_ratio is None else volume_ratio.double()[idx]  # [N'] weights
+    box = (xd.max(0).values - xd.min(0).values).clamp_min(1e-12)
+    guess = float(box.prod() / idx.numel()) ** (1.0 / 3.0)  # ≥ the spacing: the box holds the solid
+    nn = _nearest(xd, frag, torch.arange(idx.numel(), device=x.device), guess)  # [N']
+    finite = torch.isfinite(nn)
+    if not bool(finite.any()):
+        return out
+    spacing = float(nn[finite].median()) / NN_PER_SPACING
+    R = SPACINGS * spacing
+    gap, _ = _group_median(torch.where(finite, nn, torch.full_like(nn, spacing * NN_PER_SPACING)), frag, K)
+    pick = _sampled(frag, K, samples)  # [S] sampled particles, per fragment
+    cells = _Cells(xd, frag, xd.min(0).values, R / 3)
+    qi, j = cells.gather(cells.coord[pick], 3)
+    d = xd[j] - xd[pick][qi]  # [P, 3]
+    u2 = (d**2).sum(1) / (R * R)
+    keep = (frag[j] == frag[pick][qi]) & (u2 < 1.0)
+    w = torch.where(keep, 105.0 / (32.0 * math.pi * R**3) * (1.0 - u2).clamp_min(0.0) ** 2, torch.zeros_like(u2)) * J[j]
+    own = torch.zeros(pick.numel(), dtype=torch.float64, device=x.device).index_add_(0, qi, w)  # [S]
+    moment = torch.zeros(pick.numel(), 3, dtype=torch.float64, device=x.device).index_add_(0, qi, w[:, None] * d)
+    centred = moment.norm(dim=1) < CENTRED * R * own  # [S] the neighbours' centroid within CENTRED·R
+    fp = frag[pick]
+    inner, n_inner = _group_median(own[centred], fp[centred], K)
+    # the density any sampler gives, from a small ball (DENSITY_REACH nearest-neighbour distances) that fits
+    # inside thin and small pieces, counting every fragment's particles (at a latch the pieces just cut are one
+    # body, so a thin layer cut from its twin still fills the ball): its sums where no free face cuts the ball
+    r = DENSITY_REACH * gap[fp][qi]  # [P] per pair, the query's piece's small radius
+    v2 = (d**2).sum(1) / (r * r)
+    ws = torch.where(v2 < 1.0, 105.0 / (32.0 * math.pi * r**3) * (1.0 - v2).clamp_min(0.0) ** 2, torch.zeros_like(v2))
+    ws = ws * J[j]
+    small = torch.zeros(pick.numel(), dtype=torch.float64, device=x.device).index_add_(0, qi, ws)  # [S]
+    ms = torch.zeros(pick.numel(), 3, dtype=torch.float64, device=x.device).index_add_(0, qi, ws[:, None] * d)
+    cov = torch.zeros(pick.numel(), 3, 3, dtype=torch.float64, device=x.device).index_add_(
+        0, qi, ws[:, None, None] * d[:, :, None] * d[:, None, :]
+    )  # [S, 3, 3] the neighbours' second moment: a ball cut on two sides (a thin plate's) is flat, not round
+    eig = torch.linalg.eigvalsh(cov)  # [S, 3] ascending
+    round_ = eig[:, 0] > ISOTROPY * eig[:, 2]
+    full = (ms.norm(dim=1) < SMALL_CENTRED * DENSITY_REACH * gap[fp] * small) & round_  # [S]
+    dens, n_dens = _group_median(small[full] * gap[fp[full]] ** 3, fp[full], K)  # density × gap³ per piece
+    typical = float((small[full] * gap[fp[full]] ** 3).median()) if bool(full.any()) else NN_PER_SPACING**3
+    implied = torch.where(n_dens > 0, dens, torch.full_like(dens, typical)) / gap.clamp_min(1e-30) ** 3
+    filled = torch.where(n_inner > 0, torch.maximum(inner, SMALL_TRUST * implied), SMALL_TRUST * implied)
+    present = torch.bincount(frag, minlength=K) > 0
+    out.update(radius=R, spacing=spacing, filled=torch.where(present, filled, torch.ones_like(filled)))
+    return out
+
+
+def surface_depth(
+    x: torch.Tensor,
+    fragment: torch.Tensor,
+    calibration: dict,
+    volume_ratio: Optional[torch.Tensor] = None,
+    chunk: int = CHUNK,
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """Per particle, the deepest depth [m] behind another fragment's surface and that fragment's id.
+
+    x [N, 3], fragment [N] (−1: unlabelled, ignored), calibration from `calibrate` (radius R, each fragment's
+    filled density; ids beyond it are not evaluated). Returns (depth [N] float64, 0 where no particle lies behind
+    another piece's surface or none was evaluated; into [N] int64, −1 there). A depth saturates at R.
+    `volume_ratio` [N]: det F per particle, its weight (as in `calibrate`; default 1)."""
+    radius, filled = float(calibration["radius"]), calibration["filled"].to(x.device, torch.float64)
+    n = x.shape[0]
+    depth = torch.zeros(n, dtype=torch.float64, device=x.device)
+    into = torch.full((n,), -1, dtype=torch.long, device=x.device)
+    ok = fragment >= 0
+    if n == 0 or radius <= 0 or not bool(ok.any()):
+        return depth, into
+    ok = ok & (fragment < filled.numel())
+    frag = torch.where(ok, fragment.long(), torch.full_like(fragment, -1, dtype=torch.long))
+    xd = x.double()
+    lo = torch.where(ok[:, None], xd, torch.full_like(xd, float("inf"))).min(0).values
+    spacing = radius / SPACINGS
+    small = _Cells(xd, frag, lo, NEAR * spacing)
+    query = torch.nonzero(small.near_foreign() & ok).flatten()  # [M0] particles in cells by another fragment
+    if query.numel() == 0:
+        return depth, into
+    # a particle behind b's surface has a particle of b within about a spacing (b's sample is dense there)
+    qi, j = small.gather(small.coord[query], 1)
+    gap2 = ((xd[query][qi] - xd[j]) ** 2).sum(1)
+    close = (frag[j] != frag[query][qi]) & (frag[j] >= 0) & (gap2 < (NEAR * spacing) ** 2)
+    query = query[torch.zeros(query.numel(), dtype=torch.bool, device=x.device).index_fill_(0, qi[close], True)]
+    big = _Cells(xd, frag, lo, radius / 3)  # cells within 3 of the query's: every particle within R
+    K = int(frag.max()) + 1
+    norm = 105.0 / (32.0 * math.pi * radius**3)
+    xf = (xd - lo).float()  # pair offsets in float32 (relative to the box: ample for |x_p − x_j| ≤ R)
+    for s in range(0, query.numel(), chunk):
+        q = query[s : s + chunk]
+        qi, j = big.gather(big.coord[q], 3)
+        fq, fj = frag[q][qi], frag[j]
+        u2 = ((xf[q][qi] - xf[j]) ** 2).sum(1) / (radius * radius)
+        keep = (fj >= 0) & (fj != fq) & (u2 < 1.0)
+        qi, fj = qi[keep], fj[keep]
+        w = norm * (1.0 - u2[keep].double()) ** 2 / filled[fj]  # each particle 1/n_b of b's volume …
+        if volume_ratio is not None:
+            w = w * volume_ratio.double()[j[keep]]  # … times its volume change
+        m = q.numel()
+        if m * K <= DENSE_LIMIT:
+            frac = torch.zeros(m * K, dtype=torch.float64, device=x.device).index_add_(0, qi * K + fj, w)
+            key = torch.nonzero(frac > 0.5).flatten()  # behind b's surface only where b fills over half
+            frac = frac[key]
+        else:
+            key, inv = torch.unique(qi * K + fj, return_inverse=True)
+            frac = torch.zeros(key.numel(), dtype=torch.float64, device=x.device).index_add_(0, inv, w)
+            key, frac = key[frac > 0.5], frac[frac > 0.5]
+        d = radius * depth_from_fraction(frac)  # [E] entries (candidate, other fragment)
+        row, other = torch.div(key, K, rounding_mode="floor"), key % K
+        best = torch.zeros(m, dtype=torch.float64, device=x.device).scatter_reduce(0, row, d, "amax")
+        hit = (best[row] == d) & (d > 0)
+        which = torch.full((m,), -1, dtype=torch.long, device=x.device).scatter_reduce(0, row[hit], other[hit], "amax")
+        depth[q], into[q] = best, which
+    return depth, into
+
+
+def surface_penetration(
+    x: torch.Tensor,
+    fragment: torch.Tensor,
+    crossing_at: float,
+    calibration: Optional[dict] = None,
+    volume_ratio: Optional[torch.Tensor] = None,
+) -> dict:
+    """`surface_depth` summed up: {"depth": deepest [m] (0 if none), "crossing": particles deeper than
+    `crossing_at` [m], "pairs": {(a, b): deepest depth [m] of a behind b's surface}, "radius": R [m]}.
+    `calibration`: from `calibrate` at the latch, while no piece overlaps another (pieces overlapping then
+    count their overlap as density); made from `x` now if None or short of a fragment id.
+    `volume_ratio` [N]: det F per particle (see `calibrate`)."""
+    K = int(fragment.max()) + 1 if fragment.numel() else 0
+    if calibration is None or calibration["filled"].numel() < K:
+        calibration = calibrate(x, fragment, volume_ratio)
+    depth, into = surface_depth(x, fragment, calibration, volume_ratio)
+    out = {"depth": 0.0, "crossing": 0, "pairs": {}, "radius": float(calibration["radius"])}
+    inside = torch.nonzero(into >= 0).flatten()
+    if inside.numel() == 0:
+        return out
+    d, a, b = depth[inside], fragment[inside].long(), into[inside]
+    K = int(max(int(a.max()), int(b.max()))) + 1
+    keys, inv = torch.unique(a * K + b, return_inverse=True)
+    worst = torch.zeros(keys.numel(), dtype=torch.float64, device=x.device).scatter_reduce(0, inv, d, "amax")
+    out["depth"] = float(d.max())
+    out["crossing"] = int((d > crossing_at).sum())
+    out["pairs"] = {(int(k) // K, int(k) % K): float(v) for k, v in zip(keys.tolist(), worst.tolist())}
+    return out
