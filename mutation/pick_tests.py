@@ -47,12 +47,31 @@ def kernel_lines(source: str) -> set[int]:
     return out
 
 
+def function_lines(source: str) -> set[int]:
+    """Lines inside function bodies: they run when called. Every other line (module constants, defaults, class
+    bodies, dataclass fields) runs once, at import, and coverage credits it to whichever test imported it first."""
+    import ast
+
+    out: set[int] = set()
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and node.body:
+            out.update(range(node.body[0].lineno, (node.end_lineno or node.lineno) + 1))
+    return out
+
+
 def select_tests(module: str, lines: list[int], source: str, cover: dict, fallback: dict) -> list[str]:
-    """Test node ids (or files) that exercise `lines` of `module`: coverage first, the static list for kernels."""
+    """Test node ids (or files) that exercise `lines` of `module`: coverage for lines in function bodies, every test
+    that calls into the module for a line run at import, the static list for kernels."""
     kern = kernel_lines(source)
     by_line = cover.get(module, {})
+    called = function_lines(source)
     picked: dict[str, None] = {}
     for line in lines:
+        if line not in called and line not in kern and by_line:  # an import-time line: the module's users
+            users = {t for n, ts in by_line.items() if int(n) in called and int(n) not in kern for t in ts}
+            for test in sorted(users):
+                picked[test] = None
+            continue
         if line in kern or not by_line:
             for test in fallback.get(module, []):
                 picked[test] = None

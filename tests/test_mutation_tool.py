@@ -36,6 +36,10 @@ def test_kernel_bodies_fall_back_to_the_listed_tests_and_host_lines_to_coverage(
     # a line the map has not seen (written after it) takes its neighbours' tests; one far from any gets none
     assert pick_tests.select_tests("m.py", [7], src, cover, fallback) == ["tests/t.py::test_host"]
     assert pick_tests.select_tests("m.py", [8], src, {"m.py": {"20": ["tests/t.py::test_far"]}}, fallback) == []
+    # a module constant runs at import, credited to whichever test imported first: it gets every test that calls in
+    const = "LIMIT = 3\n\n\ndef f(x):\n    return min(x, LIMIT)\n"
+    cover = {"c.py": {"1": ["tests/a.py::test_first_import"], "5": ["tests/b.py::test_f", "tests/c.py::test_g"]}}
+    assert pick_tests.select_tests("c.py", [1], const, cover, {}) == ["tests/b.py::test_f", "tests/c.py::test_g"]
 
 
 @pytest.mark.slow
