@@ -344,6 +344,51 @@ def cmd_report(args) -> int:
     return 0
 
 
+# ---------------------------------------------------------------- retest: the survivors against today's tests
+def cmd_retest(args) -> int:
+    """Run a session's survivors again against the current tests (after writing the tests that kill them). The
+    session is kept as `session_before.sqlite`; mutants never reached are marked skipped; modules changed since the
+    session was made (`--since COMMIT`) are left as they were, since a mutant is named by its occurrence in the
+    module as it was."""
+    from cosmic_ray.work_db import WorkDB, WorkResultStorage, use_db
+    from cosmic_ray.work_item import TestOutcome, WorkerOutcome, WorkResult
+
+    session = STATE / "session.sqlite"
+    if not (STATE / "session_before.sqlite").exists():
+        shutil.copyfile(session, STATE / "session_before.sqlite")
+    changed: set[str] = set()
+    if args.since:
+        diff = subprocess.run(
+            ["git", "diff", "--name-only", args.since, "HEAD", "--", "fracture_gs"],
+            cwd=ROOT,
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout
+        changed = set(diff.split())
+    equivalents = tomllib.loads((HERE / "equivalent.toml").read_text()).get("mutant", [])
+    never = WorkResult(output="not reached in the session", worker_outcome=WorkerOutcome.SKIPPED)
+    again, modules = [], set()
+    with use_db(str(session), WorkDB.Mode.open) as db:
+        for item in db.pending_work_items:
+            db.set_result(item.job_id, never)
+        for item, result in db.completed_work_items:
+            m = item.mutations[0]
+            if (
+                result.worker_outcome == WorkerOutcome.NORMAL
+                and result.test_outcome == TestOutcome.SURVIVED
+                and str(m.module_path) not in changed
+                and not _equivalent(m, result.diff or "", equivalents)
+            ):
+                again.append(item.job_id)
+                modules.add(str(m.module_path))
+        with db._session_maker.begin() as s:
+            s.query(WorkResultStorage).filter(WorkResultStorage.job_id.in_(again)).delete()
+    print(f"{len(again)} survivors in {len(modules)} modules run again", flush=True)
+    args.targets, args.resume, args.sample, args.seed = sorted(modules), True, None, 0
+    return cmd_run(args)
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = ap.add_subparsers(dest="cmd", required=True)
@@ -360,10 +405,15 @@ def main(argv=None) -> int:
     r.add_argument("--timeout", type=float, default=600.0, help="seconds one mutant's tests may take")
     r.add_argument("--budget", type=float, default=None, help="stop executing after this many seconds")
     r.add_argument("--resume", action="store_true", help="continue the existing session instead of a new one")
+    t = sub.add_parser("retest", help="run the session's survivors again against the current tests")
+    t.add_argument("--workers", type=int, default=1, help="parallel HTTP workers, one copy of the tree each")
+    t.add_argument("--timeout", type=float, default=600.0, help="seconds one mutant's tests may take")
+    t.add_argument("--budget", type=float, default=None, help="stop executing after this many seconds")
+    t.add_argument("--since", default=None, help="the commit the session was made on: modules changed since stay")
     sub.add_parser("report", help="score per module and the survivors (mutation/.state/survivors.json)")
     # score = killed / (killed + survived); equivalent mutants (equivalent.toml, each with its reason) are left out
     args = ap.parse_args(argv)
-    return {"map": cmd_map, "run": cmd_run, "report": cmd_report}[args.cmd](args)
+    return {"map": cmd_map, "run": cmd_run, "retest": cmd_retest, "report": cmd_report}[args.cmd](args)
 
 
 if __name__ == "__main__":
