@@ -111,8 +111,18 @@ def main() -> int:
         return 0
     env = dict(os.environ, PYTHONDONTWRITEBYTECODE="1")
     cmd = [sys.executable, "-m", "pytest", "-x", "-q", "-p", "no:cacheprovider", "--no-header", *tests]
-    rc = subprocess.call(cmd, env=env, cwd=root)
-    return 0 if rc in (4, 5) else rc  # a selection pytest cannot collect kills nothing: count it as survived
+    run = subprocess.run(cmd, env=env, cwd=root, capture_output=True, text=True)
+    sys.stdout.write(run.stdout + run.stderr)
+    return outcome(run.returncode, run.stdout + run.stderr)
+
+
+def outcome(rc: int, output: str) -> int:
+    """pytest's exit status → ours (0: the mutant survived). 4 and 5 (nothing collected, a node id not found)
+    kill nothing, unless a test module failed to import: then the mutant broke it (a module-level call into the
+    mutated code), which is a kill, though pytest reports the selected node ids as not found."""
+    if rc in (4, 5):
+        return 1 if "ERROR collecting" in output else 0
+    return rc
 
 
 if __name__ == "__main__":

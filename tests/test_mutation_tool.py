@@ -86,3 +86,15 @@ def test_every_equivalent_mutant_names_a_line_that_exists_and_a_reason():
         source = [ln.strip() for ln in (root / e["module"]).read_text().splitlines()]
         assert e["line"].strip() in source, f"{e['module']}: no line {e['line']!r}"
         assert len(e["reason"]) > 20, e
+
+
+def test_a_mutant_that_breaks_a_test_modules_import_is_killed():
+    """A mutant that makes a selected test module fail to import (a module-level call into the mutated code)
+    is killed, although pytest then exits 4 ("found no collectors"); a selection pytest cannot find with no
+    collection error (a stale node id) or nothing collected still counts as survived, and pytest's own 0/1 pass
+    through."""
+    broken = "ERROR collecting tests/test_fuzz_config.py\nERROR: found no collectors for tests/t.py::test_x\n"
+    assert pick_tests.outcome(4, broken) == 1
+    assert pick_tests.outcome(4, "ERROR: not found: tests/t.py::test_gone\n") == 0
+    assert pick_tests.outcome(5, "no tests ran\n") == 0
+    assert (pick_tests.outcome(0, "1 passed"), pick_tests.outcome(1, "1 failed")) == (0, 1)

@@ -528,3 +528,15 @@ def test_frames_override_must_be_a_positive_integer():
         with pytest.raises(ConfigError) as info:
             apply_overrides(cfg, frames=bad)
         assert info.value.field == "--frames"
+
+
+def test_capture_rotation_determinant_uses_every_cofactor():
+    """capture.rotation must be a proper rotation (determinant +1), whatever its rows look like: the cyclic axis
+    permutation x→y→z loads, and the same matrix with one row negated (determinant −1, a reflection whose third
+    column carries the sign) is refused naming capture.rotation."""
+    cyclic = [[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]
+    cfg = config_from_dict(_with(scene="thing.ply", capture__rotation=cyclic))
+    assert [list(r) for r in cfg.capture.rotation] == cyclic
+    mirrored = [[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, -1.0, 0.0]]
+    err = _error(_with(scene="thing.ply", capture__rotation=mirrored))
+    assert err.field == "capture.rotation" and "reflection" in str(err)
