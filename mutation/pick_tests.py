@@ -59,6 +59,19 @@ def function_lines(source: str) -> set[int]:
     return out
 
 
+def importers(module: str, tests_dir: Path = Path("tests")) -> list[str]:
+    """Test files that name `module` (`fracture_gs.capture.materials`, `capture.materials`, `import materials`): a
+    test that only reads a module's constants executes none of its functions, so coverage does not tie it to them."""
+    import re
+
+    parts = module.removesuffix(".py").split("/")
+    names = [re.escape(".".join(parts[-k:])) + r"\b" for k in range(2, len(parts) + 1)]
+    pattern = re.compile("|".join([*names, r"\bimport " + re.escape(parts[-1]) + r"\b"]))
+    if not tests_dir.is_dir():
+        return []
+    return [str(p) for p in sorted(tests_dir.glob("test_*.py")) if pattern.search(p.read_text())]
+
+
 def select_tests(module: str, lines: list[int], source: str, cover: dict, fallback: dict) -> list[str]:
     """Test node ids (or files) that exercise `lines` of `module`: coverage for lines in function bodies, every test
     that calls into the module for a line run at import, the static list for kernels."""
@@ -69,7 +82,7 @@ def select_tests(module: str, lines: list[int], source: str, cover: dict, fallba
     for line in lines:
         if line not in called and line not in kern and by_line:  # an import-time line: the module's users
             users = {t for n, ts in by_line.items() if int(n) in called and int(n) not in kern for t in ts}
-            for test in sorted(users):
+            for test in sorted(users) + importers(module):  # and the test files that read its data by name
                 picked[test] = None
             continue
         if line in kern or not by_line:
