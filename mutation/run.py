@@ -196,6 +196,20 @@ def _filter(session: Path, sample: int | None, seed: int) -> tuple[int, int]:
         return total, sum(len(v) for v in chosen.values())
 
 
+def _free_ports(n: int) -> list[int]:
+    """n TCP ports nobody listens on now (another session's workers, a test's toy session, may run beside)."""
+    import socket
+
+    socks = [socket.socket() for _ in range(n)]
+    try:
+        for s in socks:
+            s.bind(("localhost", 0))
+        return [s.getsockname()[1] for s in socks]
+    finally:
+        for s in socks:
+            s.close()
+
+
 def _copy_tree(dest: Path) -> None:
     ignore = shutil.ignore_patterns(
         ".venv",
@@ -228,7 +242,7 @@ def cmd_run(args) -> int:
     session, cfg = STATE / "session.sqlite", STATE / "cosmic-ray.toml"
     if session.exists() and not args.resume:
         session.unlink()
-    ports = [9870 + i for i in range(max(1, args.workers))]  # always workers: never mutate this tree
+    ports = _free_ports(max(1, args.workers))  # always workers: never mutate this tree
     _config(cfg, modules, [f"http://localhost:{p}" for p in ports], args.timeout)
     cr = [sys.executable, "-m", "cosmic_ray.cli"]
     if not session.exists():
