@@ -366,10 +366,13 @@ def test_importing_the_cli_loads_neither_torch_nor_warp():
     assert out.returncode == 0 and out.stdout.strip() == "[]", out.stdout + out.stderr
 
 
-def test_an_interrupt_turned_into_another_error_still_exits_130(monkeypatch, capsys):
+def test_an_interrupt_turned_into_another_error_still_exits_130(monkeypatch, capsys, request):
     """A SIGINT that arrives inside a C extension's import comes out as an ImportError (numpy's did), and one
     inside an import lock's callback is dropped by Python: main() records the signal, so both end as
-    'interrupted' with 130, and the previous SIGINT handler is back afterwards."""
+    'interrupted' with 130, and the previous SIGINT handler is back afterwards. The test starts from Python's own
+    handler, as a process run from a terminal does (an earlier test in the session may have left another)."""
+    outer = signal.signal(signal.SIGINT, signal.default_int_handler)
+    request.addfinalizer(lambda: signal.signal(signal.SIGINT, outer))
     before = signal.getsignal(signal.SIGINT)
 
     def converted():
@@ -411,10 +414,11 @@ def _wait_until_mapped(proc, library: str, timeout: float = 60.0) -> None:
 @pytest.mark.slow
 @pytest.mark.parametrize("entry", ["-m", "script"])
 def test_ctrl_c_while_importing_exits_130(entry, tmp_path):
-    """SIGINT as torch starts loading and 0.25 and 0.5 s later (while torch and Warp load): exit 130, the one-line 'interrupted' message, no traceback; for `python -m fracture_gs.cli` and the
-    console script's code (`from fracture_gs.cli import main; sys.exit(main())`). The clock starts when the child
-    maps torch's library (inside main(), after its handler is installed), not at spawn: on a loaded machine the
-    interpreter's own start-up, before any package code runs, can outlast a fixed delay (DESIGN.md, Ctrl-C)."""
+    """SIGINT as torch starts loading and 0.25 and 0.5 s later (while torch and Warp load): exit 130, the one-line
+    'interrupted' message, no traceback; for `python -m fracture_gs.cli` and the console script's code
+    (`from fracture_gs.cli import main; sys.exit(main())`). The clock starts when the child maps torch's library
+    (inside main(), after its handler is installed), not at spawn: on a loaded machine the interpreter's own
+    start-up, before any package code runs, can outlast a fixed delay (DESIGN.md, Ctrl-C)."""
     launch = (
         ["-m", "fracture_gs.cli"]
         if entry == "-m"
