@@ -241,6 +241,12 @@ def depth_from_fraction(c: torch.Tensor) -> torch.Tensor:
     return 0.5 * (lo + hi)
 
 
+def kernel(u2: torch.Tensor, radius) -> torch.Tensor:
+    """W = 105/(32πR³)·(1 − r²/R²)² for r < R, else 0 [1/m³] (unit integral over the ball); u2 = r²/R², radius R a
+    float or a tensor broadcast with u2. `fraction_of_half_space` is the share of this kernel behind a flat face."""
+    return torch.where(u2 < 1.0, 105.0 / (32.0 * math.pi * radius**3) * (1.0 - u2).clamp_min(0.0) ** 2, 0.0 * u2)
+
+
 def _nearest(x: torch.Tensor, fragment: torch.Tensor, query: torch.Tensor, size: float) -> torch.Tensor:
     """Distance [m] from each query particle to its nearest other particle of the same fragment within
     `size` (inf if none): cells of edge `size`, the 27 around the query's."""
@@ -316,7 +322,7 @@ def calibrate(
     d = xd[j] - xd[pick][qi]  # [P, 3]
     u2 = (d**2).sum(1) / (R * R)
     keep = (frag[j] == frag[pick][qi]) & (u2 < 1.0)
-    w = torch.where(keep, 105.0 / (32.0 * math.pi * R**3) * (1.0 - u2).clamp_min(0.0) ** 2, torch.zeros_like(u2)) * J[j]
+    w = torch.where(keep, kernel(u2, R), torch.zeros_like(u2)) * J[j]
     own = torch.zeros(pick.numel(), dtype=torch.float64, device=x.device).index_add_(0, qi, w)  # [S]
     moment = torch.zeros(pick.numel(), 3, dtype=torch.float64, device=x.device).index_add_(0, qi, w[:, None] * d)
     centred = moment.norm(dim=1) < CENTRED * R * own  # [S] the neighbours' centroid within CENTRED·R
@@ -327,8 +333,7 @@ def calibrate(
     # body, so a thin layer cut from its twin still fills the ball): its sums where no free face cuts the ball
     r = DENSITY_REACH * gap[fp][qi]  # [P] per pair, the query's piece's small radius
     v2 = (d**2).sum(1) / (r * r)
-    ws = torch.where(v2 < 1.0, 105.0 / (32.0 * math.pi * r**3) * (1.0 - v2).clamp_min(0.0) ** 2, torch.zeros_like(v2))
-    ws = ws * J[j]
+    ws = kernel(v2, r) * J[j]
     small = torch.zeros(pick.numel(), dtype=torch.float64, device=x.device).index_add_(0, qi, ws)  # [S]
     ms = torch.zeros(pick.numel(), 3, dtype=torch.float64, device=x.device).index_add_(0, qi, ws[:, None] * d)
     cov = torch.zeros(pick.numel(), 3, 3, dtype=torch.float64, device=x.device).index_add_(
@@ -382,7 +387,6 @@ def surface_depth(
     query = query[torch.zeros(query.numel(), dtype=torch.bool, device=x.device).index_fill_(0, qi[close], True)]
     big = _Cells(xd, frag, lo, radius / 3)  # cells within 3 of the query's: every particle within R
     K = int(frag.max()) + 1
-    norm = 105.0 / (32.0 * math.pi * radius**3)
     xf = (xd - lo).float()  # pair offsets in float32 (relative to the box: ample for |x_p − x_j| ≤ R)
     for s in range(0, query.numel(), chunk):
         q = query[s : s + chunk]
@@ -391,7 +395,7 @@ def surface_depth(
         u2 = ((xf[q][qi] - xf[j]) ** 2).sum(1) / (radius * radius)
         keep = (fj >= 0) & (fj != fq) & (u2 < 1.0)
         qi, fj = qi[keep], fj[keep]
-        w = norm * (1.0 - u2[keep].double()) ** 2 / filled[fj]  # each particle 1/n_b of b's volume …
+        w = kernel(u2[keep].double(), radius) / filled[fj]  # each particle 1/n_b of b's volume …
         if volume_ratio is not None:
             w = w * volume_ratio.double()[j[keep]]  # … times its volume change
         m = q.numel()
