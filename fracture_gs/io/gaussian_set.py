@@ -8,7 +8,7 @@ other type, shape or value is one `ArgumentError` sentence naming the argument a
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import MISSING, dataclass, field, fields, replace
 from typing import Any, Optional
 
 import numpy as np
@@ -72,12 +72,24 @@ class GaussianSet:
         moved = {f.name: getattr(self, f.name) for f in fields(self) if f.name not in ("extra", "carrier")}
         moved = {k: v.to(device) if torch.is_tensor(v) else v for k, v in moved.items()}
         carrier = self.carrier.to(device) if self.carrier is not None else None
-        return GaussianSet(**moved, extra={k: v.to(device) for k, v in self.extra.items()}, carrier=carrier)
+        return GaussianSet._derived(**moved, extra={k: v.to(device) for k, v in self.extra.items()}, carrier=carrier)
 
     def subset(self, mask: torch.Tensor) -> GaussianSet:
         """The Gaussians selected by a boolean mask or index tensor (without a carrier: its map is per Gaussian)."""
         pick = {f.name: getattr(self, f.name)[mask] for f in fields(self) if f.name not in ("extra", "carrier")}
-        return GaussianSet(**pick, extra={k: v[mask] for k, v in self.extra.items()})
+        return GaussianSet._derived(**pick, extra={k: v[mask] for k, v in self.extra.items()})
+
+    @classmethod
+    def _derived(cls, **values) -> GaussianSet:
+        """A set made from rows of one already checked (moved to a device, or a subset): the same values, so
+        `check_gaussians` (reductions over every Gaussian and a host sync) is not run a second time."""
+        obj = cls.__new__(cls)
+        for f in fields(cls):
+            if f.name in values:
+                setattr(obj, f.name, values[f.name])
+            else:  # the fields with defaults (extra, carrier)
+                setattr(obj, f.name, f.default_factory() if f.default is MISSING else f.default)
+        return obj
 
     def rotations(self) -> torch.Tensor:  # [N, 3, 3]
         """Rotation matrices of the (normalized) wxyz quaternions."""
