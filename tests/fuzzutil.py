@@ -46,3 +46,22 @@ class Tally:
         with capsys.disabled():
             print("\n" + text)
         return text
+
+
+def run_cli(main, argv: list, capsys, tally: Tally, category: str) -> tuple[int, str, str]:
+    """Run the CLI in-process on `argv`: an exception out of it is tallied as a traceback and re-raised, no output
+    may hold a traceback, and exit 2 must be the one line `fracture-gs: error: ...`. Returns (code, err, that
+    line or "")."""
+    try:
+        code = main(argv)
+    except BaseException:
+        tally.add(category, "traceback")
+        raise
+    out, err = capsys.readouterr()
+    assert "Traceback" not in out + err, err
+    line = ""
+    if code == 2:
+        lines = [ln for ln in err.splitlines() if ln.strip()]
+        assert len(lines) == 1 and lines[0].startswith("fracture-gs: error: "), err
+        line = lines[0]
+    return code, err, line
