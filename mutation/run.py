@@ -177,23 +177,24 @@ def _filter(session: Path, sample: int | None, seed: int) -> tuple[int, int]:
     skipped = WorkResult(output="outside the operator set or sample", worker_outcome=WorkerOutcome.SKIPPED)
     with use_db(str(session), WorkDB.Mode.open) as db:
         src: dict[str, list[str]] = {}
-        chosen: dict[str, list] = defaultdict(list)
+        out: list[str] = []
+        chosen: dict[str, list[tuple]] = defaultdict(list)  # module -> [(operator, occurrence, job id)]
         for item in db.pending_work_items:
             m = item.mutations[0]
             lines = src.setdefault(str(m.module_path), (ROOT / m.module_path).read_text().splitlines())
             if not keep.match(m.operator_name) or PRAGMA in lines[m.start_pos[0] - 1]:
-                db.set_result(item.job_id, skipped)
+                out.append(item.job_id)
             else:
-                chosen[str(m.module_path)].append(item.job_id)
-        rng = random.Random(seed)
-        total = 0
-        for ids in chosen.values():
-            drop = ids if sample is None else rng.sample(ids, max(0, len(ids) - sample))
-            if sample is not None:
-                for job in drop:
-                    db.set_result(job, skipped)
-            total += len(ids) if sample is None else min(sample, len(ids))
-        return total, sum(len(v) for v in chosen.values())
+                chosen[str(m.module_path)].append((m.operator_name, m.occurrence, item.job_id))
+        allowed = sum(len(v) for v in chosen.values())
+        if sample is not None:  # job ids are random and items come in random order: sort by what names a mutant
+            rng = random.Random(seed)
+            for module in sorted(chosen):
+                ids = sorted(chosen[module])
+                out += [job for *_, job in rng.sample(ids, max(0, len(ids) - sample))]
+        db.set_multiple_results(out, skipped)  # one transaction
+    todo = sum(len(v) if sample is None else min(len(v), sample) for v in chosen.values())
+    return todo, allowed
 
 
 def _free_ports(n: int) -> list[int]:
