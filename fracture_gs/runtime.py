@@ -98,7 +98,7 @@ def side_stream(device: str, purpose: str = "simulate"):
     "main": a variant thread's own; "fork": `StreamFork`). Lanes (`stream_lane`) keep variants that run at
     once apart. Reusing them matters: torch caches a cuBLAS workspace per stream (32 MiB on Hopper), so a
     fresh pool stream per run held memory that only came back after torch had cycled through its 32
-    pooled streams (found by apps/soak.py)."""
+    pooled streams (found by benchmarks/soak.py)."""
     import torch
 
     key = (str(torch.device(device)), purpose, current_lane())

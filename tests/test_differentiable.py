@@ -116,7 +116,7 @@ def test_no_nan_gradients_on_hard_cases():
 
 @pytest.mark.slow
 def test_fit_material_example_recovers_E(tmp_path):
-    """apps/fit_material.py (the CPU run, small sagging beam): from E = 5e3 Pa, gradient descent through
+    """examples/fit_material.py (the CPU run, small sagging beam): from E = 5e3 Pa, gradient descent through
     the simulation and the torch rasterizer on an image loss recovers E = 2e4 Pa within 5 %, and writes
     its loss curve, side-by-side figure and summary."""
     import json
@@ -124,7 +124,7 @@ def test_fit_material_example_recovers_E(tmp_path):
     import sys
     from pathlib import Path
 
-    script = Path(__file__).resolve().parent.parent / "apps" / "fit_material.py"
+    script = Path(__file__).resolve().parent.parent / "examples" / "fit_material.py"
     r = subprocess.run(
         [sys.executable, str(script), "--out", str(tmp_path)], capture_output=True, text=True, timeout=600
     )

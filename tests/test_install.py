@@ -1,7 +1,7 @@
 """A non-editable install works outside the checkout: `pip install .` (here `--target`, without
 dependencies, which this venv already has) puts everything `fracture-gs bench` and `fracture-gs
 figures` need into the installed package — the experiment configs, the paper code — and neither
-reaches back into the repository (no `apps/`, no sys.path edits)."""
+reaches back into the repository (no `examples/` or `benchmarks/`, no sys.path edits)."""
 
 import os
 import subprocess
@@ -65,7 +65,7 @@ def test_installed_package_is_the_one_imported(installed):
     )
     assert out.returncode == 0, out.stderr
     assert Path(out.stdout.strip()).is_relative_to(target)
-    assert not (target / "apps").exists()
+    assert not (target / "examples").exists() and not (target / "benchmarks").exists()
 
 
 @pytest.mark.slow

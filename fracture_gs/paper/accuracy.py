@@ -1,8 +1,8 @@
 """Speed against error: Δt and Δx sweeps of the solver on cases with known answers.
 
-    python apps/accuracy.py --quick                      # CPU, a few minutes
-    python apps/accuracy.py --device cuda:0 --out runs/accuracy_gpu
-    python apps/bench.py --accuracy [--quick]            # the same, through the bench entry point
+    fracture-gs bench --accuracy --quick                      # CPU, a few minutes
+    fracture-gs bench --accuracy --device cuda:0 --out runs/accuracy_gpu
+    fracture-gs bench --accuracy [--quick]            # the same, through the bench entry point
 
 Cases (each with an analytic or exact answer; MLS-MPM as the solver runs it, variant `baseline`
 unless stated):

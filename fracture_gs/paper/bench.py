@@ -1,8 +1,8 @@
 """Transfer benchmarks: the baseline substep by phase and the paper's Table 2 branches.
 
-    python apps/bench.py --device cuda:0                 # full table, writes BENCHMARKS-run.md
-    python apps/bench.py --device cpu --particles 20000  # a CPU smoke run
-    python apps/bench.py --accuracy                      # speed against error (fracture_gs.paper.accuracy)
+    fracture-gs bench --device cuda:0                 # full table, writes BENCHMARKS-run.md
+    fracture-gs bench --device cpu --particles 20000  # a CPU smoke run
+    fracture-gs bench --accuracy                      # speed against error (fracture_gs.paper.accuracy)
 
 Scope of Table 2 (as in the paper): grid reset, P2G, normalization (+ contact), G2P; stress,
 probing, diagnostics and rendering excluded. All branches run on the same latched particle state

@@ -3,7 +3,7 @@ against FractureFields in per-fragment boxes, time per transfer substep and grid
 the pieces pressed into each other for a few frames: deepest depth of a particle behind another piece's
 surface (continuous, `sim.penetration.surface_depth`) beside the voxel-occupancy depth (steps of 0.6Δx), the
 contact projection's momentum residual and the slot overflows. `fragments_table` is the figures script's table;
-`apps/bench_fragments.py` times both grid storages with the same state.
+`benchmarks/bench_fragments.py` times both grid storages with the same state.
 """
 
 from __future__ import annotations

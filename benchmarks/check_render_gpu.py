@@ -2,10 +2,10 @@
 """Cross-check the torch rasterizer against gsplat's CUDA rasterizer: PSNR and time per frame.
 
 On a GPU machine with gsplat (H100/H200):
-    python apps/check_render_gpu.py                  # exit 1 if any PSNR < 40 dB
+    python benchmarks/check_render_gpu.py                  # exit 1 if any PSNR < 40 dB
 On a CPU (smoke test; never imports gsplat): the torch backend (float32) is compared with the
 float64 per-pixel reference (small scenes) or the torch backend in float64 (large ones):
-    python apps/check_render_gpu.py --cpu-dry-run
+    python benchmarks/check_render_gpu.py --cpu-dry-run
 
 Scenes: three random Gaussian clouds (isotropic / needle-and-disc anisotropic under a random
 deformation F / a large mixed cloud) and, when `fracture_gs.assets` can build them, bread and

@@ -8,7 +8,7 @@ and reads back what the user gets: the wall time, whether `full` broke into ≥ 
 particles each (`topology.npz`) and separated (`summary.json`), and the edge strength of `full.mp4`'s last
 frame against its first (`capture.quality.edge_strength`). A table goes to stdout and OUT/targets.md.
 
-    python apps/capture_targets.py tests/data/captures/guitar.compressed.ply /path/to/seal.splat --loads auto,drop
+    python benchmarks/capture_targets.py tests/data/captures/guitar.compressed.ply /path/to/seal.splat --loads auto,drop
 """
 
 from __future__ import annotations

@@ -10,6 +10,6 @@ start=$(date +%s)
 python3 -m pytest -q -p no:cacheprovider --device cuda tests/test_sim_kernels.py tests/test_sim_physics.py \
   tests/test_fracturefields.py tests/test_providers.py > "$OUT/pytest_cuda.log" 2>&1
 echo "pytest rc=$? ($(( $(date +%s) - start )) s): $(tail -1 "$OUT/pytest_cuda.log")"
-python3 apps/bench.py --device cuda:0 --out "$OUT/bench" > "$OUT/bench.log" 2>&1; echo "bench rc=$?"
-python3 apps/check_render_gpu.py > "$OUT/render.log" 2>&1; echo "render rc=$?"
+fracture-gs bench --device cuda:0 --out "$OUT/bench" > "$OUT/bench.log" 2>&1; echo "bench rc=$?"
+python3 benchmarks/check_render_gpu.py > "$OUT/render.log" 2>&1; echo "render rc=$?"
 tail -25 "$OUT/bench.log"; tail -15 "$OUT/render.log"; grep -E "FAILED|Error" "$OUT/pytest_cuda.log" | head -20

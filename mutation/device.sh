@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Mutation testing on the lent machine's many cores (mutation/run.py). Phases, chained in warm calls:
-#   bash gpu/mutation.sh setup            # install the carried wheels, check imports
-#   bash gpu/mutation.sh map              # coverage map (one context per test) + durations
-#   bash gpu/mutation.sh run ARGS...      # mutation/run.py run ARGS (e.g. --workers 60 --sample 15 --budget 480)
+#   bash mutation/device.sh setup            # install the carried wheels, check imports
+#   bash mutation/device.sh map              # coverage map (one context per test) + durations
+#   bash mutation/device.sh run ARGS...      # mutation/run.py run ARGS (e.g. --workers 60 --sample 15 --budget 480)
 # Results land in $OUT: report.txt, survivors.json, durations.txt.
 set -uo pipefail
 source .devpack/b/install.sh || exit 1

@@ -1,14 +1,14 @@
 """How much grid K fragments need if each had its own dense box: the geometry behind the storage plan of
 docs/DESIGN.md ("Grid storage: per-fragment boxes").
 
-For the ficus shattered into K Voronoi pieces (as `apps/bench_fragments.py` does), per K:
+For the ficus shattered into K Voronoi pieces (as `benchmarks/bench_fragments.py` does), per K:
 - the nodes of every fragment's own box (the bounding box of its particles' 3×3×3 stencils), summed,
   against the one box of the shared field and the whole grid;
 - the nodes some particle's stencil reaches, per fragment, summed (the fields that hold mass);
 - the nodes reached by two fragments or more (where fields meet: where contact is projected).
 
-    python apps/fragment_boxes.py                          # 171,553 particles, 128³, K = 2, 4, 8, 16
-    python apps/fragment_boxes.py --particles 3000 --n 32  # a smoke run
+    python benchmarks/fragment_boxes.py                          # 171,553 particles, 128³, K = 2, 4, 8, 16
+    python benchmarks/fragment_boxes.py --particles 3000 --n 32  # a smoke run
 
 Geometry only: no simulation, CPU, a few seconds.
 """

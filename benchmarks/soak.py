@@ -3,7 +3,7 @@ run the GPU memory held by torch must return to where it stood after the first r
 first run may keep process-wide caches such as the shared stream's cuBLAS workspace, reported) and the
 run's metrics must equal the first run's up to float32 atomic-order noise (same device, same inputs).
 
-    python apps/soak.py --device cuda:0 --minutes 10 --out runs/soak
+    python benchmarks/soak.py --device cuda:0 --minutes 10 --out runs/soak
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """Where a captured scene's GPU memory goes: runs render-sim in-process and reports which call raised torch's
 peak allocation (by more than 256 MiB), with the peak after each variant and nvidia-smi's view at the end.
 
-    python3 gpu/mem.py .caps/biker.spz [frames]
+    python3 benchmarks/memory.py .caps/biker.spz [frames]
 """
 
 import functools
@@ -64,8 +64,11 @@ def raster(*a, **k):
         isects = int(meta["isect_ids"].numel()) if "isect_ids" in meta else -1
         radii = meta.get("radii")
         big = int((radii.float().max(-1).values > 200).sum()) if radii is not None else -1
-        print(f"rasterization: {used / 2**30:.2f} GiB peak, {isects} tile intersections, {big} Gaussians over 200 px"
-              f", N = {a[0].shape[0]}", flush=True)
+        print(
+            f"rasterization: {used / 2**30:.2f} GiB peak, {isects} tile intersections, {big} Gaussians over 200 px"
+            f", N = {a[0].shape[0]}",
+            flush=True,
+        )
     peak["v"] = max(before, used)
     return out
 
@@ -78,6 +81,8 @@ runner.prepare_scene = pipeline.prepare_scene
 cfg = load_config(find_config(sys.argv[1]))
 cfg.frames = int(sys.argv[2]) if len(sys.argv) > 2 else 40
 runner.run_render_sim(cfg, list(cfg.variants), "cuda:0", "/tmp/mem_run")
-print(f"torch peak allocated {torch.cuda.max_memory_allocated() / 2**30:.2f} GiB, reserved "
-      f"{torch.cuda.max_memory_reserved() / 2**30:.2f} GiB")
+print(
+    f"torch peak allocated {torch.cuda.max_memory_allocated() / 2**30:.2f} GiB, reserved "
+    f"{torch.cuda.max_memory_reserved() / 2**30:.2f} GiB"
+)
 print(subprocess.run(["nvidia-smi", "--query-gpu=memory.used", "--format=csv"], capture_output=True, text=True).stdout)

@@ -1,7 +1,7 @@
 """Recover Young's modulus from a video by gradient descent through simulation and splatting.
 
-    python apps/fit_material.py                       # CPU: the small sagging beam, ~1 minute
-    python apps/fit_material.py --device cuda:0 --particles 20000 --E-true 2e6 --E-start 5e5 --steps 20
+    python examples/fit_material.py                       # CPU: the small sagging beam, ~1 minute
+    python examples/fit_material.py --device cuda:0 --particles 20000 --E-true 2e6 --E-start 5e5 --steps 20
 
 Renders a target video of the beam on two supports sagging under gravity with E_true, starts from
 E_start and runs Adam on log E with an image loss; writes loss.png (loss and E per step),

@@ -40,5 +40,5 @@ iio.imwrite('$OUT/${n}_last.png', last)
 done
 timeout 200 python3 -m fracture_gs.cli render-sim .caps/biker.spz --device cuda:0 --frames 4 --export-ply 2 \
   --variants full --out /tmp/r_export > "$OUT/log_export.txt" 2>&1; echo "export on GPU rc=$? $(ls /tmp/r_export/ply/full)"
-timeout 200 python3 gpu/mem.py .caps/biker.spz 40 2>&1 | grep -E "^peak|torch peak|MiB"
+timeout 200 python3 benchmarks/memory.py .caps/biker.spz 40 2>&1 | grep -E "^peak|torch peak|MiB"
 timeout 240 python3 -m fracture_gs.cli bench --device cuda:0 --placements 2 --trials 3 2>&1 | grep -v "^Module" | tail -12

@@ -1,4 +1,4 @@
-"""Every script under apps/ runs: each is started as a user would (a subprocess from the checkout) in its
+"""Every script under benchmarks/ runs: each is started as a user would (a subprocess from the checkout) in its
 small CPU mode, and what it prints or writes is checked, so an example cannot rot silently."""
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-APPS = Path(__file__).resolve().parent.parent / "apps"
+BENCH = Path(__file__).resolve().parent.parent / "benchmarks"
 
 
 def _run(args: list[str], cwd: Path, timeout: int = 600) -> str:
@@ -21,11 +21,11 @@ def _run(args: list[str], cwd: Path, timeout: int = 600) -> str:
 
 @pytest.mark.slow
 def test_soak_holds_no_memory_and_repeats_its_metrics(tmp_path):
-    """apps/soak.py: two render-sim + bench runs on the CPU give identical metrics (the simulation is
+    """benchmarks/soak.py: two render-sim + bench runs on the CPU give identical metrics (the simulation is
     deterministic on one device) and the loop's summary says so."""
     out = tmp_path / "soak"
     _run(
-        [str(APPS / "soak.py"), "--device", "cpu", "--iterations", "2", "--frames", "2"]
+        [str(BENCH / "soak.py"), "--device", "cpu", "--iterations", "2", "--frames", "2"]
         + ["--particles", "1500", "--bench-particles", "2000", "--out", str(out)],
         tmp_path,
     )
@@ -35,10 +35,10 @@ def test_soak_holds_no_memory_and_repeats_its_metrics(tmp_path):
 
 @pytest.mark.slow
 def test_bench_fragments_smoke(tmp_path):
-    """apps/bench_fragments.py: the K-fragment Table 2 on a tiny ficus prints a row per K and grid storage,
+    """benchmarks/bench_fragments.py: the K-fragment Table 2 on a tiny ficus prints a row per K and grid storage,
     with positive times; no multi-fragment node overflows its slots at K ≤ 4 and no stencil left its box."""
     text = _run(
-        [str(APPS / "bench_fragments.py"), "--device", "cpu", "--particles", "2000", "--n", "24", "--K", "2,4"]
+        [str(BENCH / "bench_fragments.py"), "--device", "cpu", "--particles", "2000", "--n", "24", "--K", "2,4"]
         + ["--steps", "3", "--warmup", "1", "--trials", "1", "--placements", "1"],
         tmp_path,
     )
@@ -50,13 +50,13 @@ def test_bench_fragments_smoke(tmp_path):
 
 
 def test_bench_fragments_times_every_branch_in_each_trial():
-    """apps/bench_fragments.py's timing loop visits every build once per trial, in turn (Shared, then
+    """benchmarks/bench_fragments.py's timing loop visits every build once per trial, in turn (Shared, then
     FractureFields, then Shared again), so a host that drifts during the run shifts both branches alike: the
     ratio is not the drift between two blocks timed minutes apart."""
     import contextlib
     import importlib.util
 
-    spec = importlib.util.spec_from_file_location("bench_fragments", APPS / "bench_fragments.py")
+    spec = importlib.util.spec_from_file_location("bench_fragments", BENCH / "bench_fragments.py")
     bf = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(bf)
     calls = []
@@ -80,9 +80,10 @@ def test_bench_fragments_times_every_branch_in_each_trial():
 
 @pytest.mark.slow
 def test_bench_diff_smoke(tmp_path):
-    """apps/bench_diff.py: forward and backward of a substep both run and report positive times."""
+    """benchmarks/bench_diff.py: forward and backward of a substep both run and report positive times."""
     text = _run(
-        [str(APPS / "bench_diff.py"), "--device", "cpu", "--particles", "1000", "--substeps", "2"] + ["--repeats", "1"],
+        [str(BENCH / "bench_diff.py"), "--device", "cpu", "--particles", "1000", "--substeps", "2"]
+        + ["--repeats", "1"],
         tmp_path,
     )
     report = json.loads(text[text.index("{") :])
@@ -91,28 +92,22 @@ def test_bench_diff_smoke(tmp_path):
 
 @pytest.mark.slow
 def test_check_render_gpu_cpu_dry_run(tmp_path):
-    """apps/check_render_gpu.py --cpu-dry-run: the cross-check's own bookkeeping passes on the CPU."""
-    assert "OK" in _run([str(APPS / "check_render_gpu.py"), "--cpu-dry-run", "--repeats", "1", "--no-assets"], tmp_path)
-
-
-@pytest.mark.slow
-@pytest.mark.parametrize("script", ["bench.py", "accuracy.py", "make_figures.py"])
-def test_forwards_reach_the_cli(script, tmp_path):
-    """The thin forwards print the CLI subcommand's own --help (same flags as `fracture-gs ...`)."""
-    text = _run([str(APPS / script), "--help"], tmp_path)
-    assert "--device" in text or "--protocol" in text
+    """benchmarks/check_render_gpu.py --cpu-dry-run: the cross-check's own bookkeeping passes on the CPU."""
+    assert "OK" in _run(
+        [str(BENCH / "check_render_gpu.py"), "--cpu-dry-run", "--repeats", "1", "--no-assets"], tmp_path
+    )
 
 
 @pytest.mark.slow
 def test_fragment_boxes_counts_nodes_as_by_hand(tmp_path):
-    """apps/fragment_boxes.py: two particles of fragment 0 whose stencils share one node and a particle of
+    """benchmarks/fragment_boxes.py: two particles of fragment 0 whose stencils share one node and a particle of
     fragment 1 on the second one's stencil: boxes of 5³ and 3³ nodes, 53 and 27 nodes reached, the 27 of
     fragment 1 all shared with fragment 0; the script's table runs on a tiny ficus."""
     import importlib.util
 
     import torch
 
-    spec = importlib.util.spec_from_file_location("fragment_boxes", APPS / "fragment_boxes.py")
+    spec = importlib.util.spec_from_file_location("fragment_boxes", BENCH / "fragment_boxes.py")
     boxes = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(boxes)
     dx = 1.0 / 8
@@ -128,7 +123,7 @@ def test_fragment_boxes_counts_nodes_as_by_hand(tmp_path):
         "grid_nodes": 512,
     }
     rows = json.loads(
-        _run([str(APPS / "fragment_boxes.py"), "--particles", "3000", "--n", "32", "--K", "2,8", "--json"], tmp_path)
+        _run([str(BENCH / "fragment_boxes.py"), "--particles", "3000", "--n", "32", "--K", "2,8", "--json"], tmp_path)
     )
     assert [r["K"] for r in rows] == [2, 8] and all(r["fragment_box_nodes"] > 0 for r in rows)
     assert rows[1]["nodes_of_two_or_more"] > rows[0]["nodes_of_two_or_more"], "more pieces, more faces"
@@ -136,12 +131,12 @@ def test_fragment_boxes_counts_nodes_as_by_hand(tmp_path):
 
 @pytest.mark.slow
 def test_capture_targets_reads_back_what_a_user_gets(tmp_path):
-    """apps/capture_targets.py on a 5,000-Gaussian real .splat subset, 4 frames of a drop: the run is timed from the
-    shell and its row reads the pieces, separation and edge strength back from the run's own outputs (a 4-frame
+    """benchmarks/capture_targets.py on a 5,000-Gaussian real .splat subset, 4 frames of a drop: the run is timed
+    from the shell and its row reads the pieces, separation and edge strength back from the run's own outputs (a 4-frame
     drop breaks nothing, so the targets are reported as missed and the script exits 1)."""
-    capture = APPS.parent / "tests" / "data" / "captures" / "luma_seal_5k.splat"
+    capture = BENCH.parent / "tests" / "data" / "captures" / "luma_seal_5k.splat"
     out = tmp_path / "targets"
-    cmd = [sys.executable, str(APPS / "capture_targets.py"), str(capture), "--loads", "drop", "--frames", "4"]
+    cmd = [sys.executable, str(BENCH / "capture_targets.py"), str(capture), "--loads", "drop", "--frames", "4"]
     proc = subprocess.run([*cmd, "--out", str(out)], cwd=tmp_path, capture_output=True, text=True, timeout=600)
     assert proc.returncode == 1, proc.stdout[-2000:] + proc.stderr[-2000:]
     row = json.loads(next(line for line in proc.stdout.splitlines() if line.startswith("{")))

@@ -1,7 +1,7 @@
 """Cost of gradients through the simulation: forward and backward time of one substep, and memory.
 
-    python apps/bench_diff.py --device cuda:0                 # ficus at the paper's 171,553 particles
-    python apps/bench_diff.py --device cpu --particles 3000   # a smoke run
+    python benchmarks/bench_diff.py --device cuda:0                 # ficus at the paper's 171,553 particles
+    python benchmarks/bench_diff.py --device cpu --particles 3000   # a smoke run
 
 Times one frame of `DiffSimulator` (n substeps) forward (no tape) and backward (the frame recomputed
 under a wp.Tape, then the adjoints), reports per-substep milliseconds, their ratio, the frame's

@@ -1,9 +1,9 @@
 """Table 2 extended with K fragments: the ficus shattered into K Voronoi pieces, Shared field against
 FractureFields, time per transfer substep and grid memory.
 
-    python apps/bench_fragments.py --device cuda:0                     # 171,553 particles, 128³
-    python apps/bench_fragments.py --device cpu --particles 3000 --n 32  # a smoke run
-    python apps/bench_fragments.py --device cuda:0 --storage boxes     # FractureFields in per-fragment boxes only
+    python benchmarks/bench_fragments.py --device cuda:0                     # 171,553 particles, 128³
+    python benchmarks/bench_fragments.py --device cpu --particles 3000 --n 32  # a smoke run
+    python benchmarks/bench_fragments.py --device cuda:0 --storage boxes     # FractureFields in per-fragment boxes only
 
 Scope as the paper's Table 2: grid reset, P2G, grid update (normalization, contact, boundaries), G2P (no
 stress, diagnostics or rendering). The state is `fracture_gs.paper.fragments`' (contact along mass-gradient
