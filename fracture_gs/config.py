@@ -11,7 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Literal, Optional, get_args
 
-from .variants import VARIANT_NAMES, VariantName
+from .variants import VariantName
 
 Vec3 = tuple[float, float, float]
 
@@ -38,7 +38,6 @@ PanelSize = Literal["auto", "config"]
 GroundKind = Literal["auto", "none"]
 InteriorColor = Literal["surface", "material"]
 
-VARIANTS = VARIANT_NAMES
 MATERIALS = get_args(MaterialName)
 PLANE_MODES = get_args(PlaneMode)
 REGION_KINDS = get_args(RegionKind)

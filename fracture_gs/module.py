@@ -16,12 +16,13 @@ from typing import Iterator, Optional, Union
 
 import torch
 
-from .config import VARIANTS, MaterialMapEntry, SceneConfig
+from .config import MaterialMapEntry, SceneConfig
 from .errors import ArgumentError, ConfigError, SimulationError
 from .io import GaussianSet
 from .io.gaussian_set import as_tensor, check_gaussians
 from .linalg import eigh_chunked
 from .pipeline import FrameOutput, make_simulator, simulate
+from .variants import VARIANT_NAMES
 
 FORWARD = "FractureSim.forward"
 
@@ -210,8 +211,10 @@ class FractureSim(torch.nn.Module):
             )
         self.cfg = copy.deepcopy(cfg)
         self.variant = variant or (self.cfg.variants[-1] if self.cfg.variants else self.cfg.sim.variant)
-        if self.variant not in VARIANTS:
-            raise ArgumentError(f"FractureSim: variant {self.variant!r} is unknown; use one of {', '.join(VARIANTS)}.")
+        if self.variant not in VARIANT_NAMES:
+            raise ArgumentError(
+                f"FractureSim: variant {self.variant!r} is unknown; use one of {', '.join(VARIANT_NAMES)}."
+            )
         if device is not None:
             from .io.ply import as_device
 

@@ -33,6 +33,7 @@ from .render.camera import frame_camera
 from .render.gaussians import exposed_interior_colors, sh_colors
 from .render.splat import gsplat_needs_compile, render
 from .runtime import current_lane, side_stream, stream_lane
+from .sh import SH_C0
 from .sim import SimulationDiverged
 from .sim.metrics import piece_gap
 from .sim.topology import save_history
@@ -52,7 +53,7 @@ class Painter:
         self.sh = gs.sh.to(device, torch.float32)
         self.opacities = gs.opacities.to(device, torch.float32)
         self.interior = gs.interior.to(device)
-        self.surface_dc = (gs.sh[:, 0, :] * 0.28209479177387814 + 0.5).clamp(0, 1).to(device, torch.float32)
+        self.surface_dc = (gs.sh[:, 0, :] * SH_C0 + 0.5).clamp(0, 1).to(device, torch.float32)
         self.exposed_rgb: Optional[torch.Tensor] = None
         self.exposed_count = 0
         self._visible_version: Optional[int] = None  # the topology version `_keep` was made for

@@ -46,7 +46,7 @@ class VariantSpec:
         return self.fields == "per_fragment"
 
 
-VARIANTS: dict[str, VariantSpec] = {
+VARIANT_SPECS: dict[str, VariantSpec] = {
     s.name: s
     for s in (
         VariantSpec(
@@ -124,12 +124,12 @@ VARIANTS: dict[str, VariantSpec] = {
     )
 }
 VARIANT_NAMES: tuple[str, ...] = get_args(VariantName)
-assert VARIANT_NAMES == tuple(VARIANTS)
+assert VARIANT_NAMES == tuple(VARIANT_SPECS)
 
 
 def variant_spec(name: str) -> VariantSpec:
     """The spec of a variant name; an unknown name is a one-sentence ValueError."""
     try:
-        return VARIANTS[name]
+        return VARIANT_SPECS[name]
     except KeyError:
-        raise SimulationError(f"variant '{name}' is unknown; use one of {', '.join(VARIANTS)}") from None
+        raise SimulationError(f"variant '{name}' is unknown; use one of {', '.join(VARIANT_NAMES)}") from None

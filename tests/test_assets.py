@@ -11,8 +11,9 @@ import torch
 
 from fracture_gs import assets
 from fracture_gs.assets import fill_interior
-from fracture_gs.assets.gaussians import C0, quat_z_to
+from fracture_gs.assets.gaussians import quat_z_to
 from fracture_gs.io import GaussianSet
+from fracture_gs.sh import SH_C0
 
 NAMES = ["bread", "ficus", "recontact", "beam", "plane_drop", "plate_drop"]
 BOUNDS = {  # the geometries configs rely on
@@ -44,7 +45,7 @@ def scene(name: str, n) -> GaussianSet:
 
 
 def rgb(gs: GaussianSet) -> torch.Tensor:  # [N, 3]
-    return gs.sh[:, 0] * C0 + 0.5
+    return gs.sh[:, 0] * SH_C0 + 0.5
 
 
 def test_names_and_unknown():

@@ -15,8 +15,9 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from fracture_gs import sim as S
-from fracture_gs.config import MATERIALS, VARIANTS, TopologyConfig
+from fracture_gs.config import MATERIALS, TopologyConfig
 from fracture_gs.errors import SimulationDiverged, SimulationError
+from fracture_gs.variants import VARIANT_NAMES
 
 N_GRID = 16
 
@@ -49,7 +50,7 @@ def state(draw):
         friction_angle=draw(st.floats(0.0, 60.0)),
         sigma_R=draw(st.sampled_from([float("inf"), 1.0, 1e3])),
     )
-    variant = draw(st.sampled_from(VARIANTS))
+    variant = draw(st.sampled_from(VARIANT_NAMES))
     cfg = S.SimConfig(
         dx=1.0 / N_GRID,
         grid_shape=(N_GRID,) * 3,

@@ -5,7 +5,7 @@ Conventions (shared by the built-in scenes and the interior fill):
     are ≈ 0.6 h (h = particle spacing) and its normal one ≈ h/12, so neighbours overlap into a
     closed skin despite the jitter;
   * interior particles are isotropic with standard deviation h/2 and identity rotation;
-  * colours are RGB in [0, 1]; SH DC = (rgb - ½) / C0 and higher bands get small random terms.
+  * colours are RGB in [0, 1]; SH DC = (rgb - ½) / SH_C0 and higher bands get small random terms.
 """
 
 from __future__ import annotations
@@ -15,8 +15,8 @@ import math
 import torch
 
 from ..io.gaussian_set import quat_mul
+from ..sh import SH_C0
 
-C0 = 0.28209479177387814  # real SH Y_0^0
 INTERIOR_OPACITY = 0.95
 
 
@@ -56,7 +56,7 @@ def rgb_to_sh(rgb: torch.Tensor, degree: int, view_std: float, gen: torch.Genera
     """SH [M, (degree+1)², 3]: DC from rgb [M, 3], higher bands N(0, view_std²) (view dependence)."""
     k = (degree + 1) ** 2
     sh = torch.zeros(len(rgb), k, 3)
-    sh[:, 0] = (rgb - 0.5) / C0
+    sh[:, 0] = (rgb - 0.5) / SH_C0
     if k > 1 and view_std > 0:
         sh[:, 1:] = view_std * torch.randn(len(rgb), k - 1, 3, generator=gen)
     return sh

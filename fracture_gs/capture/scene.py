@@ -47,13 +47,6 @@ class Capture:
     notes: list = field(default_factory=list)  # one line per automatic choice
 
 
-def is_capture(cfg: SceneConfig) -> bool:
-    """A splat-file scene (not a built-in asset name): `io.formats.is_splat_file`."""
-    from ..io.formats import is_splat_file
-
-    return cfg.scene not in assets.names() and is_splat_file(cfg.scene)
-
-
 def resolve(cfg: SceneConfig, device: str = "cpu") -> Capture:
     """See the module doc. `device` decides the resolution budget and the panel size. Raises SceneError (one
     sentence naming the file and the fix) for scenes that leave nothing to simulate."""

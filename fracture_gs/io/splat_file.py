@@ -18,7 +18,8 @@ from __future__ import annotations
 
 import numpy as np
 
-SH_C0 = 0.28209479177387814  # the degree-0 real SH basis value, 1 / (2 √π)
+from ..sh import SH_C0
+
 ROW_BYTES = 32
 ROW = np.dtype(
     [("mean", "<f4", (3,)), ("scale", "<f4", (3,)), ("rgba", "u1", (4,)), ("rot", "u1", (4,))]

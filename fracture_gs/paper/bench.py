@@ -33,17 +33,18 @@ from .. import assets
 from ..config import SceneConfig, SimConfig
 from ..runtime import capture_lock, ensure_warp, side_stream, warp_stream
 from ..sim import Particles, Simulator, Topology
+from ..variants import variant_spec
 
 WHOLE = [  # issue 13: FractureFields' whole substep after the cut against the baseline's, the same builds
-    ("baseline", "baseline", "1/1/0"),
-    ("FractureFields", "full", "1/1/0"),  # sim.grid_storage = "auto": per-fragment boxes
-    ("FractureFields (slots)", "full", "1/1/0", "slots"),  # the slot storage, for comparison
+    ("baseline", "baseline"),
+    ("FractureFields", "full"),  # sim.grid_storage = "auto": per-fragment boxes
+    ("FractureFields (slots)", "full", "slots"),  # the slot storage, for comparison
 ]
-BRANCHES = [  # (label, variant, passes P2G/G2P/frag[, sim.grid_storage])
-    ("Shared Field", "stress_zero", "1/1/0"),
-    ("Global Fragment Pass", "global_fragment_pass", "2/2/1"),
-    ("Local Multi-Field", "local_multifield", "1/1/0"),
-    ("FractureFields", "full", "1/1/0"),
+BRANCHES = [  # (Table 2 row, variant[, sim.grid_storage]); the passes column is the variant's `VariantSpec.passes`
+    ("Shared Field", "stress_zero"),
+    ("Global Fragment Pass", "global_fragment_pass"),
+    ("Local Multi-Field", "local_multifield"),
+    ("FractureFields", "full"),
 ]
 
 
@@ -222,7 +223,7 @@ def time_branches(
     whole: bool = False,
 ) -> list[dict]:
     """Table 2 rows: median ms, relative to the first branch (Shared), grid-buffer MiB, passes, kernel µs.
-    `branches` (label, variant, passes) default to Table 2's; `whole` times the whole substep (stress and
+    `branches` (label, variant[, grid storage]) default to Table 2's; `whole` times the whole substep (stress and
     transfer, issue 13's comparison of FractureFields with the baseline) instead of the transfer, without
     the kernel columns.
 
@@ -237,7 +238,7 @@ def time_branches(
     builds, keep = [], []
     branches = BRANCHES if branches is None else branches
     for rep in range(placements):
-        for label, variant, passes, *storage in branches:
+        for label, variant, *storage in branches:
             if cuda:  # shift where the next build's buffers land
                 keep.append(placement_pad(rng, device))
             sim = make_sim(cfg, P, topo, variant, device, sort, *storage)
@@ -250,7 +251,6 @@ def time_branches(
                 {
                     "label": label,
                     "variant": variant,
-                    "passes": passes,
                     "sim": sim,
                     "fn": fn,
                     "graph": g,
@@ -262,14 +262,14 @@ def time_branches(
         for b in builds:
             samples[b["label"]].append(_median_step(b["sim"], b["fn"], b["graph"], steps))
     rows = []
-    for label, variant, passes, *_ in branches:
+    for label, variant, *_ in branches:
         first = next(b for b in builds if b["label"] == label)
         ms = samples[label]
         rows.append(
             {
                 "branch": label,
                 "variant": variant,
-                "passes": passes,
+                "passes": variant_spec(variant).passes,
                 "median_ms": statistics.median(ms),
                 "min_ms": min(ms),
                 "max_ms": max(ms),

@@ -68,7 +68,7 @@ def fragment_rows(device: str, particles=None, n: int = 128, Ks=KS, steps=200, w
     """One row per K: timing and memory of both branches (as Table 2), then the pressed run."""
     cfg, P = shattered_state(particles, device, n)
     cuda = device.startswith("cuda")
-    branches = [("Shared", "stress_zero", "1/1/0", "slots"), ("FractureFields", "full", "1/1/0", "boxes")]
+    branches = [("Shared", "stress_zero", "slots"), ("FractureFields", "full", "boxes")]
     stream = side_stream(device) if cuda else None  # graph capture needs a stream other than the default
     rows = []
     for K in Ks:

@@ -10,8 +10,9 @@ from typing import Optional, Sequence
 import torch
 
 from ..runtime import side_stream
+from ..variants import variant_spec
 from .experiments import ExperimentRun, ablation_stats, transfer_stats
-from .protocol import QUICK, SCENE_NAMES, TRANSFER_NAMES, VARIANT_NAMES
+from .protocol import QUICK, SCENE_NAMES
 from .tables import Column, Panel, Table
 
 # the five tables
@@ -72,7 +73,7 @@ def table1(exps: dict, command: str = "") -> Table:
             if v not in exp.runs:
                 continue
             st = transfer_stats(exp.runs[v], exp.latch_frame)
-            rows.append({"scene": SCENE_NAMES[scene], "transfer": TRANSFER_NAMES[v], **st})
+            rows.append({"scene": SCENE_NAMES[scene], "transfer": variant_spec(v).transfer, **st})
     caption = (
         "Post-fracture transfer diagnostics. Mixing entries are post-latch mean/maximum over the window; for Full, "
         "realized mixing is a structural zero of the P2G/G2P routing. " + _notes(used)
@@ -182,7 +183,7 @@ def table3(exps: dict, command: str = "") -> Table:
                 rows.append(
                     {
                         "scene": SCENE_NAMES[scene],
-                        "method": VARIANT_NAMES[v].replace(" (Full)", "").replace("FractureFields", "Full"),
+                        "method": variant_spec(v).label.replace(" (Full)", "").replace("FractureFields", "Full"),
                         **st,
                     }
                 )
@@ -314,7 +315,7 @@ def table4(exp_a: Optional[ExperimentRun], exp_b: Optional[ExperimentRun], comma
             cross = max((x.get("identity_crossing", 0) for x in r.rows), default=0)
             rows.append(
                 {
-                    "method": VARIANT_NAMES[v].replace("FractureFields (Full)", "Full"),
+                    "method": variant_spec(v).label.replace("FractureFields (Full)", "Full"),
                     "tc": tuple(rr.get("plane_first_contact", [None, None])),
                     "pen": rr.get("plane_penetration"),
                     "vt": rr.get("plane_max_vt_near"),
@@ -347,7 +348,7 @@ def table4(exp_a: Optional[ExperimentRun], exp_b: Optional[ExperimentRun], comma
             cross = max((x["identity_crossing"] for x in w), default=0)
             rows.append(
                 {
-                    "method": VARIANT_NAMES[v].replace("FractureFields (Full)", "FractureFields"),
+                    "method": variant_spec(v).label.replace("FractureFields (Full)", "FractureFields"),
                     "t": last.get("first_contact_time"),
                     "pen": pen,
                     "dvt": last.get("max_delta_vt"),

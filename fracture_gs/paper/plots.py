@@ -7,8 +7,9 @@ from typing import Optional, Sequence
 
 import numpy as np
 
+from ..variants import variant_spec
 from .experiments import ExperimentRun
-from .protocol import SCENE_NAMES, VARIANT_NAMES
+from .protocol import SCENE_NAMES
 
 # --------------------------------------------------------------------------------------------
 # figures
@@ -45,7 +46,7 @@ def teaser_figure(
     rows = []
     for v in variants:
         rows.append([_inset(panels[v][f], (regions or {}).get(f)) for f in frames])
-    labels = [compose.VARIANT_LABELS.get(v, v) for v in variants]
+    labels = [variant_spec(v).caption for v in variants]
     cols = [f"t = {f * frame_dt:.2f} s (frame {f})" for f in frames]
     img = compose.grid(rows, row_labels=labels, col_labels=cols)
     if title:
@@ -70,7 +71,7 @@ def multiscene_figure(
     scenes = list(panels)
     rows = [[_inset(panels[s][v], (regions or {}).get(s)) for v in variants] for s in scenes]
     labels = [SCENE_NAMES.get(s, s) + (f" {times[s]}" if times and s in times else "") for s in scenes]
-    img = compose.grid(rows, row_labels=labels, col_labels=[compose.VARIANT_LABELS.get(v, v) for v in variants])
+    img = compose.grid(rows, row_labels=labels, col_labels=[variant_spec(v).caption for v in variants])
     save_png(path, img)
     return img
 
@@ -254,7 +255,7 @@ def curves_figure(series: dict, path, dpi: int = 100) -> None:
         ax_o, ax_m = axes[i]
         for v, d in series[s].items():
             col = colors.get(v, None)
-            lab = VARIANT_NAMES.get(v, v)
+            lab = variant_spec(v).label
             ax_o.plot(d["t"], d["opening"], color=col, label=lab, lw=1.4)
             ax_m.plot(d["t"], d["real"], color=col, lw=1.4, label=f"{lab} (realized)")
             ax_m.plot(d["t"], d["cf"], color=col, lw=1.0, ls="--", label=f"{lab} (counterfactual)")

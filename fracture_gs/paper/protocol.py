@@ -19,19 +19,6 @@ PAPER_PROTOCOL = {
     "bread": dict(frames=90, frame_dt=0.01, latch=10, window=(10, 89), particles=182_959, pairs=906),
 }
 
-VARIANT_NAMES = {
-    "baseline": "Baseline",
-    "probe_latch": "Probe+Latch",
-    "stress_zero": "Stress-Zero",
-    "global_fragment_pass": "Global Fragment Pass",
-    "local_multifield": "Multi-field, no contact",
-    "full": "FractureFields (Full)",
-}
-TRANSFER_NAMES = {
-    "stress_zero": "Shared (Stress-Zero)",
-    "full": "Fragment-conditioned (Full)",
-    "local_multifield": "Fragment-conditioned (no contact)",
-}
 SCENE_NAMES = {"ficus": "Ficus", "bread": "Bread", "plane_drop": "Plane drop", "recontact": "Re-contact"}
 
 # CPU-sized settings per scene (see the module docstring)

@@ -13,21 +13,13 @@ import cv2
 import numpy as np
 
 from ..io.video import as_uint8_rgb, pad_even
+from ..variants import VARIANT_SPECS
 
 FONT = cv2.FONT_HERSHEY_SIMPLEX
 BAR_BG = (40, 40, 40)
 BAR_FG = (255, 255, 255)
 CANVAS = (255, 255, 255)
 INSET_COLOR = (255, 140, 0)
-
-VARIANT_LABELS = {
-    "baseline": "baseline (shared field)",
-    "probe_latch": "probe latch",
-    "stress_zero": "stress release",
-    "global_fragment_pass": "global fragment pass",
-    "local_multifield": "local multifield",
-    "full": "FractureFields",
-}
 
 
 def _even(n: int) -> int:
@@ -289,5 +281,6 @@ def interface_region(point, normal, extent: float, camera, n: int = 64) -> tuple
 
 
 def caption_text(variant: str, t: float, frame: int) -> str:
-    """Panel caption, e.g. 'FractureFields  t=0.250 s  #25'."""
-    return f"{VARIANT_LABELS.get(variant, variant)}  t={t:.3f} s  #{frame}"
+    """Panel caption, e.g. 'FractureFields  t=0.250 s  #25' (a name that is no variant is shown as it is)."""
+    label = VARIANT_SPECS[variant].caption if variant in VARIANT_SPECS else variant
+    return f"{label}  t={t:.3f} s  #{frame}"

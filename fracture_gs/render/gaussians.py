@@ -17,20 +17,7 @@ import torch
 from torch import Tensor
 
 from ..linalg import polar_rotation  # noqa: F401  (re-exported: R(F) for the SH rotation)
-
-# Real SH constants of the reference 3DGS implementation (Kerbl et al. 2023, `sh_utils.py`).
-SH_C0 = 0.28209479177387814
-SH_C1 = 0.4886025119029199
-SH_C2 = (1.0925484305920792, -1.0925484305920792, 0.31539156525252005, -1.0925484305920792, 0.5462742152960396)
-SH_C3 = (
-    -0.5900435899266435,
-    2.890611442640554,
-    -0.4570457994644658,
-    0.3731763325901154,
-    -0.4570457994644658,
-    1.445305721320277,
-    -0.5900435899266435,
-)
+from ..sh import SH_C0, SH_C1, SH_C2, SH_C3
 
 
 def deform_covariances(F: Tensor, cov0: Tensor) -> Tensor:  # [N,3,3], [N,3,3] -> [N,3,3]

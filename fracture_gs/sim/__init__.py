@@ -19,7 +19,7 @@ from . import layout
 from .grid import Grid, fit_grid
 from .particles import Particles, SimulationError
 from .providers import OracleProvider, ReplayProvider, StressProvider, make_provider
-from .simulator import MULTIFIELD_VARIANTS, RELEASE_VARIANTS, Simulator
+from .simulator import Simulator
 from .topology import Topology
 
 __all__ = [
@@ -28,12 +28,10 @@ __all__ = [
     "CuboidBoundary",
     "Grid",
     "MaterialConfig",
-    "MULTIFIELD_VARIANTS",
     "OracleProvider",
     "ParticleRegion",
     "Particles",
     "PlaneBoundary",
-    "RELEASE_VARIANTS",
     "ReplayProvider",
     "StressProvider",
     "SimConfig",

@@ -18,7 +18,7 @@ import warp as wp
 
 from ..config import MATERIALS, ParticleOrder, SimConfig
 from ..runtime import StreamFork, cpu_ranges, ensure_warp, launch, run_ranges, torch_stream
-from ..variants import VARIANTS, variant_spec
+from ..variants import VARIANT_NAMES, variant_spec
 from .boundary import Boundaries
 from .boxes import FragmentBoxes
 from .clock import FrameClock
@@ -38,14 +38,12 @@ from .transfer_kernels import clear_dense, clear_pool, g2p, grid_update_dense, p
 
 P2G_RUN = 8  # particles per P2G thread in cell order on a GPU (H100, Table 2 ficus: runs of 2 / 4 / 8 → P2G 40 / 34 /
 # 30 µs against 67 one per thread); not while most particles take the slot path (K = 16: 4 % slower; BENCHMARKS.md)
-MULTIFIELD_VARIANTS = tuple(v for v, s in VARIANTS.items() if s.multifield)
-RELEASE_VARIANTS = tuple(v for v, s in VARIANTS.items() if s.release)
 
 
 def validate_sim_config(cfg: SimConfig) -> None:
     """One-sentence errors for invalid solver settings."""
-    if cfg.variant not in VARIANTS:
-        raise SimulationError(f"sim.variant '{cfg.variant}' is unknown; use one of {', '.join(VARIANTS)}")
+    if cfg.variant not in VARIANT_NAMES:
+        raise SimulationError(f"sim.variant '{cfg.variant}' is unknown; use one of {', '.join(VARIANT_NAMES)}")
     if cfg.material not in MATERIALS:
         raise SimulationError(f"sim.material '{cfg.material}' is unknown; use one of {', '.join(MATERIALS)}")
     for name in ("dt", "dx", "cfl"):

@@ -49,9 +49,10 @@ from typing import Any, Optional
 
 import tomllib
 
-from ..config import PRESETS, VARIANTS, MaterialConfig
+from ..config import PRESETS, MaterialConfig
 from ..errors import ConfigError
 from ..io.config import CONFIG_DIR
+from ..variants import VARIANT_NAMES
 
 SPEC_DIR = CONFIG_DIR / "sweeps"
 """Built-in sweep specs (`fracture-gs sweep accuracy` finds `SPEC_DIR/accuracy.toml`). They sit in a
@@ -335,7 +336,7 @@ def _scene_block(src: str, prefix: str, t: dict) -> SceneBlock:
         configs.append(v)
     variants = ()
     if "variant" in t:
-        variants = _names(src, f"{prefix}.variant", t["variant"], VARIANTS, 'e.g. variant = ["baseline", "full"]')
+        variants = _names(src, f"{prefix}.variant", t["variant"], VARIANT_NAMES, 'e.g. variant = ["baseline", "full"]')
     cells = (None,)
     if "cells" in t:
         cells = _ints(src, f"{prefix}.cells", t["cells"], 4, MAX_CELLS_PER_AXIS, "e.g. cells = [32, 64]")

@@ -13,8 +13,9 @@ import difflib
 import re
 from typing import Optional, Sequence, Union
 
-from ...config import PRESETS, VARIANTS, SceneConfig
+from ...config import PRESETS, SceneConfig
 from ...errors import ConfigError
+from ...variants import VARIANT_NAMES
 from .validate import MAX_IMAGE_SIDE, validate
 
 
@@ -47,11 +48,11 @@ def parse_variants(text: Union[str, Sequence[str]], source: str = "") -> list[st
     names = [v.strip() for v in text.split(",")] if isinstance(text, str) else [str(v).strip() for v in text]
     names = [v for v in names if v]
     if not names:
-        raise ConfigError(source, "--variants", f"--variants is empty; list some of {', '.join(VARIANTS)}.")
+        raise ConfigError(source, "--variants", f"--variants is empty; list some of {', '.join(VARIANT_NAMES)}.")
     for v in names:
-        if v not in VARIANTS:
-            close = difflib.get_close_matches(v, VARIANTS, n=1)
-            fix = f"did you mean {close[0]!r}?" if close else f"use names from {', '.join(VARIANTS)}."
+        if v not in VARIANT_NAMES:
+            close = difflib.get_close_matches(v, VARIANT_NAMES, n=1)
+            fix = f"did you mean {close[0]!r}?" if close else f"use names from {', '.join(VARIANT_NAMES)}."
             raise ConfigError(source, "--variants", f"--variants names unknown variant {v!r}; {fix}")
     if len(set(names)) != len(names):
         raise ConfigError(source, "--variants", f"--variants {','.join(names)} lists a variant twice; list each once.")

@@ -18,7 +18,6 @@ from ...config import (
     REGION_KINDS,
     RENDER_BACKENDS,
     RENDER_MODES,
-    VARIANTS,
     CuboidBoundary,
     MaterialMapEntry,
     ParticleRegion,
@@ -30,7 +29,7 @@ from ...config import (
     TopologyConfig,
 )
 from ...errors import ConfigError
-from ...variants import variant_spec
+from ...variants import VARIANT_NAMES, variant_spec
 from ..formats import is_splat_file
 
 MAX_FIELD_SLOTS = 8  # sim.layout.MAX_SLOTS (io does not import sim)
@@ -300,9 +299,9 @@ def _check_scene(c: _Checker, cfg: SceneConfig) -> None:
 
 def _check_variants(c: _Checker, cfg: SceneConfig) -> None:
     if not cfg.variants:
-        c.fail("variants", "variants is empty", f"list at least one of {', '.join(VARIANTS)}")
+        c.fail("variants", "variants is empty", f"list at least one of {', '.join(VARIANT_NAMES)}")
     for i, v in enumerate(cfg.variants):
-        c.choice(f"variants[{i}]", v, VARIANTS)
+        c.choice(f"variants[{i}]", v, VARIANT_NAMES)
     if len(set(cfg.variants)) != len(cfg.variants):
         c.fail("variants", f"variants {cfg.variants} lists a variant twice", "list each variant once")
 
@@ -334,7 +333,7 @@ def _check_sim(c: _Checker, s: SimConfig, frame_dt: float) -> None:
             "raise max_substeps_per_frame or sim.dt",
         )
     c.within("sim.cfl", s.cfl, 1e-12, 1.0, "use a CFL number in (0, 1], e.g. cfl = 0.4")
-    c.choice("sim.variant", s.variant, VARIANTS)
+    c.choice("sim.variant", s.variant, VARIANT_NAMES)
     c.choice("sim.grid", s.grid, GRID_KINDS)
     c.positive("sim.dx", s.dx, "give the grid spacing in metres, e.g. dx = 0.015625")
     c.at_least("sim.wall_cells", s.wall_cells, 0, "use 0 or more cells")
