@@ -291,10 +291,3 @@ def config_rotation(cap: CaptureConfig) -> Optional[torch.Tensor]:
         return R  # as written (a resolved config's rotation comes back bit for bit)
     U, _, Vh = torch.linalg.svd(R)
     return U @ Vh
-
-
-def transform_from_config(cap: CaptureConfig) -> Optional[SceneTransform]:
-    """The stored fit, when the config holds all of it (scale, rotation and offset)."""
-    if cap.scale is None or cap.rotation is None or cap.offset is None:
-        return None
-    return SceneTransform(float(cap.scale), config_rotation(cap), torch.tensor(cap.offset, dtype=torch.float64))

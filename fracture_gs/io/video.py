@@ -81,7 +81,7 @@ class VideoWriter:
     def __enter__(self) -> VideoWriter:
         return self
 
-    def __exit__(self, exc_type, exc, tb):
+    def __exit__(self, *_exc):
         self.close()
         return False
 

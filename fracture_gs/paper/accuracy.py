@@ -384,7 +384,7 @@ def pareto_figure(results: list[Result], path, title: str = "", dpi: int = 100) 
     class _PlainLog(ticker.LogFormatter):
         """Log-axis labels as plain numbers (0.3, 2, 10); which ticks get one is LogFormatter's choice."""
 
-        def _num_to_string(self, x, vmin, vmax):
+        def _num_to_string(self, x, _vmin, _vmax):
             return f"{x:g}"
 
     cases = list(dict.fromkeys(r.case for r in results))

@@ -13,12 +13,6 @@ from ..io.config import apply_overrides, validate
 # --------------------------------------------------------------------------------------------
 # the protocol and its two sizes
 
-PAPER_PROTOCOL = {
-    # scene: frames, frame_dt, paper latch frame, paper window, paper particle count, paper interface pairs
-    "ficus": dict(frames=44, frame_dt=0.04, latch=23, window=(23, 43), particles=171_553, pairs=164),
-    "bread": dict(frames=90, frame_dt=0.01, latch=10, window=(10, 89), particles=182_959, pairs=906),
-}
-
 SCENE_NAMES = {"ficus": "Ficus", "bread": "Bread", "plane_drop": "Plane drop", "recontact": "Re-contact"}
 
 # CPU-sized settings per scene (see the module docstring)

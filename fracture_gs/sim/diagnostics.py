@@ -129,7 +129,6 @@ class Diagnostics:
         sim = self.sim
         P, topo = sim.particles, sim.topology
         self._n_topologies = len(sim.topologies)
-        self.latch_substeps = sim.substeps  # the realized grid holds the new labels only after a substep
         self.members = M.band_members(P.fragment, P.band)
         with torch.no_grad():  # the surface measure's scales from the particles at this latch (positions only)
             self.surface_calibration = calibrate(P.x, P.fragment, self._volume_ratio())

@@ -30,8 +30,6 @@ from __future__ import annotations
 
 import warp as wp
 
-EMPTY_BOX = (0, 0, 0, 0, 0, 0)
-
 OWNER_MASK = 0xFFFF  # low bits of the owner word: fragment id + 1 of slot 0 (0 = free)
 ROW_FLAG = 0x10000  # the node has a pool row
 EMPTY_KEY = -1  # a free pool row
@@ -50,12 +48,6 @@ PAIR_FIRST_T, PAIR_DPX, PAIR_DPY, PAIR_DPZ, PAIR_PNORM, PAIR_GATED = range(6)
 N_PAIR_STATS = 6
 PAIR_FRAGMENTS = 128  # per-pair statistics for fragments below this id (K² rows: 393 KB, not max_fragments²)
 NEVER = 1e30  # a first-contact time before any contact
-
-
-def box_intersection(a: tuple, b: tuple) -> tuple:
-    """Intersection of two node boxes (lo, hi), or EMPTY_BOX."""
-    box = tuple(max(a[i], b[i]) for i in range(3)) + tuple(min(a[i], b[i]) for i in range(3, 6))
-    return box if all(box[i + 3] > box[i] for i in range(3)) else EMPTY_BOX
 
 
 def box_volume(box: tuple) -> int:

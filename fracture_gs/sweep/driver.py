@@ -172,13 +172,9 @@ def make_plan(cells: list[Cell], statuses: list[dict], world: int, rerun_failed:
     }
 
 
-def list_cells(spec_path, opts: SweepOptions) -> list[tuple[Cell, str, Optional[int]]]:
-    """(cell, cache status, rank it would run on now) for every cell: `ok`/`failed` (cached) or `pending`."""
-    return list(iter_listing(spec_path, opts))
-
-
 def iter_listing(spec_path, opts: SweepOptions) -> Iterator[tuple[Cell, str, Optional[int]]]:
-    """`list_cells` one cell at a time, as the spec expands: with one rank the plan is known per cell (a cell
+    """(cell, cache status, rank it would run on now) for every cell, `ok`/`failed` (cached) or `pending`, one cell at
+    a time as the spec expands: with one rank the plan is known per cell (a cell
     to run goes to rank 0), so the first lines come at once however many cells follow; with several ranks the
     cost-balanced plan needs every cell first."""
     spec = load_spec(spec_path)

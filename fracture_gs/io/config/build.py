@@ -131,7 +131,7 @@ def _convert(value: Any, tp: Any, dotted: str, src: str, cls: type, key: str) ->
         if not isinstance(value, (list, tuple)) or len(value) != len(args):
             raise _type_error(src, dotted, tp, value, cls, key)
         return tuple(_convert(v, a, f"{dotted}[{i}]", src, cls, key) for i, (v, a) in enumerate(zip(value, args)))
-    if dataclasses.is_dataclass(tp):
+    if isinstance(tp, type) and dataclasses.is_dataclass(tp):
         return _build(tp, value, dotted, src)
     raise _type_error(src, dotted, tp, value, cls, key)
 

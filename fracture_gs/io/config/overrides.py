@@ -65,11 +65,12 @@ def _apply_preset(cfg: SceneConfig, preset: str, source: str) -> None:
         raise ConfigError(source, "--preset", f"--preset {preset!r} is unknown; use one of {', '.join(PRESETS)}.")
     new_dx = PRESETS[preset]
     ratio = new_dx / cfg.sim.dx
-    cfg.preset = preset
+    cfg.preset = preset  # type: ignore[assignment]  # checked against PRESETS above
     if abs(ratio - 1.0) < 1e-12:
         return
     if cfg.sim.grid == "explicit":
-        cfg.sim.grid_shape = tuple(max(4, int(round(n / ratio))) for n in cfg.sim.grid_shape)
+        nx, ny, nz = (max(4, int(round(n / ratio))) for n in cfg.sim.grid_shape)
+        cfg.sim.grid_shape = (nx, ny, nz)
     cfg.sim.dx = new_dx
     cfg.sim.dt = cfg.sim.dt * ratio
 
