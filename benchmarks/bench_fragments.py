@@ -13,7 +13,7 @@ latched state; on CUDA the substep is a recorded graph timed with CUDA events (m
 warm-up). Every branch is built `--placements` times on fresh memory shifted by a random pad, and every trial
 times all builds of all branches round-robin, so a host drifting during the run moves Shared and FractureFields
 alike (until the tenth session each branch was timed in a block of its own, and the K = 16 ratio moved with
-the host between the blocks: BENCHMARKS.md). Memory: the grid
+the host between the blocks: docs/benchmarks/history-2026-11.md). Memory: the grid
 buffers as allocated (slots: dense slot 0, owner words, the pool of multi-fragment nodes sized for the state,
 and beside them the slot cache of the GPU's fan-out, a buffer index per (particle that is not solo, stencil
 node); boxes: the dense grid the simulator keeps for the time before a latch plus the boxes' buffers).

@@ -3,11 +3,11 @@ side by side at matched frames with captions and fracture insets (`ComparisonVid
 thread beside the solver while the last variant runs (or, variants in threads, once every one has drawn
 the frame), the rest with a pool after it.
 
-Tried and dropped (2026-11-26, H200, bread paper preset): composing in a spawned process fed the panels
-through a queue. Composing is not starved of the interpreter lock (it is PNG and OpenCV work that
-releases it): the process left the same ≈ 0.55 s of composing after the last frame as the thread, its
-start slowed the first variants by ≈ 0.3 s, and its exit (torch's interpreter teardown) took 0.7–0.85 s,
-so the run took 0.6–1.2 s longer in three interleaved pairs.
+Tried and dropped (bread paper preset on a GPU; docs/benchmarks/history-2026-11.md, third session):
+composing in a spawned process fed the panels through a queue. Composing is not starved of the
+interpreter lock (it is PNG and OpenCV work that releases it): the process left as much composing after
+the last frame as the thread does, its start slowed the first variants, and its exit (torch's interpreter
+teardown) came on top, so the run was longer in every interleaved pair.
 """
 
 from __future__ import annotations

@@ -253,7 +253,8 @@ class SimConfig:
     particle_order: ParticleOrder = "scene"
     """Order of the scene's Gaussians, and so of the particles: `scene` (as loaded) or `cell` (sorted once by grid
     cell before the run). In cell order a GPU's P2G sums each thread's run of particles that share a cell before
-    its atomics (the bread paper preset: 75 → 59 µs a launch on an H200; Table 2's ficus 67 → 30 µs; BENCHMARKS.md);
+    its atomics (a P2G launch about a fifth shorter for the bread paper preset, less than half for Table 2's ficus;
+    BENCHMARKS.md);
     choices drawn by particle index (Voronoi sites) then come out differently, and exported PLYs list the Gaussians
     in cell order."""
     contact: ContactConfig = field(default_factory=ContactConfig)

@@ -7,8 +7,9 @@ Frobenius norm (for det F < 0 the axis of the smallest singular value is flipped
 the fixed-corotated model). Each thread takes one matrix and converts it to float64. Where det F > 0
 and F is not nearly flat, R comes from scaled Newton iterations (`polar_newton`, Higham 1986), about
 five times cheaper than the SVD; elsewhere from Warp's Jacobi `svd3` run twice (the second pass on the
-nearly diagonal Uᵀ F V refines to round-off). Batched cuSOLVER spends 63 ms on 183k such matrices;
-one thread per matrix is bandwidth-bound. Used for the per-frame SH rotation R(F) and for the singular values of the
+nearly diagonal Uᵀ F V refines to round-off). Batched cuSOLVER was many times slower on the bread paper
+preset's 183k matrices (most of the main job's time before this kernel); one thread per matrix is
+bandwidth-bound. Used for the per-frame SH rotation R(F) and for the singular values of the
 diagnostics; `polar_rotation_reference` / `singular_values_reference` are the torch twins.
 """
 

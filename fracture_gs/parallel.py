@@ -2,9 +2,9 @@
 devices of one machine: the first device's in this process, each other device's in a worker process.
 
 Processes, not threads: a variant's frame is much Python (diagnostics issue many small torch ops, the
-frame loop, rendering and encoding), so two threads in one interpreter took as long as one on two
-H200s (16.5 s either way for the bread paper preset); each process has its own interpreter. A worker
-process pays its start (torch, Warp, gsplat, the kernels: ≈ 5–8 s on a GPU), so the first device's
+frame loop, rendering and encoding), so two threads in one interpreter took as long on two GPUs as on
+one (the bread paper preset; BENCHMARKS.md, "Beyond one GPU"); each process has its own interpreter. A
+worker process pays its start (torch, Warp, gsplat, the kernels: seconds), so the first device's
 variants run in the caller at once and a second device pays off when a variant simulates for longer
 than that.
 

@@ -5,8 +5,8 @@ read, for the renderer. Run in turn, the device idles while the host prepares a 
 idles while the device simulates it. In threads, one variant's host work can overlap another's kernels
 (Warp's launches and graph replays, torch's kernels and every device read release the interpreter
 lock; on the CPU Warp's kernels do too, one core each) — as long as the interpreter lock is not the
-bottleneck itself. Measured (BENCHMARKS.md, 2026-11-26): the README's CPU main job 23.0 → 22.0 s on 2
-cores; the bread paper preset on an H200 4.18–4.69 s in turn against 4.27–4.86 s in threads (its frames
+bottleneck itself. Measured (docs/benchmarks/history-2026-11.md, fifth session): the README's CPU main job a few
+per cent faster on 2 cores; the bread paper preset on a GPU no faster in threads than in turn (its frames
 are Python-bound: the threads only contend for the lock). Hence in turn stays the default.
 
 The contract of the sequential run holds: the first variant with an event provider leads, and what it

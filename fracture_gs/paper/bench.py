@@ -228,8 +228,8 @@ def time_branches(
     the kernel columns.
 
     Each branch is built `placements` times, every build on fresh device memory shifted by a
-    random pad: on the H200 one allocation of the same branch and state ran 0.0945–0.1047 ms
-    (P2G's atomics resolve in L2, whose slices the address picks), more than the branches differ.
+    random pad: on a GPU, allocations of the same branch and state differ in time by more than the
+    branches do (P2G's atomics resolve in L2, whose slices the address picks; BENCHMARKS.md).
     Every trial then times all builds round-robin, so clock drift hits all branches alike. A
     branch's time is the median over builds × trials."""
     dt = cfg.sim.dt

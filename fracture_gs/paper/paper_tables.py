@@ -103,7 +103,7 @@ def table2(device: str, protocol: str, command: str = "") -> Table:
     args = (particles, device, steps, warmup, trials, 5 if cuda else 1)
     if cuda:
         rows, n, cells, dx = _table2_rows(*args)
-    else:  # a fresh process: this one's state (heap, torch's threads) made CPU wall clocks swing 12 → 21 ms
+    else:  # a fresh process: this one's state (heap, torch's threads) made CPU wall clocks swing by over half
         import multiprocessing
 
         with multiprocessing.get_context("spawn").Pool(1) as pool:

@@ -124,8 +124,8 @@ def fragment_bounds(
     """Each fragment's range of stencil nodes, base = ⌊(x − origin)/Δx − ½⌋ in float64 (as `FragmentBoxes.fit`
     had it from torch). A thread keeps the bounds of `run` consecutive particles while their fragment stays the
     same and reduces them once per change: particles sorted by cell mostly share their neighbours' fragment,
-    so the few bounds of K boxes are not hit by one atomic per particle (torch's scatter_reduce took 1.9 ms at
-    183k particles and K = 2 on an H200)."""
+    so the few bounds of K boxes are not hit by one atomic per particle (torch's scatter_reduce, with one per
+    particle, took most of the fit's time on a GPU; docs/benchmarks/history-2026-11.md)."""
     t = wp.tid()
     k = int(-1)  # noqa: UP018 (a dynamic Warp variable)
     a = wp.vec3i(0, 0, 0)
@@ -197,8 +197,9 @@ def _box_p2g(band: bool) -> wp.Kernel:
         """Deposits of `run` consecutive particles a thread (`run_kernels.p2g_runs` on boxes): those with the
         same fragment and stencil base are summed in registers and reach their box as one reduction per node
         (run = 1: one particle a thread). The box's bounds are loaded when the fragment changes and the stencil
-        is checked against its box when the run changes, not per particle (the check cost 1.8 µs of 31 at
-        K = 16). The band build also adds the band particles' w_ip m_p to their field's band mass."""
+        is checked against its box when the run changes, not per particle (per particle, the check was a
+        measurable share of the kernel at K = 16). The band build also adds the band particles' w_ip m_p to their
+        field's band mass."""
         t = wp.tid()
         dt = clock_dt(clock)
         acc = stencil_sums()
@@ -421,9 +422,10 @@ def _grid_update(record: bool, fast: bool, mode: int = -1) -> wp.Kernel:
     (`fast`), the normals' mode (`contact.NORMAL_*`) compiled in or (−1) read from the contact settings. Out
     (timing runs, `Simulator.record_contact = False`), no atomic stands between the leaders' loads (the compiler
     must assume an atomic may write what a later load reads; the fast-math builds take 64 registers either way on
-    sm_90): K = 16 0.0794 → 0.0782 ms, 1.19 → 1.17× Shared, while the plane cut's grid update reads 6.3 → 6.9 µs
-    (BENCHMARKS.md, ninth session). Fast math shortens the leaders' chains of dependent arithmetic (approximate
-    division and square root: 19.2 → 16.0 µs at K = 16, velocities within 2e-7 relative); the CPU keeps the exact
+    sm_90): the quiet build made K = 16 faster and the plane cut's grid update a little slower, both within
+    their targets (docs/benchmarks/history-2026-11.md, ninth session). Fast math shortens the leaders' chains of
+    dependent arithmetic (approximate division and square root: a sixth off the K = 16 grid update, velocities
+    within 2e-7 relative; seventh session); the CPU keeps the exact
     kernels (Warp would build a fast-math kernel with fast math on the CPU too), so the CPU's bitwise equalities
     with the slot storage hold."""
     RECORD = int(record)  # noqa: N806 (a compile-time constant of the kernel, read by wp.static)
@@ -466,7 +468,7 @@ def _grid_update(record: bool, fast: bool, mode: int = -1) -> wp.Kernel:
             return
         # two fields, the most common meeting: the sweep's one pair from values loaded once, both boundaries
         # applied before either velocity is stored (the sweep's stores and reloads were the critical path here:
-        # 7.7 → 5.9 µs at K = 2; BENCHMARKS.md)
+        # the K = 2 grid update a quarter shorter without them; docs/benchmarks/history-2026-11.md, eighth session)
         i1 = idx[0]
         q1 = b.mp[i1]
         v0 = normalized(q, eps_m, dt, gravity)
@@ -489,9 +491,9 @@ def _grid_update(record: bool, fast: bool, mode: int = -1) -> wp.Kernel:
 GRID_UPDATES = {(record, fast): _grid_update(record, fast) for record in (True, False) for fast in (False, True)}
 """The grid update by (record the contact statistics, fast math), reading the normals' mode."""
 GRID_UPDATES_LATCHED = {record: _grid_update(record, True, NORMAL_LATCHED) for record in (True, False)}
-"""The fast-math grid update with the latched normals compiled in, by (record): the plane cut's grid update on an H200
-6.0 → 5.2 µs. The mass-gradient normals keep the build that reads the mode: compiled in, K = 16's read 15.3 →
-15.7–16.0 µs (BENCHMARKS.md, tenth session)."""
+"""The fast-math grid update with the latched normals compiled in, by (record): the plane cut's grid update gets
+shorter. The mass-gradient normals keep the build that reads the mode: compiled in, K = 16's got slower
+(docs/benchmarks/history-2026-11.md, tenth session)."""
 
 
 def grid_update_kernel(record: bool, fast: bool, mode: int) -> wp.Kernel:

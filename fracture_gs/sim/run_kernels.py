@@ -8,8 +8,9 @@ m_i += Σ_p w_ip m_p,  p_i += Σ_p w_ip m_p (v_p + C_p(x_i − x_p)) − Δt V�
 Any order is correct (a change of base flushes the sums); with run = 1 the fields are bitwise `p2g`'s, otherwise
 they differ by the order of float32 sums. Particles that are not solo on a multi-field grid are left to
 `fanout_kernels.p2g_fanout` (the host takes this kernel only with it, and never for the global fragment pass).
-Measured (BENCHMARKS.md, H100, Table 2 ficus): P2G 67 µs one particle per thread, 40 / 34 / 30 µs in runs of
-2 / 4 / 8; a block-shared node tile was 4× slower (shared-memory float atomics compile to compare-and-swap loops).
+Measured on the Table 2 ficus (docs/benchmarks/history-2026-11.md, "P2G in runs"): each doubling of the run up to 8
+shortened P2G, runs of 8 taking less than half the time of one particle per thread; a block-shared node tile was
+several times slower (shared-memory float atomics compile to compare-and-swap loops).
 """
 
 from __future__ import annotations

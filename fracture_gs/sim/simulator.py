@@ -36,8 +36,8 @@ from .slot_storage import SlotStorage
 from .topology import Topology
 from .transfer_kernels import clear_dense, clear_pool, g2p, grid_update_dense, p2g
 
-P2G_RUN = 8  # particles per P2G thread in cell order on a GPU (H100, Table 2 ficus: runs of 2 / 4 / 8 → P2G 40 / 34 /
-# 30 µs against 67 one per thread); not while most particles take the slot path (K = 16: 4 % slower; BENCHMARKS.md)
+P2G_RUN = 8  # particles per P2G thread in cell order on a GPU: runs of 8 were the fastest on the Table 2 ficus (P2G
+# under half its time one per thread); not while most particles take the slot path (slower there; BENCHMARKS.md)
 
 
 def validate_sim_config(cfg: SimConfig) -> None:

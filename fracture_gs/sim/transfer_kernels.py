@@ -235,7 +235,7 @@ def launch_particle(
     take the particles that are not solo (`order` lists them first), so their slot lookups, 27 serial
     hash probes each, start before the dense bulk and hide under it instead of finishing last; threads
     n … 2n−1 take the solo particles in their own order (coalesced, no indirection). Only G2P: in P2G
-    the same order did not help (H200, BENCHMARKS.md) and the extra threads cost 5 µs."""
+    the same order did not help and the extra threads only cost (docs/benchmarks/history-2026-11.md)."""
     if split == 0:
         return t
     if t < n:

@@ -195,7 +195,7 @@ def iter_cells(
                         yield cell
 
 
-SECONDS_PER_SUBSTEP = 0.35e-3  # an H200 on a few thousand particles: launch-bound, about flat up to 50k
+SECONDS_PER_SUBSTEP = 0.35e-3  # a GPU substep on a few thousand particles: launch-bound, about flat up to 50k
 SECONDS_PER_FRAME = 0.01  # per-frame checks and diagnostics
 PARTICLES_PER_UNIT_COST = 2e5  # particles at which a substep costs twice the launch-bound time
 

@@ -273,8 +273,9 @@ TAPE_BYTES_PER_PARTICLE = 48 << 10
 def _keep_tape_memory(device: str, n: int) -> None:
     """Let Warp's CUDA pool keep a recorded frame's worth of freed memory. Above its release threshold the
     pool hands freed blocks back to the driver, so every backward pass re-allocated each substep's
-    buffers from the driver: 2.6-2.8x the forward with the memory kept, 2.3-3.9x (single passes near 20x)
-    without (ficus, 171,553 particles, H200; BENCHMARKS.md). Only ever raises the threshold."""
+    buffers from the driver: with the memory kept the backward/forward ratio is steady, without it it
+    swung widely and single passes stalled (ficus, 171,553 particles; BENCHMARKS.md, "Gradients"). Only
+    ever raises the threshold."""
     if wp.is_mempool_enabled(device) and wp.get_mempool_release_threshold(device) < TAPE_BYTES_PER_PARTICLE * n:
         wp.set_mempool_release_threshold(device, TAPE_BYTES_PER_PARTICLE * n)
 
@@ -283,7 +284,7 @@ def _keep_tape_memory(device: str, n: int) -> None:
 def _gc_paused():
     """Python's cyclic collector held off while a frame's tape is recorded and replayed: the tape
     creates thousands of short-lived array objects, and a full collection in the middle stalled single
-    backward passes by several times their length on a GPU (BENCHMARKS.md, issue 15)."""
+    backward passes by several times their length on a GPU (docs/benchmarks/history-2026-11.md, issue 15)."""
     enabled = gc.isenabled()
     gc.disable()
     try:
