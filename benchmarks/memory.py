@@ -11,7 +11,9 @@ import sys
 import torch
 
 import fracture_gs.pipeline as pipeline
-import fracture_gs.runner as runner
+import fracture_gs.render_sim as runner
+import fracture_gs.render_sim.job as job
+import fracture_gs.render_sim.variant as variant
 import fracture_gs.sim.diagnostics as diagnostics
 import fracture_gs.sim.simulator as simulator
 from fracture_gs.io.config import find_config, load_config
@@ -74,9 +76,8 @@ def raster(*a, **k):
 
 
 gsplat.rasterization = raster
-runner.frame_output = pipeline.frame_output
-runner.make_simulator = pipeline.make_simulator
-runner.prepare_scene = pipeline.prepare_scene
+variant.make_simulator = pipeline.make_simulator  # the watched wrappers, where the job's modules call them
+job.prepare_scene = pipeline.prepare_scene
 
 cfg = load_config(find_config(sys.argv[1]))
 cfg.frames = int(sys.argv[2]) if len(sys.argv) > 2 else 40

@@ -17,7 +17,7 @@ import torch
 
 from fracture_gs.io.config import load_config
 from fracture_gs.paper.bench import run_bench
-from fracture_gs.runner import run_render_sim
+from fracture_gs.render_sim import run_render_sim
 
 
 def _metrics(out: Path) -> list:

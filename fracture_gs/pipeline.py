@@ -1,4 +1,4 @@
-"""Scene → simulator → per-frame Gaussians: the path shared by the CLI runner and `FractureSim`.
+"""Scene → simulator → per-frame Gaussians: the path shared by the render-sim job and `FractureSim`.
 
 Frame 0 is the initial state; frame f ≥ 1 is the state after f·frame_dt. Each frame yields the
 Gaussians' means x_p, covariances Σ_p = F_p Σ_p⁰ F_pᵀ, the polar rotations R(F_p) (for SH) and
@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import copy
 import functools
-from typing import Iterator, Optional, Union
+from typing import TYPE_CHECKING, Iterator, Optional, Union, cast
 
 import torch
 
@@ -23,6 +23,10 @@ from .sim import Particles, SimulationError, Simulator, Topology
 from .sim.grid import fit_grid
 from .sim.neighbourhood import cell_order
 from .sim.providers import ReplayProvider, make_provider
+from .variants import VariantName
+
+if TYPE_CHECKING:
+    from .render.crack_faces import CrackFaces
 
 
 class FrameOutput:
@@ -52,7 +56,7 @@ class FrameOutput:
         self.fragment = fragment  # [N] int32, −1 before the latch
         self.band = band  # [N] int32
         self.metrics = metrics if metrics is not None else {}
-        self.ready = None  # a CUDA event after the copies above, for a consumer on another stream
+        self.ready: Optional[torch.cuda.Event] = None  # after the copies above, for a consumer on another stream
         self.max_stretch: Optional[float] = None  # drawn covariances take at most this principal stretch of F
 
     @functools.cached_property
@@ -143,7 +147,7 @@ def make_simulator(
     provider but still receives the saved labels for its diagnostics (its transfer ignores them). `provider`, if
     given, replaces both (variants running side by side on several devices share one live topology)."""
     sim_cfg = copy.deepcopy(cfg.sim)
-    sim_cfg.variant = variant
+    sim_cfg.variant = cast(VariantName, variant)  # checked by the Simulator
     simulated = gs.carrier.particles if gs.carrier is not None else gs  # a carried set simulates its particles
     particles = Particles.from_gaussians(simulated, cfg, dx=sim_cfg.dx)
     if provider is None and topology is not None:
@@ -219,7 +223,8 @@ class _CrackTrim:
     def __init__(self, first: FrameOutput, sim: Simulator, cov0: torch.Tensor, carrier: Optional[Carrier]):
         self.means0, self.x0 = first.means.clone(), sim.particles.x.clone()
         self.cov0, self.carrier = cov0, carrier
-        self.faces, self.version, self.current = None, 0, cov0
+        self.faces: Optional[CrackFaces] = None
+        self.version, self.current = 0, cov0
 
     def __call__(self, out: FrameOutput, sim: Simulator) -> torch.Tensor:
         if out.topology_version != self.version and bool((out.fragment >= 0).any()):

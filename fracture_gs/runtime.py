@@ -18,8 +18,12 @@ from __future__ import annotations
 
 import contextlib
 import threading
+from typing import TYPE_CHECKING
 
 import warp as wp
+
+if TYPE_CHECKING:
+    import torch
 
 _streams: dict[int, object] = {}
 
@@ -76,7 +80,7 @@ another thread has open. Every recording in the package takes it, so two never o
 @contextlib.contextmanager
 def stream_lane(lane: int):
     """`side_stream` calls of this thread inside the block use lane `lane`'s streams: variants simulated
-    at once on one device, a thread each (`fracture_gs.variant_threads`), each get their own streams,
+    at once on one device, a thread each (`fracture_gs.render_sim.threads`), each get their own streams,
     so one's launches and captures never land on another's stream. Lane 0 is every thread's default."""
     before = getattr(_lane, "index", 0)
     _lane.index = int(lane)
@@ -91,7 +95,7 @@ def current_lane() -> int:
     return getattr(_lane, "index", 0)
 
 
-def side_stream(device: str, purpose: str = "simulate"):
+def side_stream(device: str | torch.device, purpose: str = "simulate"):
     """One non-default torch stream per CUDA device, purpose and lane ("simulate": the simulators and
     benchmarks of the lane, as CUDA graphs cannot record the legacy default stream; "render": the
     render-sim worker that draws frames beside the solver; "record": the captures of `sim/recorded.py`;

@@ -28,3 +28,26 @@ fragment_overlap  # sim.penetration: the voxel measure of Panel A's overlap
 collider_crossing  # sim.penetration: particles behind a collider plane
 WALL_KEYS  # sweep.cells: the row keys that differ between runs by nature (wall times)
 RUN_KEYS  # sweep.driver: the row keys that say where and when a cell ran
+
+# Dataclass fields written to summary.json through dataclasses.asdict / fields (render_sim.summary).
+_.plane_first_contact
+_.plane_penetration
+_.plane_max_vt_near
+_.plane_max_vn_post
+_.plane_momentum_residual
+_.substeps_per_s
+_.mixing_counterfactual_mean
+_.mixing_counterfactual_max
+_.mixing_realized_mean
+_.mixing_realized_max
+_.shared_support_pct_mean
+_.mass_residual_max
+_.separated
+_.penetration_max
+_.identity_crossing_max
+_.fragment_crossing_max
+_.fragment_penetration_max
+_.collider_crossing_max
+_.cp_momentum_residual
+_.rel_normal_velocity_after
+_.max_delta_vt

@@ -14,13 +14,15 @@ from pathlib import Path
 import pytest
 import torch
 
-from fracture_gs import cli, runner
+from fracture_gs import cli
+from fracture_gs import render_sim as runner
 from fracture_gs.errors import ArgumentError, FractureGSError, SimulationError
 from fracture_gs.io import GaussianSet, detect_format, load_ply, read_gaussians, save_ply, write_gaussians
 from fracture_gs.io.config import load_config
 from fracture_gs.io.formats import is_splat_file
 from fracture_gs.io.ply import load_ply_lenient
 from fracture_gs.module import FractureSim, _material_argument, gaussians_from_tensors
+from fracture_gs.render_sim import RunSummary
 
 ROOT = Path(__file__).resolve().parents[1]
 SPZ = ROOT / "tests" / "data" / "captures" / "biker_5k.spz"
@@ -59,7 +61,17 @@ def no_run(monkeypatch):
         "run_render_sim",
         lambda cfg, variants, device, out_dir, **kw: (
             calls.append(("render-sim", cfg, device, kw))
-            or {"variants": [{"variant": v, "status": "ok"} for v in variants]}
+            or RunSummary(
+                cfg.name,
+                cfg.scene,
+                cfg.preset,
+                device,
+                1,
+                [],
+                1,
+                0.01,
+                [{"variant": v, "status": "ok"} for v in variants],
+            )
         ),
     )
     monkeypatch.setattr(bench, "run_bench", lambda **kw: calls.append(("bench", kw)) or {"ok": True})

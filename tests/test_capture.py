@@ -114,7 +114,7 @@ def test_up_axis_and_camera_from_trainer_cameras(tmp_path):
 
 def test_frame_zero_shows_the_object_centred(closed):
     from fracture_gs.pipeline import FrameOutput
-    from fracture_gs.runner import Painter
+    from fracture_gs.render_sim import Painter
 
     ply, _ = closed
     cfg = load_config(ply)

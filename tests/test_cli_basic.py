@@ -10,7 +10,10 @@ from pathlib import Path
 
 import pytest
 
-from fracture_gs import cli, runner
+from fracture_gs import cli
+from fracture_gs import render_sim as runner
+from fracture_gs.render_sim import RunSummary
+from fracture_gs.render_sim import job as render_job
 
 REPO = Path(__file__).resolve().parent.parent
 COMMANDS = ["render-sim", "bench", "figures", "sweep", "info", "validate"]
@@ -152,7 +155,7 @@ def test_render_sim_dispatches_to_runner(monkeypatch, tmp_path, capsys):
 
     def fake_run(cfg, variants, device, out_dir, profile=False, stop=None):
         calls.update(cfg=cfg, variants=variants, device=device, out_dir=out_dir, profile=profile, stop=stop)
-        return {"video": str(out_dir / "compare.mp4")}
+        return RunSummary("bread", "bread", "paper", device, 10, [], 3, 0.01, out_dir=str(out_dir / "compare.mp4"))
 
     monkeypatch.setattr(runner, "run_render_sim", fake_run)
     code = cli.main(
@@ -206,7 +209,7 @@ def test_render_sim_without_video_encoder_stops_before_the_scene(tmp_path, capsy
     def never(*args, **kwargs):
         raise AssertionError("the scene was prepared before the encoder check")
 
-    monkeypatch.setattr(runner, "prepare_scene", never)
+    monkeypatch.setattr(render_job, "prepare_scene", never)
     code = cli.main(["render-sim", "ficus", "--frames", "2", "--device", "cpu", "--out", str(tmp_path / "run")])
     err = capsys.readouterr().err
     assert code == 2

@@ -188,7 +188,7 @@ def test_stop_event_interrupts_the_run_and_keeps_its_outputs(tmp_path):
     as Ctrl-C does: KeyboardInterrupt, summary.json marked interrupted, the frames so far kept."""
     import threading
 
-    from fracture_gs.runner import run_render_sim
+    from fracture_gs.render_sim import run_render_sim
 
     class SetAfter(threading.Event):  # reads as set from its fourth check on
         checks = 0

@@ -195,8 +195,8 @@ def test_comparison_composed_live_equals_composed_after(tmp_path):
     import threading
     import time
 
-    from fracture_gs.comparison import ComparisonVideo, compose_comparison
     from fracture_gs.config import SceneConfig
+    from fracture_gs.render_sim.comparison import ComparisonVideo, compose_comparison
 
     cfg = SceneConfig(name="t", frame_dt=0.01)
     rng = np.random.default_rng(0)
@@ -262,8 +262,8 @@ def test_comparison_insets_appear_from_the_latch_frame(tmp_path):
     it do not."""
     from types import SimpleNamespace
 
-    from fracture_gs.comparison import compose_comparison
     from fracture_gs.config import SceneConfig
+    from fracture_gs.render_sim.comparison import compose_comparison
 
     cfg = SceneConfig(name="t", frame_dt=0.01, frames=8)
     cfg.render.width, cfg.render.height = 32, 24

@@ -10,7 +10,10 @@ import pytest
 import torch
 from runutil import assert_same_run, tiny_bread
 
-from fracture_gs import cli, runner
+from fracture_gs import cli
+from fracture_gs import render_sim as runner
+from fracture_gs.render_sim import RunContext
+from fracture_gs.render_sim import variant as render_variant
 from fracture_gs.sim.providers.broadcast import FileChannel
 from fracture_gs.sim.topology import Topology
 
@@ -58,7 +61,7 @@ def test_devices_flag_errors_are_one_line(capsys):
     assert "names no device" in capsys.readouterr().err
 
 
-def explode(cfg, gs, variant, device, *args, **kwargs):
+def explode(ctx, variant, *args, **kwargs):
     """A run_variant stand-in that fails (module level, so a spawned worker can import it)."""
     raise ValueError(f"boom in {variant}")
 
@@ -69,24 +72,11 @@ def test_a_failing_worker_is_reported_with_its_error(tmp_path):
     the worker's traceback; the other workers stop and no temporary files are left behind."""
     import io
 
-    from fracture_gs import assets
-    from fracture_gs.parallel import WorkerFailed, run_on_devices
+    from fracture_gs.render_sim.multi_device import WorkerFailed, run_on_devices
 
-    cfg = tiny_bread()
-    gs = assets.build("bread", size="small", n=300)
+    ctx = _context(tmp_path)
     with pytest.raises(WorkerFailed, match=r"the worker on cpu failed: ValueError: boom in stress_zero") as err:
-        run_on_devices(
-            explode,
-            runner.Painter,
-            cfg,
-            gs,
-            None,
-            ["stress_zero", "full"],
-            ["cpu", "cpu"],
-            tmp_path,
-            io.StringIO(),
-            None,
-        )
+        run_on_devices(ctx, ["cpu", "cpu"], io.StringIO(), run=explode)
     assert "Traceback" in str(err.value)
     assert not list(tmp_path.glob(".*"))
 
@@ -98,18 +88,29 @@ def test_a_run_that_never_latches_on_two_workers(tmp_path):
     cfg = tiny_bread()
     cfg.frames = 2
     summary = runner.run_render_sim(cfg, ["full", "baseline"], "cpu", tmp_path / "par", devices=["cpu", "cpu"])
-    assert [v["status"] for v in summary["variants"]] == ["ok", "ok"]
+    assert [v["status"] for v in summary.variants] == ["ok", "ok"]
     assert not (tmp_path / "par" / "topology.npz").exists() and (tmp_path / "par" / "comparison.mp4").exists()
 
 
-def crash_the_follower(cfg, gs, variant, device, *args, **kwargs):
+def _context(out_dir):
+    """A two-variant run's context on a 300-particle bread (the leader stress_zero first)."""
+    from fracture_gs import assets
+
+    gs = assets.build("bread", size="small", n=300)
+    order = ("stress_zero", "full")
+    return RunContext(tiny_bread(), gs, None, "cpu", out_dir, order, order)
+
+
+def crash_the_follower(ctx, variant, *args, **kwargs):
     """A run_variant stand-in: the follower's process dies without a word (as on a segfault or the OOM
     killer); the leader returns at once."""
     import os
 
     if variant == "full":
         os._exit(3)
-    return {"variant": variant, "status": "ok", "interrupted": False}, None
+    from fracture_gs.render_sim import VariantSummary
+
+    return VariantSummary(variant, "ok", 0, 0, 0.0, None, None, None, interrupted=False), None
 
 
 @pytest.mark.slow
@@ -118,15 +119,10 @@ def test_a_worker_process_that_dies_is_named(tmp_path):
     and its exit code, not a hang and not a silently missing variant."""
     import io
 
-    from fracture_gs import assets
-    from fracture_gs.parallel import WorkerFailed, run_on_devices
+    from fracture_gs.render_sim.multi_device import WorkerFailed, run_on_devices
 
-    gs = assets.build("bread", size="small", n=300)
     with pytest.raises(WorkerFailed, match=r"worker process fgs-cpu-1 exited with code 3 before reporting"):
-        run_on_devices(
-            crash_the_follower, runner.Painter, tiny_bread(), gs, None, ["stress_zero", "full"], ["cpu", "cpu"],
-            tmp_path, io.StringIO(), None,
-        )  # fmt: skip
+        run_on_devices(_context(tmp_path), ["cpu", "cpu"], io.StringIO(), run=crash_the_follower)
 
 
 def test_each_variant_paints_with_its_own_exposed_interior_colours():
@@ -167,7 +163,7 @@ def test_frame_sink_draws_what_the_painter_draws(device, tmp_path):
     want = [direct(frame(k)) for k in range(4)]
     state.copy_(gs.means)
     store: list = []
-    sink = runner.FrameSink(painter.for_variant(), tmp_path / "v.mp4", 10, store)
+    sink = render_variant.FrameSink(painter.for_variant(), tmp_path / "v.mp4", 10, store)
     for k in range(4):
         sink.put(frame(k))
     state.mul_(0.0)  # the solver moving on must not reach the frames already queued

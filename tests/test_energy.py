@@ -181,9 +181,9 @@ def test_fracture_events_add_no_energy_in_a_real_run(device):
     the impact. Across every latch frame and the frame after it (the first simulated with the new
     fragment fields) the total energy rises by at most 1 % of the frame's total, and no frame of this
     closed system (gravity, a static floor) is a violation: an event never adds energy."""
-    from fracture_gs.energy_report import energy_summary
     from fracture_gs.io.config import load_config
     from fracture_gs.pipeline import load_scene, make_simulator
+    from fracture_gs.render_sim.energy_report import energy_summary
 
     cfg = load_config("plate_drop")
     cfg.particles = 3000
@@ -215,7 +215,7 @@ def test_summary_flags_rises_only_without_drivers():
     """A 2 % rise in a frame without drivers is a violation (summary, summary.md line, CLI warning); the
     same rise while a driver acts, or a 0.5 % rise, is not; an event's ΔE is that of its latch frame and
     the next, as fractions of the frame's total."""
-    from fracture_gs.energy_report import energy_line, energy_summary, energy_warning
+    from fracture_gs.render_sim.energy_report import energy_line, energy_summary, energy_warning
 
     e = energy_summary(rows_of([10.0, 9.0, 9.18, 9.0, 9.045], latches=[0, 0, 0, 1, 1]))
     assert [v["frame"] for v in e["violations"]] == [2] and e["closed"]

@@ -23,10 +23,12 @@ from fuzzutil import Tally, fuzz_settings, run_cli
 from hypothesis import given
 from hypothesis import strategies as st
 
-from fracture_gs import cli, runner
+from fracture_gs import cli
+from fracture_gs import render_sim as runner
 from fracture_gs.errors import ArgumentError
 from fracture_gs.io import GaussianSet
 from fracture_gs.module import FORWARD, _material_argument, _velocity_argument, gaussians_from_tensors
+from fracture_gs.render_sim import RunSummary
 
 FIELDS = ("means", "quats", "scales", "opacities", "sh", "interior", "labels")
 WIDTH = {"means": (3,), "quats": (4,), "scales": (3,), "opacities": (), "sh": (1, 3), "interior": (), "labels": ()}
@@ -390,7 +392,18 @@ def recorders(monkeypatch, tmp_path):
         runner,
         "run_render_sim",
         lambda cfg, variants, device, out_dir, **kw: (
-            calls.append("render-sim") or {"variants": [{"variant": v, "status": "ok"} for v in variants]}
+            calls.append("render-sim")
+            or RunSummary(
+                cfg.name,
+                cfg.scene,
+                cfg.preset,
+                device,
+                1,
+                [],
+                1,
+                0.01,
+                [{"variant": v, "status": "ok"} for v in variants],
+            )
         ),
     )
     monkeypatch.setattr(bench, "run_bench", lambda **kw: calls.append("bench") or {"ok": True})

@@ -14,6 +14,7 @@ from hypothesis import strategies as st
 
 from fracture_gs import cli
 from fracture_gs.io.config import validate
+from fracture_gs.render_sim import RunSummary
 
 TEXT = st.text(st.characters(exclude_categories=["Cs"], exclude_characters="\x00"), max_size=10)
 
@@ -109,7 +110,17 @@ class Recorder:
         validate(cfg, "dispatched config")
         assert device in ("cpu",) and out_dir.is_dir() and set(variants) == set(cfg.variants)
         self.calls += 1
-        return {"variants": [{"variant": v, "status": "ok"} for v in variants]}
+        return RunSummary(
+            cfg.name,
+            cfg.scene,
+            cfg.preset,
+            device,
+            1,
+            [],
+            cfg.frames,
+            cfg.frame_dt,
+            [{"variant": v, "status": "ok"} for v in variants],
+        )
 
     def bench(self, device=None, out_dir=None, **kw):
         assert device == "cpu" and out_dir.is_dir()
@@ -127,7 +138,7 @@ class Recorder:
 def test_fuzz_cli(tmp_path, monkeypatch, capsys):
     import fracture_gs.paper.bench as bench
     import fracture_gs.paper.figures as figures
-    import fracture_gs.runner as runner
+    import fracture_gs.render_sim as runner
 
     rec = Recorder()
     monkeypatch.setattr(runner, "run_render_sim", rec.render_sim)

@@ -308,7 +308,7 @@ def test_a_run_leaves_no_tensors_in_reference_cycles(tmp_path):
     (the soak found each run's simulators held until a full collection through Simulator ↔ Diagnostics)."""
     import gc
 
-    from fracture_gs.runner import run_render_sim
+    from fracture_gs.render_sim import run_render_sim
 
     cfg = load_config("bread")
     cfg.frames, cfg.particles, cfg.render.backend = 2, 1500, "torch"

@@ -11,8 +11,10 @@ import sys
 import imageio.v2 as imageio
 import pytest
 
-from fracture_gs import pipeline, runner
+from fracture_gs import pipeline
+from fracture_gs import render_sim as runner
 from fracture_gs.io.config import load_config
+from fracture_gs.render_sim import variant as render_variant
 
 pytestmark = pytest.mark.usefixtures("one_thread")
 
@@ -37,7 +39,7 @@ def test_interrupt_keeps_a_row_per_variant_and_the_held_frame(tmp_path, monkeypa
                 raise KeyboardInterrupt
             yield out
 
-    monkeypatch.setattr(runner, "simulate", interrupted_second_variant)
+    monkeypatch.setattr(render_variant, "simulate", interrupted_second_variant)
     with pytest.raises(KeyboardInterrupt):
         runner.run_render_sim(cfg, ["full", "local_multifield"], "cpu", tmp_path, schedule="in_turn")
     summary = json.loads((tmp_path / "summary.json").read_text())
@@ -63,7 +65,7 @@ def test_three_variants_interrupted_in_the_second(tmp_path, monkeypatch):
                 raise KeyboardInterrupt
             yield out
 
-    monkeypatch.setattr(runner, "simulate", stop)
+    monkeypatch.setattr(render_variant, "simulate", stop)
     with pytest.raises(KeyboardInterrupt):
         runner.run_render_sim(cfg, ["full", "local_multifield", "stress_zero"], "cpu", tmp_path, schedule="in_turn")
     rows = json.loads((tmp_path / "summary.json").read_text())["variants"]

@@ -211,8 +211,9 @@ def test_a_rendered_scene_cell_reports_its_one_variant(monkeypatch, tmp_path):
     """A scene cell with render = true runs render-sim for its one variant and reports that variant's summary:
     flat numbers as metrics (with the latch frame and time lifted out, particles and frames added), tables and
     lists as extras, the variant's status as the cell's."""
-    import fracture_gs.runner as runner
+    import fracture_gs.render_sim as runner
     from fracture_gs.io.config import config_from_dict, config_to_dict
+    from fracture_gs.render_sim import RunSummary
     from fracture_gs.sweep.cells import run_cell
 
     calls = []
@@ -221,7 +222,7 @@ def test_a_rendered_scene_cell_reports_its_one_variant(monkeypatch, tmp_path):
         calls.append((list(variants), device, folder))
         latch = {"latch_frame": 4, "latch_time": 0.04}
         variant = {"variant": variants[0], "status": "diverged at frame 9: x", "opening": 1.5, "latch": latch}
-        return {"particles": 321, "variants": [variant | {"fragments": [1, 2]}]}
+        return RunSummary("c", "bread", "small", device, 321, [], 9, 0.01, [variant | {"fragments": [1, 2]}])
 
     monkeypatch.setattr(runner, "run_render_sim", fake_render_sim)
     config = config_to_dict(config_from_dict({"variants": ["baseline"], "frames": 9}))

@@ -60,8 +60,9 @@ def test_a_diverged_scene_cell_reports_the_frame_and_the_cause(monkeypatch, caus
     """A scene cell whose simulation diverges is an outcome, not an exception: its status names the frame and
     the likely cause the solver gave, or the solver's own message when it gave no cause."""
     import fracture_gs.pipeline as pipeline
-    import fracture_gs.runner as runner
+    import fracture_gs.render_sim as runner
     from fracture_gs.io.config import config_from_dict, config_to_dict
+    from fracture_gs.render_sim import VariantSummary
     from fracture_gs.sim import SimulationDiverged
     from fracture_gs.sweep.cells import run_cell
 
@@ -71,7 +72,9 @@ def test_a_diverged_scene_cell_reports_the_frame_and_the_cause(monkeypatch, caus
 
     monkeypatch.setattr(pipeline, "make_simulator", lambda cfg, gs, variant, device: SimpleNamespace(dt=1e-4))
     monkeypatch.setattr(pipeline, "simulate", simulate)
-    monkeypatch.setattr(runner, "summarize", lambda variant, rows, st, wall: {"variant": variant, "status": st})
+    monkeypatch.setattr(
+        runner, "summarize", lambda variant, rows, st, wall: VariantSummary(variant, st, 0, 0, wall, None, None, None)
+    )
     config = config_to_dict(config_from_dict({"variants": ["baseline"], "frames": 4, "particles": 200}))
     c = Cell(0, "abc", "scene", {"variant": "baseline", "seed": 0}, {}, ("t",), config)
     out = run_cell(c, "cpu", None)

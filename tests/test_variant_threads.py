@@ -1,4 +1,4 @@
-"""render-sim's variants at once on one device, a thread each (`--schedule threads`, `fracture_gs.variant_threads`).
+"""render-sim's variants at once on one device, a thread each (`--schedule threads`, `fracture_gs.render_sim.threads`).
 
 The leader's topology reaches the followers through a `MemoryChannel` at the end of each of its frames,
 so a follower latches at the frame a replay of the saved history would: on the CPU (deterministic kernels)
@@ -14,8 +14,10 @@ import pytest
 import torch
 from runutil import assert_same_run, tiny_bread
 
-from fracture_gs import pipeline, runner
+from fracture_gs import pipeline
+from fracture_gs import render_sim as runner
 from fracture_gs.io.video import read_video
+from fracture_gs.render_sim import variant as render_variant
 from fracture_gs.runtime import current_lane, stream_lane
 from fracture_gs.sim.providers.broadcast import MemoryChannel
 from fracture_gs.sim.topology import Topology
@@ -79,7 +81,7 @@ def test_an_interrupted_variant_stops_the_others_at_their_next_frame(tmp_path, m
                 raise KeyboardInterrupt
             yield out
 
-    monkeypatch.setattr(runner, "simulate", interrupt_full)
+    monkeypatch.setattr(render_variant, "simulate", interrupt_full)
     with pytest.raises(KeyboardInterrupt):
         runner.run_render_sim(cfg, ["full", "baseline"], "cpu", tmp_path, schedule="threads")
     summary = json.loads((tmp_path / "summary.json").read_text())
@@ -106,7 +108,7 @@ def test_an_error_in_one_variant_is_raised_and_stops_the_others(tmp_path, monkey
                 raise ValueError("boom in baseline")
             yield out
 
-    monkeypatch.setattr(runner, "simulate", fail_baseline)
+    monkeypatch.setattr(render_variant, "simulate", fail_baseline)
     with pytest.raises(ValueError, match="boom in baseline"):
         runner.run_render_sim(cfg, ["full", "baseline"], "cpu", tmp_path, schedule="threads")
     assert seen["full"] < cfg.frames, "the leader stopped instead of running to the end"
@@ -116,7 +118,7 @@ def test_a_run_that_never_latches_in_threads(tmp_path):
     """Too few frames to latch: no live composing starts (it waits for the first latch), the comparison is
     composed after the run, no topology.npz is written, and every variant is ok."""
     summary = runner.run_render_sim(tiny_bread(2), ["full", "baseline"], "cpu", tmp_path, schedule="threads")
-    assert [v["status"] for v in summary["variants"]] == ["ok", "ok"]
+    assert [v["status"] for v in summary.variants] == ["ok", "ok"]
     assert not (tmp_path / "topology.npz").exists()
     assert read_video(tmp_path / "comparison.mp4")[0] == 3
 
@@ -143,8 +145,8 @@ def test_stream_lanes_are_per_thread_and_the_render_worker_inherits_its_producer
             means = torch.zeros(1, 3)
             ready = None
 
-        monkeypatch.setattr(runner, "VideoWriter", lambda path, fps: _null_video())
-        sink = runner.FrameSink(Painter(), "unused.mp4", 10, [])
+        monkeypatch.setattr(render_variant, "VideoWriter", lambda path, fps: _null_video())
+        sink = render_variant.FrameSink(Painter(), "unused.mp4", 10, [])
         sink.put(Out())
         sink.close()
     assert current_lane() == 0
@@ -165,6 +167,8 @@ def _null_video():
 def test_the_schedule_is_in_turn_unless_threads_are_asked_for():
     """In turn is the default (threads were 4 % faster on 2 CPU cores and not faster on an H200, and interleave
     metrics.jsonl's rows); a wrong name is one sentence."""
-    assert not runner._threads("in_turn") and runner._threads("threads")
+    import inspect
+
+    assert inspect.signature(runner.run_render_sim).parameters["schedule"].default == "in_turn"
     with pytest.raises(ValueError, match="schedule must be 'in_turn' or 'threads', got 'sideways'"):
-        runner._threads("sideways")
+        runner.run_render_sim(tiny_bread(1), ["full"], "cpu", "unused", schedule="sideways")

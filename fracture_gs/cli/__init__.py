@@ -4,7 +4,7 @@ Every user error (bad config, bad PLY, missing file, bad flag) ends as one line
 `fracture-gs: error: <sentence>` on stderr and exit code 2, never a traceback (set
 FRACTURE_GS_DEBUG=1 to get the traceback instead). A flag that would do nothing in the combination
 given is such an error too (`run.refuse_ignored_flags`). The heavy work lives
-in modules imported only when a command needs them (`fracture_gs.runner`, `fracture_gs.paper`), so
+in modules imported only when a command needs them (`fracture_gs.render_sim`, `fracture_gs.paper`), so
 `--help`, `info` and `validate` stay fast and work on any machine.
 
 This module imports nothing heavy at its top: the parser and the commands (torch, Warp) are imported

@@ -42,7 +42,7 @@ def sigint_event():
 
 
 def _print_summary(summary: Any) -> None:
-    """Print a runner's summary dict as `key: value` lines (JSON for nested values)."""
+    """Print a summary dict as `key: value` lines (JSON for nested values)."""
     if not isinstance(summary, dict):
         if summary is not None:
             print(summary)
@@ -53,7 +53,7 @@ def _print_summary(summary: Any) -> None:
 
 
 def cmd_render_sim(args: argparse.Namespace) -> int:
-    """render-sim: load, override, validate, refuse flags that would do nothing, then run (fracture_gs.runner)."""
+    """render-sim: load, override, validate, refuse flags that would do nothing, then run (fracture_gs.render_sim)."""
     from ..io.config import apply_overrides, find_config, load_config
 
     export_format = getattr(args, "export_format", None)
@@ -69,17 +69,13 @@ def cmd_render_sim(args: argparse.Namespace) -> int:
         resolution=args.resolution,
         variants=args.variants,
         source=f"{path} with command-line overrides",
+        keys={"particles": getattr(args, "particles", None), **_key_flags(args)},
     )
     refuse_render_sim(cfg, args, devices)
     out_dir = output_dir(args.out if args.out is not None else Path("runs") / cfg.name)
-    from ..runner import run_render_sim as run
+    from ..render_sim import run_render_sim as run
 
     args.partial_out = out_dir
-    if getattr(args, "particles", None):
-        cfg.particles = args.particles
-    _capture_overrides(cfg, args)
-    if getattr(args, "particle_order", None):
-        cfg.sim.particle_order = args.particle_order
     print(
         f"render-sim: {cfg.name} ({cfg.scene}, preset {cfg.preset}), {cfg.frames} frames, "
         f"variants {', '.join(cfg.variants)}, device {device} -> {out_dir}"
@@ -92,21 +88,21 @@ def cmd_render_sim(args: argparse.Namespace) -> int:
     if getattr(args, "schedule", None) and args.schedule != "in-turn":
         extra["schedule"] = args.schedule.replace("-", "_")
     with sigint_event() as stop:
-        summary = run(cfg, list(cfg.variants), device, out_dir, profile=args.profile, stop=stop, **extra) or {}
+        summary = run(cfg, list(cfg.variants), device, out_dir, profile=args.profile, stop=stop, **extra)
     table = out_dir / "summary.md"
-    print(table.read_text() if table.exists() else json.dumps(summary, indent=2, default=str))
+    print(table.read_text() if table.exists() else json.dumps(summary.as_dict(), indent=2, default=str))
     print(
         f"outputs in {out_dir}: comparison.mp4, one <variant>.mp4 each, frames/, metrics.jsonl, summary.json, "
         "topology.npz, config.toml"
     )
-    if summary.get("profile"):
-        print(summary["profile"], end="")
-    from ..energy_report import energy_warning
+    if summary.profile:
+        print(summary.profile, end="")
+    from ..render_sim.energy_report import energy_warning
 
-    warning = energy_warning(summary.get("variants", []))
+    warning = energy_warning(summary.variants)
     if warning:
         print(f"fracture-gs: warning: {warning}", file=sys.stderr)
-    failed = [f"{v['variant']} {v['status']}" for v in summary.get("variants", []) if v.get("status", "ok") != "ok"]
+    failed = [f"{v['variant']} {v['status']}" for v in summary.variants if v.get("status", "ok") != "ok"]
     if failed:
         print(
             f"fracture-gs: error: {'; '.join(failed)}; every frame and metric written before that is in {out_dir}",
@@ -189,7 +185,7 @@ def cmd_init(args: argparse.Namespace) -> int:
     """init: resolve a captured scene's automatic choices and write them as a commented TOML."""
     from ..capture.scene import resolve
     from ..capture.starter import starter_toml
-    from ..io.config import load_config
+    from ..io.config import apply_overrides, load_config
     from ..io.formats import READ, is_splat_file
 
     ply = Path(args.scene)
@@ -197,8 +193,7 @@ def cmd_init(args: argparse.Namespace) -> int:
         raise CliError(
             f"{ply}: init takes a captured scene ({READ}); for a TOML config use `fracture-gs validate {ply}`."
         )
-    cfg = load_config(ply)
-    _capture_overrides(cfg, args)
+    cfg = apply_overrides(load_config(ply), source=f"{ply} with command-line overrides", keys=_key_flags(args))
     out = output_file(args.out if args.out is not None else Path(f"{cfg.name}.toml"))
     if out.exists() and not args.force:
         raise CliError(f"{out} exists; pass --force to overwrite it or choose another --out.")
@@ -210,9 +205,8 @@ def cmd_init(args: argparse.Namespace) -> int:
     return 0
 
 
-def _capture_overrides(cfg, args: argparse.Namespace) -> None:
-    """--load, --material and --quality into the capture settings."""
-    for flag, key in (("load", "load"), ("material", "material"), ("quality", "quality")):
-        value = getattr(args, flag, None)
-        if value:
-            setattr(cfg.capture, key, value)
+def _key_flags(args: argparse.Namespace) -> dict:
+    """--load, --material, --quality and --particle-order as the TOML keys they set (None: not given)."""
+    flags = {"capture.load": "load", "capture.material": "material", "capture.quality": "quality"}
+    flags["sim.particle_order"] = "particle_order"
+    return {key: getattr(args, flag, None) or None for key, flag in flags.items()}

@@ -94,7 +94,7 @@ def run_experiment(
     asked once the latch is known; `state_frames(sim, frame)` may capture extra data (the method
     figure's slice)."""
     from ..pipeline import load_scene, make_simulator, simulate
-    from ..runner import Painter, summarize
+    from ..render_sim import Painter, summarize
     from ..sim import SimulationDiverged
 
     cfg = prep.cfg
@@ -124,7 +124,7 @@ def run_experiment(
         wall = time.perf_counter() - t0
         if sim.topology is not None and topology is None:
             topology = sim.topology
-        summary = _clean_row(summarize(variant, rows, status, wall))
+        summary = _clean_row(summarize(variant, rows, status, wall).as_dict())
         runs[variant] = VariantRun(variant, rows, summary, status, wall, images, states)
         if progress:
             latch = summary.get("latch") or {}

@@ -8,7 +8,7 @@ Two kinds:
   and its unit, the case's extras (measured period, energy drift, penetration in Δx, ...).
 * ``scene`` — a scene config (built-in or PLY) with one variant: the simulation of render-sim
   without drawing (frame loop, event provider, per-frame diagnostics), summarised exactly as
-  render-sim's summary.json (`fracture_gs.runner.summarize`): latch frame, opening, re-approach,
+  render-sim's summary.json (`fracture_gs.render_sim.summarize`): latch frame, opening, re-approach,
   stringing, mixing, mass residual, penetration, fragments, slot overflow, contact numbers, wall
   time and substeps/s. With ``render = true`` the cell runs `run_render_sim` instead (videos and
   frames under OUT/cells/<id>/), which costs the rendering time too.
@@ -109,20 +109,20 @@ def run_scene_cell(cell: Cell, device: str, out_dir: Optional[Path] = None) -> O
     from .. import assets
     from ..io.config import config_from_dict
     from ..pipeline import make_simulator, prepare_scene, simulate
-    from ..runner import summarize
+    from ..render_sim import summarize
     from ..sim import SimulationDiverged
 
     cfg = config_from_dict(cell.config, source=f"sweep cell {cell.id}")
     variant, seed = cell.params["variant"], int(cell.params["seed"])
     if cell.params.get("render"):
-        from ..runner import run_render_sim
+        from ..render_sim import run_render_sim
 
         folder = Path(out_dir if out_dir is not None else ".") / "cells" / cell.id
-        summary = run_render_sim(cfg, [variant], device, folder, progress=False)
-        flat, extra = _flat(summary["variants"][0])
-        flat["particles"] = summary["particles"]
+        run = run_render_sim(cfg, [variant], device, folder, progress=False)
+        flat, extra = _flat(run.variants[0])
+        flat["particles"] = run.particles
         flat["frames"] = cfg.frames
-        return Outcome(flat, summary["variants"][0].get("status", "ok"), extra)
+        return Outcome(flat, run.variants[0].get("status", "ok"), extra)
     torch.manual_seed(seed)
     if cfg.scene in assets.names():
         gs = assets.build(cfg.scene, size=cfg.preset, n=cfg.particles, seed=seed).to(device)
@@ -141,7 +141,7 @@ def run_scene_cell(cell: Cell, device: str, out_dir: Optional[Path] = None) -> O
         status = f"diverged at frame {err.frame}: {err.cause or err}"
     _sync(device)
     summary = summarize(variant, rows, status, time.perf_counter() - t0)
-    flat, extra = _flat(summary)
+    flat, extra = _flat(summary.as_dict())
     flat["particles"] = len(gs)
     flat["frames"] = cfg.frames
     flat["dt"] = float(sim.dt) if math.isfinite(float(sim.dt)) else None

@@ -277,3 +277,21 @@ def _normalize_normals(cfg: SceneConfig) -> None:
     for b in cfg.sim.boundaries:
         if isinstance(b, PlaneBoundary):
             b.normal = _unit(b.normal)
+
+
+def set_key(cfg: SceneConfig, dotted: str, value: Any, src: str) -> None:
+    """Set one dotted TOML key of `cfg` (e.g. `capture.load`) as the file's reader would: the key must exist and
+    the value must have its field's type and choices (a ConfigError naming the key otherwise). The caller
+    validates the whole config afterwards, as for a file."""
+    *path, key = dotted.split(".")
+    target: Any = cfg
+    for i, part in enumerate(path):
+        valid = [f.name for f in dataclasses.fields(target)]
+        if part not in valid or not dataclasses.is_dataclass(getattr(target, part)):
+            raise _unknown_key(src, ".".join(path[:i]), part, valid)
+        target = getattr(target, part)
+    cls = type(target)
+    valid = [f.name for f in dataclasses.fields(cls)]
+    if key not in valid:
+        raise _unknown_key(src, ".".join(path), key, valid)
+    setattr(target, key, _convert(value, _hints(cls)[key], dotted, src, cls, key))

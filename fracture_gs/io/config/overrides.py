@@ -11,11 +11,12 @@ from __future__ import annotations
 import copy
 import difflib
 import re
-from typing import Optional, Sequence, Union
+from typing import Any, Mapping, Optional, Sequence, Union
 
 from ...config import PRESETS, SceneConfig
 from ...errors import ConfigError
 from ...variants import VARIANT_NAMES
+from .build import set_key
 from .validate import MAX_IMAGE_SIDE, validate
 
 
@@ -82,13 +83,16 @@ def apply_overrides(
     resolution: Union[str, Sequence[int], None] = None,
     variants: Union[str, Sequence[str], None] = None,
     source: str = "command line",
+    keys: Optional[Mapping[str, Any]] = None,
 ) -> SceneConfig:
     """Return a validated copy of `cfg` with CLI overrides applied (None = keep).
 
     `preset="paper"` sets Δx = 1/128 (`"small"`: 1/64), rescales an explicit `grid_shape` to cover
     the same box (64³ → 128³) and `sim.dt` by the same ratio; `resolution` is `"WxH"` or (w, h);
-    `variants` is `"a,b"` or a list. A bad flag raises ConfigError naming the flag; the result is
-    validated again, naming `source` (e.g. "configs/bread.toml with command-line overrides")."""
+    `variants` is `"a,b"` or a list; `keys` sets dotted TOML keys (`{"particles": 3000, "capture.load": "drop"}`)
+    through the file reader's type checks (`build.set_key`), None values skipped. A bad flag raises ConfigError
+    naming the flag or key; the result is validated again like a file, naming `source` (e.g.
+    "configs/bread.toml with command-line overrides"), so a flag is held to the same ranges as its TOML key."""
     out = copy.deepcopy(cfg)
     if preset is not None:
         _apply_preset(out, preset, "")
@@ -103,4 +107,7 @@ def apply_overrides(
         out.capture.panel = "config"  # a captured scene keeps the size asked for
     if variants is not None:
         out.variants = parse_variants(variants)
+    for dotted, value in (keys or {}).items():
+        if value is not None:
+            set_key(out, dotted, value, source)
     return validate(out, source)

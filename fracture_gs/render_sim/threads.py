@@ -27,14 +27,18 @@ from __future__ import annotations
 
 import contextlib
 import threading
-from pathlib import Path
-from typing import Callable, Optional
+from typing import Optional
 
 import torch
 
-from .runtime import side_stream, stream_lane
-from .sim.providers import make_provider
-from .sim.providers.broadcast import BroadcastProvider, LeaderProvider, MemoryChannel
+from ..runtime import side_stream, stream_lane
+from ..sim.providers import make_provider
+from ..sim.providers.broadcast import BroadcastProvider, LeaderProvider, MemoryChannel
+from ..sim.topology import save_history
+from .comparison import ComparisonVideo
+from .context import RunContext, ScheduleResult
+from .painter import Painter
+from .variant import run_variant
 
 
 class _Lines:
@@ -64,40 +68,30 @@ def _variant_scope(device: str, lane: int):
 
 
 def run_in_threads(
-    run_variant: Callable,
-    painter,
-    cfg,
-    gs,
-    order: list,
-    device: str,
-    out_dir: Path,
-    metrics,
-    export=None,
-    stop: Optional[threading.Event] = None,
-    on_first_topology: Optional[Callable] = None,
-) -> tuple[dict, dict, Optional[list], bool]:
-    """Run `order` (leader first) at once on `device`, one thread each; returns (frames, summaries, the
-    leader's history or None, interrupted) like `parallel.run_on_devices`. `run_variant` and `painter` come
-    from the caller (the runner), whose module sits above this one. `on_first_topology(topology, frames)`
-    is called once, from this thread, when the leader's first latch is known (the runner starts composing
-    there). `stop`: set it to stop every variant at its next frame (Ctrl-C here sets it)."""
+    ctx: RunContext, painter: Painter, metrics, stop: Optional[threading.Event] = None
+) -> ScheduleResult:
+    """Run `ctx.order` (leader first) at once on `ctx.device`, one thread each. The comparison video is composed
+    beside them from the leader's first latch on. `stop`: set it to stop every variant at its next frame (Ctrl-C
+    here sets it)."""
+    order, cfg = list(ctx.order), ctx.cfg
     stop = stop if stop is not None else threading.Event()
     channel = MemoryChannel()
     frames: dict = {v: [] for v in order}
     done: dict = {}
     lines = _Lines(metrics)
+    live: Optional[ComparisonVideo] = None
 
     def work(lane: int, variant: str) -> None:
         leader = lane == 0
         try:
-            with _variant_scope(device, lane):
+            with _variant_scope(ctx.device, lane):
                 provider = LeaderProvider(make_provider(cfg.topology), channel) if leader else None
                 summary, history = run_variant(
-                    cfg, gs, variant, device, out_dir, painter, None, lines, frames[variant], export,
+                    ctx, variant, painter, lines, frames[variant],
                     provider=provider or BroadcastProvider(channel), stop=stop, position=lane,
                 )  # fmt: skip
             done[variant] = ("done", summary, history)
-            if summary.get("interrupted"):
+            if summary.interrupted:
                 stop.set()
         except BaseException as exc:  # noqa: BLE001 - raised in the caller's thread
             stop.set()
@@ -111,22 +105,31 @@ def run_in_threads(
     ]
     for t in threads:
         t.start()
-    interrupted, told = False, on_first_topology is None
-    while any(t.is_alive() for t in threads):
-        try:
-            for t in threads:
-                t.join(timeout=0.05)
-            first = None if told else channel.first()
-            if first is not None:
-                told = True
-                on_first_topology(first, frames)
-        except KeyboardInterrupt:  # the variants stop at their next frame and return what they have
-            interrupted = True
-            stop.set()
-    errors = [done[v][1] for v in order if v in done and done[v][0] == "error"]
-    if errors:
-        raise errors[0]
+    interrupted, told = False, False
+    try:
+        while any(t.is_alive() for t in threads):
+            try:
+                for t in threads:
+                    t.join(timeout=0.05)
+                first = None if told else channel.first()
+                if first is not None:  # the insets need the interface: compose from the first latch on
+                    told = True
+                    panels = [frames[v] for v in ctx.variants]
+                    live = ComparisonVideo(cfg, ctx.variants, panels, first, ctx.out_dir, ["ok"] * len(panels))
+                    live.start_live(*panels)
+            except KeyboardInterrupt:  # the variants stop at their next frame and return what they have
+                interrupted = True
+                stop.set()
+        errors = [done[v][1] for v in order if v in done and done[v][0] == "error"]
+        if errors:
+            raise errors[0]
+    except BaseException:
+        if live is not None:
+            live.abort()
+        raise
     summaries = {v: done[v][1] for v in order if v in done}
     history = done[order[0]][2] if order[0] in done else None
-    interrupted = interrupted or any(s.get("interrupted") for s in summaries.values())
-    return frames, summaries, history, interrupted
+    if history is not None:
+        save_history(ctx.out_dir / "topology.npz", history)
+    interrupted = interrupted or any(s.interrupted for s in summaries.values())
+    return ScheduleResult(frames, summaries, history, interrupted, live)

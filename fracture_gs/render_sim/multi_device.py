@@ -23,40 +23,45 @@ import queue
 import shutil
 import traceback
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 import torch
 
-from .sim.providers import make_provider
-from .sim.providers.broadcast import BroadcastProvider, FileChannel, LeaderProvider
+from ..sim.providers import make_provider
+from ..sim.providers.broadcast import BroadcastProvider, FileChannel, LeaderProvider
+from ..sim.topology import save_history
+from .context import RunContext, ScheduleResult
+from .painter import Painter
+from .variant import run_variant
 
 
-def _worker(slot, device, variants, leader, cfg, gs, background, out_dir, export, channel_dir, stop, results, fns):
-    """One device's variants, in order (in a spawned process, or in the caller for the first device: then
-    `results` is a plain queue.Queue and the frames travel in the message instead of a .npy file)."""
+def _worker(slot: int, ctx: RunContext, variants, leader, channel_dir, stop, results, threads: int, run) -> None:
+    """One device's variants (`ctx.device`), in order (in a spawned process, or in the caller for the first
+    device: then `results` is a plain queue.Queue and the frames travel in the message instead of a .npy file)."""
     local = isinstance(results, queue.Queue)
-    run_variant, painter_class, threads = fns
     torch.set_num_threads(threads)  # as the parent: the CPU reductions then sum in the same order
+    cfg, device, out_dir = ctx.cfg, ctx.device, ctx.out_dir
     try:
         if device.startswith("cuda"):
             torch.cuda.set_device(torch.device(device))
-        gs = gs.to(device)
-        painter = painter_class(gs, cfg, device, background=background)
+        ctx = replace(ctx, gaussians=ctx.gaussians.to(device))
+        painter = Painter(ctx.gaussians, cfg, device, background=ctx.background)
         channel = FileChannel(channel_dir)
         for variant in variants:
             if stop.is_set():
                 break
-            provider = LeaderProvider(make_provider(cfg.topology), channel) if variant == leader else None
-            provider = provider or BroadcastProvider(channel)
+            provider = (
+                LeaderProvider(make_provider(cfg.topology), channel)
+                if variant == leader
+                else BroadcastProvider(channel)
+            )
             frames: list = []
             metrics = out_dir / f".metrics_{variant}.jsonl"
             try:
                 with open(metrics, "w") as fh:
-                    summary, history = run_variant(
-                        cfg, gs, variant, device, out_dir, painter, None, fh, frames, export,
-                        provider=provider, stop=stop, position=slot,
-                    )  # fmt: skip
+                    summary, history = run(
+                        ctx, variant, painter, fh, frames, provider=provider, stop=stop, position=slot
+                    )
             finally:
                 if variant == leader:
                     channel.close()  # followers past the leader's last frame stop waiting
@@ -67,7 +72,7 @@ def _worker(slot, device, variants, leader, cfg, gs, background, out_dir, export
                 torch.save([replace(t, fragment=t.fragment.cpu(), band=t.band.cpu()) for t in history or []],
                            out_dir / ".leader_history.pt")  # fmt: skip
             results.put(("done", variant, summary, frames if local else None))
-            if summary.get("interrupted"):
+            if summary.interrupted:
                 stop.set()
     except KeyboardInterrupt:
         stop.set()
@@ -80,23 +85,26 @@ class WorkerFailed(RuntimeError):
     """A worker process of `render-sim --devices` failed; the message carries its error and traceback."""
 
 
-def run_on_devices(run_variant, painter_class, cfg, gs, background, order, devices, out_dir: Path, metrics, export):
-    """Run `order` (leader first) over `devices` (one worker process per entry; an entry may repeat).
-    Returns (frames, summaries, leader history or None, interrupted); the variants' metrics lines are
-    appended to `metrics` in `order`."""
-    ctx = torch.multiprocessing.get_context("spawn")
-    stop, results = ctx.Event(), ctx.Queue()
+def run_on_devices(ctx: RunContext, devices: list[str], metrics, run=run_variant) -> ScheduleResult:
+    """Run `ctx.order` (leader first) over `devices` (one worker process per entry; an entry may repeat); the
+    variants' metrics lines are appended to `metrics` in that order, and the leader's history to topology.npz.
+    `run` runs one variant (`variant.run_variant`; a test passes a stand-in defined at module level, which the
+    spawned workers import)."""
+    order, out_dir = list(ctx.order), ctx.out_dir
+    mp = torch.multiprocessing.get_context("spawn")
+    stop, results = mp.Event(), mp.Queue()
     channel_dir = out_dir / ".topology_channel"
     shutil.rmtree(channel_dir, ignore_errors=True)
-    queues = [[] for _ in devices]
+    queues: list[list[str]] = [[] for _ in devices]
     for i, v in enumerate(order):
         queues[i % len(devices)].append(v)
-    gs_cpu, bg_cpu = gs.to("cpu"), (background.to("cpu") if background is not None else None)
-    fns = (run_variant, painter_class, torch.get_num_threads())
+    bg = ctx.background
+    on_cpu = replace(ctx, gaussians=ctx.gaussians.to("cpu"), background=bg.to("cpu") if bg is not None else None)
+    threads = torch.get_num_threads()
     procs = [  # the first device's variants run here, the others' in spawned processes
-        ctx.Process(
+        mp.Process(
             target=_worker,
-            args=(i, devices[i], vs, order[0], cfg, gs_cpu, bg_cpu, out_dir, export, channel_dir, stop, results, fns),
+            args=(i, replace(on_cpu, device=devices[i]), vs, order[0], channel_dir, stop, results, threads, run),
             name=f"fgs-{devices[i]}-{i}",
             daemon=True,
         )
@@ -108,7 +116,7 @@ def run_on_devices(run_variant, painter_class, cfg, gs, background, order, devic
     local: queue.Queue = queue.Queue()
     interrupted = False
     try:
-        _worker(0, devices[0], queues[0], order[0], cfg, gs, background, out_dir, export, channel_dir, stop, local, fns)
+        _worker(0, replace(ctx, device=devices[0]), queues[0], order[0], channel_dir, stop, local, threads, run)
     except KeyboardInterrupt:
         interrupted = True
         stop.set()
@@ -149,5 +157,7 @@ def run_on_devices(run_variant, painter_class, cfg, gs, background, order, devic
     crashed = [p for p in procs if p.exitcode not in (0, None)]
     if crashed and not interrupted:
         raise WorkerFailed(f"worker process {crashed[0].name} exited with code {crashed[0].exitcode} before reporting")
-    interrupted = interrupted or any(s.get("interrupted") for s in summaries.values())
-    return frames, summaries, history, interrupted
+    interrupted = interrupted or any(s.interrupted for s in summaries.values())
+    if history is not None:
+        save_history(out_dir / "topology.npz", history)
+    return ScheduleResult(frames, summaries, history, interrupted)

@@ -18,15 +18,15 @@ import time
 from collections import deque
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
-from typing import Optional
+from typing import Optional, Union
 
 import numpy as np
 
-from .io.video import VideoWriter, save_png
-from .profiling import phases
-from .render import compose
-from .render.camera import frame_camera
-from .sim import Topology
+from ..io.video import VideoWriter, save_png
+from ..profiling import phases
+from ..render import compose
+from ..render.camera import frame_camera
+from ..sim import Topology
 
 LIVE_WINDOW = 2  # frames composed at once beside the solver (more took the interpreter lock from it)
 
@@ -40,12 +40,11 @@ class ComparisonVideo:
     `finish` stops it after its current frame and composes the rest with a pool of threads (numpy,
     OpenCV and the PNG encoder release the GIL), at most two per thread ahead of the encoder."""
 
-    def __init__(self, cfg, variants, frame_lists, topology: Optional[Topology], out_dir: Path, statuses):
+    def __init__(self, cfg, variants, frame_lists, topology: Union[Topology, list, None], out_dir: Path, statuses):
         self.cfg, self.variants, self.frame_lists = cfg, list(variants), list(frame_lists)
         self.out_dir, self.statuses = out_dir, list(statuses)
-        if isinstance(topology, list):  # a history: the inset follows the first event's interface
-            topology = topology[0]
-        self.topology = topology
+        # a history: the inset follows the first event's interface
+        self.topology: Optional[Topology] = topology[0] if isinstance(topology, list) else topology
         self.video = VideoWriter(out_dir / "comparison.mp4", fps=cfg.render.fps)
         self._workers = max(1, min(8, os.cpu_count() or 1))
         self._pool = ThreadPoolExecutor(self._workers, thread_name_prefix="fgs-compose")
@@ -61,7 +60,7 @@ class ComparisonVideo:
         latch_frame = topo.latch_frame if topo is not None else None
         with phases.section("compose"):
             panels, region = [], None
-            if latch_frame is not None and i >= latch_frame:  # the same camera for every panel of frame i
+            if topo is not None and latch_frame is not None and i >= latch_frame:  # one camera for all panels of i
                 region = compose.interface_region(topo.point, topo.normal, 0.04, frame_camera(cfg, i))
             for frames in self.frame_lists:
                 img = frames[min(i, len(frames) - 1)]
@@ -138,7 +137,7 @@ class ComparisonVideo:
             self.video.close()
 
 
-def compose_comparison(cfg, variants, frame_lists, topology: Optional[Topology], out_dir: Path, statuses=None):
+def compose_comparison(cfg, variants, frame_lists, topology: Union[Topology, list, None], out_dir: Path, statuses=None):
     """The comparison video of finished variants (`ComparisonVideo`)."""
     statuses = statuses or ["ok"] * len(variants)
     ComparisonVideo(cfg, variants, frame_lists, topology, out_dir, statuses).finish()

@@ -1,0 +1,149 @@
+"""`fracture-gs render-sim`: simulate each variant, render it, and write videos, metrics and a summary.
+
+Outputs in DIR: <variant>.mp4, comparison.mp4 (side by side, captions, circular fracture insets),
+frames/compare_NNNN.png, metrics.jsonl, summary.json, summary.md, topology.npz, config.toml.
+Ctrl-C or a divergence keeps every frame and metric already written.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Literal, Optional
+
+from tqdm import tqdm
+
+from ..config import SceneConfig
+from ..io.config import dump_config
+from ..io.outputs import output_dir
+from ..io.video import ffmpeg
+from ..pipeline import prepare_scene
+from ..profiling import phases
+from ..render.splat import gsplat_needs_compile
+from .comparison import compose_comparison
+from .context import Export, RunContext, ScheduleResult
+from .energy_report import energy_markdown
+from .in_turn import run_in_turn
+from .painter import Painter
+from .summary import RunSummary, summary_markdown
+from .variant import json_default
+
+SCHEDULES = ("in_turn", "threads")
+
+
+def run_render_sim(
+    cfg: SceneConfig,
+    variants,
+    device: str,
+    out_dir,
+    progress: bool = True,
+    profile: bool = False,
+    export_ply: Optional[int] = None,
+    export_format: str = "ply",
+    devices: Optional[list] = None,
+    stop=None,
+    schedule: Literal["in_turn", "threads"] = "in_turn",
+) -> RunSummary:
+    """The main job. Returns the run's summary (also written to summary.json / summary.md); with `profile`, the
+    time per phase is in its `profile` and profile.md; with `export_ply` = N, every N-th frame of every variant
+    also goes to ply/<variant>/frame_NNNN.<suffix> in `export_format` (ply, compressed-ply, splat or spz:
+    `io.formats.write_gaussians`; the scene's frame).
+    A captured scene is resolved first (`capture.resolve`): config.toml is the resolved config. With `devices`
+    (several), the variants run side by side, one per device (`multi_device`). On one device `schedule` says
+    how: "in_turn", one after the other (`in_turn`); "threads", at once, a thread each (`threads`: the same
+    outputs, metrics.jsonl's rows interleaved).
+    `stop`: a threading Event that interrupts the run at the next frame, like Ctrl-C (the CLI sets it from its
+    SIGINT handler, so an interrupt Python drops inside a finalizer still stops the run; with `devices` the
+    worker processes stop on Ctrl-C themselves and the event only marks the summary)."""
+    if schedule not in SCHEDULES:
+        raise ValueError(f"schedule must be 'in_turn' or 'threads', got {schedule!r}")
+    out_dir = output_dir(out_dir)
+    ffmpeg()  # a missing video encoder is one sentence now, not after the scene is prepared and simulated
+    if profile:
+        phases.enable(sync_device=device if device.startswith("cuda") else None)
+    if device.startswith("cuda") and cfg.render.backend != "torch" and gsplat_needs_compile():
+        tqdm.write("compiling gsplat's CUDA kernels once, about a minute (cached for later runs) ...")
+    with phases.section("setup"):
+        scene = prepare_scene(cfg, device)
+        cfg, gs = scene.cfg, scene.gaussians
+        for note in scene.notes:
+            tqdm.write(f"{cfg.name}: {note}")
+        painter = Painter(gs, cfg, device, background=scene.background)
+    (out_dir / "config.toml").write_text(dump_config(cfg))
+    ctx = RunContext(
+        cfg=cfg,
+        gaussians=gs,
+        background=scene.background,
+        device=device,
+        out_dir=out_dir,
+        variants=tuple(variants),
+        order=tuple(sorted(variants, key=lambda v: v == "baseline")),  # a variant with a provider leads
+        export=Export(int(export_ply), scene, export_format) if export_ply else None,
+    )
+    with open(out_dir / "metrics.jsonl", "w") as metrics_file:
+        result = _schedule(ctx, painter, metrics_file, devices, schedule, stop)
+    _finish_comparison(ctx, result)
+    summary = RunSummary(
+        name=cfg.name,
+        scene=cfg.scene,
+        preset=cfg.preset,
+        device=device,
+        particles=len(gs),
+        capture=scene.notes,
+        frames=cfg.frames,
+        frame_dt=cfg.frame_dt,
+        variants=[
+            result.summaries[v].as_dict()
+            if v in result.summaries
+            else {"variant": v, "status": "not run (interrupted before it)", "interrupted": True}
+            for v in ctx.variants
+        ],
+        interrupted=result.interrupted or (stop is not None and stop.is_set()),
+        out_dir=str(out_dir),
+    )
+    _write_summary(summary, out_dir)
+    if profile:
+        summary.profile = phases.report()
+        (out_dir / "profile.md").write_text(f"# where the time went: {cfg.name} ({device})\n\n" + summary.profile)
+        phases.disable()
+    if summary.interrupted:
+        raise KeyboardInterrupt(f"interrupted; partial outputs (frames, metrics, videos so far) are in {out_dir}")
+    return summary
+
+
+def _schedule(ctx: RunContext, painter: Painter, metrics_file, devices, schedule: str, stop) -> ScheduleResult:
+    """The variants on several devices, in threads, or in turn."""
+    if devices and len(devices) > 1:
+        from .multi_device import run_on_devices
+
+        return run_on_devices(ctx, list(devices), metrics_file)
+    if schedule == "threads" and len(ctx.order) > 1:
+        from .threads import run_in_threads
+
+        return run_in_threads(ctx, painter, metrics_file, stop)
+    return run_in_turn(ctx, painter, metrics_file, stop)
+
+
+def _finish_comparison(ctx: RunContext, result: ScheduleResult) -> None:
+    """comparison.mp4 of the variants that drew frames: the live one finished, or (a variant ended with no frame,
+    or nothing was composed beside the run) one composed now."""
+    done = [v for v in ctx.variants if v in result.summaries and result.frames[v]]
+    statuses = [result.summaries[v].status for v in done]
+    live = result.live
+    if live is not None and done == live.variants:
+        live.finish(statuses)
+        return
+    if live is not None:
+        live.abort()
+    if done:
+        compose_comparison(ctx.cfg, done, [result.frames[v] for v in done], result.topology, ctx.out_dir, statuses)
+
+
+def _write_summary(summary: RunSummary, out_dir: Path) -> None:
+    """summary.json and summary.md (a table per variant, then the energy account)."""
+    (out_dir / "summary.json").write_text(json.dumps(summary.as_dict(), indent=2, default=json_default))
+    (out_dir / "summary.md").write_text(
+        f"# {summary.name}: {summary.scene} ({summary.preset}, {summary.particles} particles, {summary.device})\n\n"
+        + summary_markdown(summary.variants)
+        + energy_markdown(summary.variants)
+    )

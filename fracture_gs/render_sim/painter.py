@@ -1,0 +1,121 @@
+"""The painter of a render-sim run: a frame's Gaussians to an image (rest covariances, SH, visibility).
+
+The interior Gaussians that fill a solid stay hidden until a fracture exposes them; then they take the
+nearest surface's colour (or the material's, `render.interior_color`). With `render.color_by = "fragment"`
+each piece is drawn in its own hue. One `Painter` per scene; `for_variant` gives each variant its own
+exposed-interior state over the shared tensors.
+"""
+
+from __future__ import annotations
+
+import copy
+from typing import Optional
+
+import numpy as np
+import torch
+
+from ..config import SceneConfig
+from ..pipeline import FrameOutput
+from ..render.camera import frame_camera
+from ..render.gaussians import exposed_interior_colors, sh_colors
+from ..render.splat import render
+from ..sh import SH_C0
+
+
+class Painter:
+    """Per-scene render state: rest covariances, SH, visibility (interior hidden until exposed)."""
+
+    def __init__(self, gs, cfg: SceneConfig, device: str, background=None):
+        self.cfg, self.scene_cfg = cfg.render, cfg
+        self.background = None
+        if background is not None and len(background):  # static Gaussians outside the simulated region
+            bg = background.to(device)
+            self.background = (bg.means.float(), bg.covariances().float(), bg.sh.float(), bg.opacities.float())
+        self.cov0 = gs.covariances().to(device, torch.float32)
+        self.sh = gs.sh.to(device, torch.float32)
+        self.opacities = gs.opacities.to(device, torch.float32)
+        self.interior = gs.interior.to(device)
+        self.surface_dc = (gs.sh[:, 0, :] * SH_C0 + 0.5).clamp(0, 1).to(device, torch.float32)
+        self.exposed_rgb: Optional[torch.Tensor] = None
+        self.exposed_count = 0
+        self._visible_version: Optional[int] = None  # the topology version `_keep` was made for
+        self._keep: Optional[torch.Tensor] = None
+
+    def for_variant(self) -> Painter:
+        """A painter for one variant's frames: the scene's tensors shared (read only), the exposed-interior
+        colours its own (they follow that variant's fracture, not the previous variant's last frame)."""
+        painter = copy.copy(self)
+        painter.exposed_rgb, painter.exposed_count = None, 0
+        painter._visible_version, painter._keep = None, None
+        return painter
+
+    def camera(self, frame: int):
+        return frame_camera(self.scene_cfg, frame)
+
+    def _visible(self, out: FrameOutput) -> torch.Tensor:
+        """Indices of the Gaussians drawn: the surface, and the interior a cut has exposed. Recomputed when
+        the frame's topology changed (`FrameOutput.topology_version`; −1, unknown: every frame), so a
+        frame draws without reading anything back from the device."""
+        version = out.topology_version
+        if version < 0 or version != self._visible_version:
+            exposed = self._exposed(out)
+            self._keep = torch.nonzero(~self.interior | exposed).flatten()
+            self._visible_version = version
+        assert self._keep is not None
+        return self._keep
+
+    def _exposed(self, out: FrameOutput) -> torch.Tensor:
+        if not self.cfg.show_exposed_interior or not bool((out.fragment >= 0).any()):
+            return torch.zeros_like(self.interior)
+        exposed = self.interior & (out.band != 0)
+        count = int(exposed.sum())
+        material = self.cfg.interior_color == "material"
+        if count != self.exposed_count and count > 0 and (material or bool((~self.interior).any())):
+            # computed when a fracture exposes new interior: the material's own colour, or the nearest surface's
+            if material:
+                rgb = torch.tensor(self.cfg.interior_rgb, dtype=torch.float32, device=out.means.device)
+                self.exposed_rgb = rgb.expand(count, 3)
+            else:
+                self.exposed_rgb = exposed_interior_colors(
+                    out.means[exposed], out.means[~self.interior], self.surface_dc[~self.interior]
+                )
+            self.exposed_idx = torch.nonzero(exposed).flatten()
+            self.exposed_count = count
+        return exposed
+
+    def _fragment_colors(self, colors: torch.Tensor, fragment: torch.Tensor) -> torch.Tensor:  # [N,3] -> [N,3]
+        """Each fragment in its own hue (golden-ratio spacing), shaded by the Gaussian's own brightness."""
+        k = fragment.clamp_min(0).to(torch.float32)
+        hue = torch.remainder(0.61803398875 * k + 0.08, 1.0)
+        phase = torch.arange(3, device=k.device, dtype=torch.float32) / 3  # [0, 1/3, 2/3], no host copy
+        rgb = 0.5 + 0.45 * torch.cos(2 * torch.pi * (hue[:, None] + phase))
+        shade = 0.55 + 0.45 * colors.mean(1, keepdim=True).clamp(0, 1)
+        return torch.where((fragment >= 0)[:, None], rgb * shade, colors)
+
+    def __call__(self, out: FrameOutput) -> np.ndarray:
+        cam = self.camera(out.frame)
+        keep = self._visible(out)  # [M] indices
+        colors = sh_colors(self.sh, out.means, cam.campos.to(out.means), out.rotations)
+        if self.exposed_rgb is not None:
+            colors[self.exposed_idx] = self.exposed_rgb
+        if self.cfg.color_by == "fragment":
+            colors = self._fragment_colors(colors, out.fragment)
+        means, covars, colors, opacities = (
+            t.index_select(0, keep) for t in (out.means, out.covars, colors, self.opacities)
+        )
+        if self.background is not None:
+            bm, bc, bsh, bo = self.background
+            bcol = sh_colors(bsh, bm, cam.campos.to(bm))
+            means, covars = torch.cat([means, bm]), torch.cat([covars, bc])
+            colors, opacities = torch.cat([colors, bcol]), torch.cat([opacities, bo])
+        img = render(
+            means,
+            covars,
+            colors,
+            opacities,
+            cam.to(out.means.device),
+            background=self.cfg.background,
+            backend=self.cfg.backend,
+            mode=self.cfg.mode,
+        ).image
+        return (img.clamp(0, 1) * 255).round().to(torch.uint8).cpu().numpy()
