@@ -27,10 +27,10 @@ def _floor_base(x, dx):
 
 
 def _gather_state():
-    """Two fragments of a jittered lattice in [0.3, 0.7]³ on a 12³ grid (x < ½: fragment 0), plus four probe
-    particles appended after the fit: for each fragment one whose stencil base is one node below its box's
-    lowest node along one axis, one whose stencil ends one node above its box's highest node. Returns
-    (x [N+4, 3], fragment, boxes fitted to the first N, index of the probes, n)."""
+    """Two fragments of a jittered lattice in [0.3, 0.7]³ on a 12³ grid (x < ½: fragment 0), plus twelve probe
+    particles appended after the fit: for each fragment and axis one whose stencil base is one node below its
+    box's lowest node along that axis, and one whose stencil ends one node above its box's highest node.
+    Returns (x [N+12, 3], fragment, boxes fitted to the first N, N, grid nodes per axis)."""
     ensure_warp()
     n = 12
     dx = 1.0 / n
@@ -45,23 +45,25 @@ def _gather_state():
     for k in range(2):
         lo = boxes.lo[k].long()
         hi = lo + boxes.dims[k].long() - 1  # the box's highest node = the highest stencil base + 2
-        below = lo.clone()
-        below[k] -= 1  # base one node below the box along axis k
-        above = hi - 2
-        above[2 - k] += 1  # stencil's top one node above the box along axis 2 − k
-        for base in (below, above):
-            probes.append((base.double() + 1.0) * dx)  # ξ = base + 1: ⌊ξ − ½⌋ = base
-            frags.append(k)
+        for a in range(3):
+            below = lo.clone()
+            below[a] -= 1  # base one node below the box along axis a
+            above = hi - 2
+            above[a] += 1  # the stencil's top one node above the box along axis a
+            for base in (below, above):
+                probes.append((base.double() + 1.0) * dx)  # ξ = base + 1: ⌊ξ − ½⌋ = base
+                frags.append(k)
     x = torch.cat([x, torch.stack(probes).float()])
     fragment = torch.cat([fragment, torch.tensor(frags, dtype=torch.int32)])
-    return x, fragment, boxes, len(x) - 4, n
+    return x, fragment, boxes, len(x) - len(probes), n
 
 
 def test_tight_box_g2p_reproduces_each_fragments_affine_field_at_every_particle():
     """Box k's nodes carry v_i = u_k + A x_i (u_0 ≠ u_1). G2P of every fitted particle, the corner particles whose
     stencil starts at box 0's first buffer index or ends at a box's last node included, gives exactly its own
     fragment's affine field: v_p = u_k + A x_p, C_p = A, F_p = (I + Δt A) F_p⁰, x_p ← x_p + Δt v_p (float32
-    rounding). A probe particle whose stencil lies one node outside its box, below or above, keeps x, v, C, F."""
+    rounding). A probe particle whose stencil lies one node outside its box, below or above along any axis, keeps
+    x, v, C, F."""
     x, fragment, boxes, N, n = _gather_state()
     dx = 1.0 / n
     base = _floor_base(x[:N], dx)

@@ -1,8 +1,9 @@
 """The slot storage's pool pass with mass-gradient normals (`normal_kernels.pool_mass_gradients`, then
 `transfer_kernels.grid_update_pool`), on fields written straight into the slots (`simutil.fill_slots`):
 
-- the pass takes each pair's normal from the two fields' mass gradients, not from the fragment centroids: two
-  fields whose masses grow in opposite directions along y meet along ŷ even where the centroids lie along x;
+- the pass takes each pair's normal from the two fields' mass gradients, n = (∇m¹ − ∇m⁰)/|…|, not from the
+  fragment centroids or one field's gradient alone: fields whose masses grow along −y and +z meet along
+  (0, 1, 1)/√2 though the centroids lie along x;
 - ∇m^k of a slot is the central difference of fragment k's nodal masses for a field holding more than ε_m, and
   exactly zero for one holding ε_m or less (the same threshold the pass uses for an active field), in slot 0 and
   in a pool slot alike.
@@ -44,29 +45,46 @@ def _sim():
     return sim
 
 
+def _central(m):
+    """∇m [K, X, Y, Z, 3] by central differences per axis over 2Δx, neighbours clamped into the grid."""
+    pad = torch.nn.functional.pad(m[None], (1, 1, 1, 1, 1, 1), mode="replicate")[0]
+    return torch.stack(
+        [
+            pad[:, 2:, 1:-1, 1:-1] - pad[:, :-2, 1:-1, 1:-1],
+            pad[:, 1:-1, 2:, 1:-1] - pad[:, 1:-1, :-2, 1:-1],
+            pad[:, 1:-1, 1:-1, 2:] - pad[:, 1:-1, 1:-1, :-2],
+        ],
+        -1,
+    ) * (0.5 * SHAPE[0])
+
+
 def test_pool_contact_normals_come_from_the_fields_mass_gradients():
-    """Field 0's mass falls along +y and field 1's rises (m_a + m_b = 2.7 ρ̄Δx³ fills every node), so at every node
-    ∇m¹ − ∇m⁰ points along +y (one-sided at the grid's faces, still along +y) and the pair meets along n = ŷ.
-    With v⁰ = (0.3, 1, 0) and v¹ = (−0.2, −1, 0.5) approaching along y, frictionless and e = 0, both fields leave
-    with the mass-weighted mean y-velocity and their own x and z velocities (the momentum-conserving inelastic
-    impulse J = 2 / (1/m⁰ + 1/m¹) along ŷ). The fragment centroids lie along x: normals taken from them instead
-    would push along x and leave y alone."""
+    """Field 0's mass falls along +y and field 1's rises along +z (m⁰ + m¹ ≥ 2 ρ̄Δx³ fills every node), so the pair
+    meets along n = (∇m¹ − ∇m⁰)/|…|, (0, 1, 1)/√2 inside the grid and tilted at its faces (one-sided differences):
+    it depends on both fields' gradients. With v⁰ = (0.3, 1, 0.5) and v¹ = (−0.2, −1, −0.5) approaching along
+    every such n, frictionless and e = 0, each field gets the momentum-conserving inelastic impulse J n,
+    J = −u_n / (1/m⁰ + 1/m¹), u_n = (v¹ − v⁰)·n: v⁰ − (J/m⁰) n and v¹ + (J/m¹) n. The fragment centroids lie
+    along x: normals taken from them, or from one field's gradient alone, push elsewhere."""
     sim = _sim()
-    j = torch.arange(SHAPE[1], dtype=torch.float64)[None, :, None].expand(*SHAPE)
+    idx = torch.meshgrid(*[torch.arange(s, dtype=torch.float64) for s in SHAPE], indexing="ij")
     nm = sim.node_mass
-    m = torch.stack([nm * (1.0 + 0.1 * (7 - j)), nm * (1.0 + 0.1 * j)])  # [2, X, Y, Z]
-    v = torch.tensor([[0.3, 1.0, 0.0], [-0.2, -1.0, 0.5]], dtype=torch.float64)[:, None, None, None, :]
+    m = torch.stack([nm * (1.0 + 0.1 * (7 - idx[1])), nm * (1.0 + 0.1 * idx[2])])  # [2, X, Y, Z]
+    v = torch.tensor([[0.3, 1.0, 0.5], [-0.2, -1.0, -0.5]], dtype=torch.float64)[:, None, None, None, :]
     v = v.expand(2, *SHAPE, 3)
     fill_slots(sim.grid, m, v)
     sim.update_grid(1e-3)
     got = sim.grid.velocity.double().cpu()  # [2, X, Y, Z, 3]
-    m0, m1 = m[0].float().double(), m[1].float().double()
-    J = 2.0 / (1.0 / m0 + 1.0 / m1)
-    want = v.clone()
-    want[0, ..., 1] = 1.0 - J / m0
-    want[1, ..., 1] = -1.0 + J / m1
-    torch.testing.assert_close(want[0, ..., 1], (m0 - m1) / (m0 + m1))  # the mean y-velocity, by hand
+    mf = m.float().double()
+    grad = _central(mf)
+    n = torch.nn.functional.normalize(grad[1] - grad[0], dim=-1)  # [X, Y, Z, 3]
+    torch.testing.assert_close(n[3, 3, 3], torch.tensor([0.0, 1.0, 1.0], dtype=torch.float64) / 2**0.5)
+    un = ((v[1] - v[0]) * n).sum(-1)
+    assert bool((un < 0).all()), "the fields approach at every node"
+    J = -un / (1.0 / mf[0] + 1.0 / mf[1])
+    want = torch.stack([v[0] - (J / mf[0])[..., None] * n, v[1] + (J / mf[1])[..., None] * n])
     torch.testing.assert_close(got, want, rtol=0, atol=2e-6)
+    p0, p1 = (mf[..., None] * v).sum(0), (mf[..., None] * got).sum(0)
+    assert float((p1 - p0).abs().max()) <= 1e-5 * float(p0.abs().max()), "node momentum"
 
 
 def _row(g, node):
@@ -91,15 +109,7 @@ def test_pool_mass_gradient_is_zero_for_a_field_at_the_activity_threshold():
     grad0 = sim._pool_gradient_buffer()
     wp.launch(pool_mass_gradients, dim=g.capacity * g.slots, inputs=[g.view, sim.eps_m, grad0], device="cpu")
     mf = m.float().double()
-    pad = torch.nn.functional.pad(mf[None], (1, 1, 1, 1, 1, 1), mode="replicate")[0]  # clamped neighbours
-    want = torch.stack(
-        [
-            pad[:, 2:, 1:-1, 1:-1] - pad[:, :-2, 1:-1, 1:-1],
-            pad[:, 1:-1, 2:, 1:-1] - pad[:, 1:-1, :-2, 1:-1],
-            pad[:, 1:-1, 1:-1, 2:] - pad[:, 1:-1, 1:-1, :-2],
-        ],
-        -1,
-    ) * (0.5 * SHAPE[0])  # [2, X, Y, Z, 3]
+    want = _central(mf)  # [2, X, Y, Z, 3]
     for (k, node), value in at.items():
         assert float(mf[(k, *node)]) == float(value)
         want[(k, *node)] = 0.0 if value == eps else want[(k, *node)]
