@@ -1,6 +1,7 @@
 """Pinned rules of the sweep's launch and store protocol (`fracture_gs.sweep.distributed`): which `--device` values
 exist on a machine of K GPUs and what the refusal says, the heartbeat's timeout measured exactly from a rank's
-last beat, and a rank told to abort by rank 0 leaving the process group alone.
+last beat, a rank told to abort by rank 0 (or finding it dead) leaving the process group alone, rank 0's
+failure report, the one-process coordinator, and meeting the other ranks.
 
 Unit-level calls only: the GPU count is faked, the heartbeat loop runs on the test's thread against a scripted
 clock and an in-memory store, and no process group is made.
@@ -8,6 +9,7 @@ clock and an in-memory store, and no process group is made.
 
 from __future__ import annotations
 
+import datetime
 import json
 import time
 from types import SimpleNamespace
@@ -176,3 +178,67 @@ def test_a_rank_told_to_abort_fails_with_rank_zeros_reason_and_keeps_the_group(m
     assert fine.plan({}, lambda s: None) == {"p": 1}
     fine.close()
     assert calls == [1]
+
+
+# ---------------------------------------------------------------------------------------------
+# rank 0 gone, one process, meeting
+
+
+def test_a_rank_whose_rank_zero_is_dead_fails_naming_rank_zero_and_what_it_was_doing():
+    """A rank other than 0 that finds rank 0 dead stops, whether waiting for the plan or about to hand over its
+    rows: a RankFailure naming rank 0, why it counts as dead, this rank, what it was doing, and that the finished
+    cells are cached; it publishes no rows."""
+    one = coordinator(1, 3)
+    one.dead[0] = "stopped answering"
+    with pytest.raises(D.RankFailure) as info:
+        one.plan({}, lambda s: pytest.fail("only rank 0 plans"))
+    assert info.value.rank == 0 and str(info.value) == (
+        "rank 0 of 3 stopped answering (seen from rank 1) while waiting for rank 0's plan; the cells every live "
+        "rank finished are cached, so rerunning the same command resumes from them."
+    )
+    with pytest.raises(D.RankFailure, match=r"^rank 0 of 3 stopped answering \(seen from rank 1\) while this rank ran"):
+        one.finish({"a": {"status": "ok"}})
+    assert not one.store.check([one._key("rows", 1)]) and not one.store.check([one._key("done", 1)])
+
+
+def test_rank_zero_reports_no_failure_when_every_rank_finished():
+    """After gathering, rank 0's failure() is None when no rank died, else the lowest dead rank's RankFailure."""
+    zero = coordinator(0, 3)
+    assert zero.failure() is None
+    zero.dead.update({2: "sent no heartbeat for 300 s (it died or hangs)", 1: "stopped"})
+    failure = zero.failure()
+    assert failure.rank == 1 and str(failure).startswith("rank 1 of 3 stopped (seen from rank 0) while the sweep ran")
+
+
+def test_one_process_needs_no_store():
+    """One process plans from its own cache alone, gathers its own rows, never fails, and a launch without
+    WORLD_SIZE > 1 gets this plain coordinator."""
+    coord = D.coordinator(D.Launch(), "cpu")
+    assert type(coord) is D.Coordinator
+    with coord as c:
+        assert c.plan({"x": "ok"}, lambda statuses: {"statuses": statuses}) == {"statuses": [{"x": "ok"}]}
+        assert c.finish({"x": {"status": "ok"}}) == [{"x": {"status": "ok"}}] and c.failure() is None
+    assert type(D.coordinator(D.Launch(0, 2, 0, 2, "h:1"), "cpu", 5.0, 0.5)) is D.StoreCoordinator
+
+
+def test_meeting_the_other_ranks_starts_the_heartbeat_on_the_groups_store(monkeypatch):
+    """Entering a store coordinator on the CPU makes a gloo process group with this rank, the world size and the
+    rank timeout, takes the group's store and starts beating on it; close stops the heartbeat and destroys the
+    group."""
+    import torch.distributed as dist
+    from torch.distributed import distributed_c10d
+
+    calls, store = [], FakeStore()
+    monkeypatch.setattr(dist, "init_process_group", lambda backend, **kw: calls.append((backend, kw)))
+    monkeypatch.setattr(distributed_c10d, "_get_default_store", lambda: store)
+    monkeypatch.setattr(dist, "is_initialized", lambda: True)
+    monkeypatch.setattr(dist, "destroy_process_group", lambda *a, **k: calls.append("destroyed"))
+    coord = D.StoreCoordinator(D.Launch(1, 2, 1, 2, "h:1"), "cpu", timeout_s=42.0, beat_s=0.01)
+    with coord:
+        deadline = time.monotonic() + 5.0
+        while int(store.data.get(coord._key("beat", 1), b"0")) < 3 and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert coord.backend == "gloo" and coord.store is store
+        assert int(store.get(coord._key("beat", 1))) >= 3
+    assert calls == [("gloo", {"rank": 1, "world_size": 2, "timeout": datetime.timedelta(seconds=42)}), "destroyed"]
+    assert not coord._thread.is_alive()
