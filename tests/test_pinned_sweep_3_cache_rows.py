@@ -1,7 +1,8 @@
 """Pinned rules of the sweep cache's strict reader (`fracture_gs.sweep.cache.check_row`): every key of a cached row
 is checked, whatever its position (also after the nested `extra` table), each kind of wrong value is one
 OutputError naming the file, the key, what the value is and the fix, and a finished accuracy row must hold the
-numbers its table needs.
+numbers its table needs; a cache file that is no text, nests too deeply, is a folder or sits under a file is
+refused naming it, and non-finite numbers are written as null so that the reader takes the file back.
 """
 
 from __future__ import annotations
@@ -115,3 +116,55 @@ def test_a_finished_accuracy_row_holds_what_its_table_needs(tmp_path):
         assert refused(tmp_path, {**full, key: None}, "accuracy") == f"{key} is missing from a finished accuracy cell"
     assert cache.check_row(None, cell("accuracy"), {"status": "failed"}) == {"status": "failed"}
     assert cache.check_row(None, cell("scene"), {"status": "ok"}) == {"status": "ok"}
+
+
+# ---------------------------------------------------------------------------------------------
+# files and folders
+
+
+def test_a_cache_file_that_is_no_text_or_nests_too_deeply_is_refused_naming_it(tmp_path):
+    """A cache file of bytes that are not UTF-8, or of JSON nested deeper than the parser's stack, is an OutputError
+    naming the file and the fix, never a UnicodeDecodeError or RecursionError traceback."""
+    c = cell()
+    path = cache.cache_path(tmp_path, c.id)
+    path.parent.mkdir(parents=True)
+    path.write_bytes(b'{"id": "\xff\xfe"}')
+    with pytest.raises(OutputError) as info:
+        cache.load(tmp_path, c)
+    assert str(info.value) == (
+        f"{path} cannot be read as a sweep cache file (UnicodeDecodeError); delete it, or rerun with --fresh."
+    )
+    path.write_text("[" * 200_000 + "]" * 200_000)
+    with pytest.raises(OutputError) as info:
+        cache.load(tmp_path, c)
+    assert str(info.value) == f"{path} nests too deeply for a sweep cache file; delete it, or rerun with --fresh."
+
+
+def test_writing_onto_a_folder_or_under_a_file_is_refused(tmp_path):
+    """A cache file path that is a folder, or a cache folder with a file somewhere above it, is an OutputError
+    naming that path and the fix; nothing is written."""
+    c = cell()
+    path = cache.cache_path(tmp_path, c.id)
+    path.mkdir(parents=True)
+    with pytest.raises(OutputError) as info:
+        cache.store(tmp_path, c, {"status": "ok"})
+    assert str(info.value) == f"{path} is a folder, not a sweep cache file; delete that folder and rerun."
+    (tmp_path / "plain").write_text("x")
+    with pytest.raises(OutputError) as info:
+        cache.store(tmp_path / "plain" / "deeper", c, {"status": "ok"})
+    assert str(info.value).startswith(f"{tmp_path / 'plain'} is a file, not the sweep's cache folder; move or delete")
+    assert (tmp_path / "plain").read_text() == "x"
+
+
+def test_non_finite_numbers_are_written_as_null_so_the_file_reads_back(tmp_path):
+    """A row holding NaN or inf (in a list, a tuple or a nested table too) is cached with null in their place, and
+    the strict reader takes it back."""
+    c = cell()
+    row = {"status": "ok", "error": math.nan, "dt": math.inf, "extra": {"span": (1.0, math.inf), "t": {"a": -math.inf}}}
+    cache.store(tmp_path, c, row)
+    assert cache.load(tmp_path, c) == {
+        "status": "ok",
+        "error": None,
+        "dt": None,
+        "extra": {"span": [1.0, None], "t": {"a": None}},
+    }
