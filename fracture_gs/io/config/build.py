@@ -149,10 +149,11 @@ def _unknown_key(src: str, prefix: str, key: str, valid: Sequence[str]) -> Confi
 def _build(cls: type, data: Any, prefix: str, src: str, skip: Iterable[str] = ()) -> Any:
     """Build dataclass `cls` from table `data`, rejecting unknown keys and wrong types."""
     if not isinstance(data, dict):
-        what = f"[{prefix}]" if prefix else "the config"
-        raise ConfigError(
-            src, prefix, f"{what} must be a table, not {describe(data)}; write it as a [{prefix}] section."
-        )
+        if prefix.endswith("]"):  # an entry of an array of tables, e.g. material_map[0]
+            what, fix = prefix, f"a [[{prefix[: prefix.rindex('[')]}]] table"
+        else:
+            what, fix = (f"[{prefix}]" if prefix else "the config"), f"a [{prefix}] section"
+        raise ConfigError(src, prefix, f"{what} must be a table, not {describe(data)}; write it as {fix}.")
     hints = _hints(cls)
     valid = [f.name for f in dataclasses.fields(cls)]
     kwargs = {}

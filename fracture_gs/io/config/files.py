@@ -100,22 +100,28 @@ def _resolve_extends(value: Any, base_dir: Optional[Path], src: str) -> Path:
         raise ConfigError(
             src, "extends", 'extends must be a config name or path string; write it like extends = "bread".'
         )
+    found = None
     if base_dir is not None:
-        for candidate in (base_dir / value, base_dir / f"{value}.toml"):
-            if candidate.is_file():
-                return candidate
-    try:
-        found = find_config(value)
-        if is_splat_file(found):
-            raise ConfigError(src, "extends", "a splat file is a scene, not a config")
-        return found
-    except ConfigError:
-        names = ", ".join(builtin_configs())
+        found = next((c for c in (base_dir / value, base_dir / f"{value}.toml") if c.is_file()), None)
+    if found is None:
+        try:
+            found = find_config(value)
+        except ConfigError:
+            names = ", ".join(builtin_configs())
+            raise ConfigError(
+                src,
+                "extends",
+                f"extends = {value!r} names no config file; use a path relative to this file or a built-in name "
+                f"({names}).",
+            ) from None
+    if is_splat_file(found):  # checked here, wherever it was found: read as TOML it is "not UTF-8 text"
         raise ConfigError(
             src,
             "extends",
-            f"extends = {value!r} names no config file; use a path relative to this file or a built-in name ({names}).",
-        ) from None
+            f"extends = {value!r} names a splat file, which is a scene, not a config; write scene = {value!r} "
+            'instead (with extends = "capture" for the capture settings).',
+        )
+    return found
 
 
 def _deep_merge(base: dict, over: dict) -> dict:
