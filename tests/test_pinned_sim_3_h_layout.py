@@ -8,7 +8,7 @@ import torch
 import warp as wp
 
 from fracture_gs.runtime import ensure_warp
-from fracture_gs.sim.layout import EMPTY_BOX, box_intersection, box_volume, flat, inside, pool_capacity, unflat
+from fracture_gs.sim.layout import box_volume, flat, inside, pool_capacity, unflat
 
 ensure_warp()
 
@@ -67,18 +67,7 @@ def test_box_volume_counts_nodes_and_is_zero_when_any_axis_is_empty():
         assert box_volume(tuple(box)) == 0, a
         box[3 + a] = box[a] - 2
         assert box_volume(tuple(box)) == 0, a
-    assert box_volume(EMPTY_BOX) == 0
-
-
-def test_box_intersection_is_the_common_nodes_or_empty():
-    """(0..4)³ ∩ (2..6, 1..3, 3..9) = (2..4, 1..3, 3..4); boxes that only touch along one axis (hi = lo) share
-    no node (EMPTY_BOX), and the order of the two boxes does not matter."""
-    a, b = (0, 0, 0, 4, 4, 4), (2, 1, 3, 6, 3, 9)
-    assert box_intersection(a, b) == box_intersection(b, a) == (2, 1, 3, 4, 3, 4)
-    for axis in range(3):
-        c = list(a)
-        c[axis], c[3 + axis] = 4, 8
-        assert box_intersection(a, tuple(c)) == EMPTY_BOX, axis
+    assert box_volume((0, 0, 0, 0, 0, 0)) == 0
 
 
 def test_pool_capacity_is_a_power_of_two_at_least_twice_the_rows():
