@@ -37,7 +37,7 @@ from fracture_gs.paper.fragments import shattered_state as state
 from fracture_gs.paper.fragments import voronoi_topology as topology
 from fracture_gs.runtime import warp_stream
 from fracture_gs.sim import Simulator
-from fracture_gs.sim.layout import COUNT_ESCAPED, COUNT_SLOT_OVERFLOW
+from fracture_gs.sim.storage import COUNT_ESCAPED, COUNT_SLOT_OVERFLOW
 
 BRANCHES = (("Shared", "stress_zero", "slots"), ("FractureFields", "full", "slots"), ("Boxes", "full", "boxes"))
 

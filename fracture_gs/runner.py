@@ -35,7 +35,7 @@ from .render.splat import gsplat_needs_compile, render
 from .runtime import current_lane, side_stream, stream_lane
 from .sh import SH_C0
 from .sim import SimulationDiverged
-from .sim.metrics import piece_gap
+from .sim.diagnostics.metrics import piece_gap
 from .sim.topology import save_history
 from .variant_threads import run_in_threads
 

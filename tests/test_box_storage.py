@@ -11,8 +11,7 @@ import pytest
 import torch
 from test_transfer_launch import slab
 
-from fracture_gs.sim.contact import NORMAL_LATCHED
-from fracture_gs.sim.layout import N_PAIR_STATS, PAIR_GATED, STAT_FIRST_T, STAT_GATED
+from fracture_gs.sim.physics.contact import N_PAIR_STATS, NORMAL_LATCHED, PAIR_GATED, STAT_FIRST_T, STAT_GATED
 from fracture_gs.sim.topology import FractureEvent
 
 FRAME = 4e-3

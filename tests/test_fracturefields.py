@@ -9,7 +9,7 @@ from simutil import block, config, field_masses, fill_slots, foreign_mass, parti
 
 from fracture_gs import sim as S
 from fracture_gs.sim import reference as ref
-from fracture_gs.sim.diagnostics import SEPARATION, reapproach_ratio
+from fracture_gs.sim.diagnostics.metrics import SEPARATION, reapproach_ratio
 
 N = 3000
 
@@ -347,7 +347,7 @@ def test_every_box_transfer_kernel_has_a_table2_phase():
     per-fragment boxes by default, so each kernel a boxed transfer launches must map to its phase (an unmapped
     kernel would read 0 µs in the table)."""
     from fracture_gs.paper.bench import KERNEL_PHASES
-    from fracture_gs.sim import box_kernels as bk
+    from fracture_gs.sim.boxes import kernels as bk
 
     phases = {bk.box_clear: "reset", bk.box_g2p: "g2p"}
     phases.update({kernel: "p2g" for kernel in bk.BOX_P2G.values()})

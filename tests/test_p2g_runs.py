@@ -1,4 +1,4 @@
-"""P2G in runs (`run_kernels.p2g_runs`, DESIGN.md "Performance rules"): a thread deposits a run of consecutive
+"""P2G in runs (`grid.run_kernels.p2g_runs`, DESIGN.md "Performance rules"): a thread deposits a run of consecutive
 particles and sums in registers those that share a cell, so particles sorted by cell reach each node with one
 reduction per run and cell. Only the order of the float32 sums changes; with runs of one particle, nothing."""
 
@@ -8,7 +8,7 @@ from simutil import rel_err
 from test_transfer_launch import slab
 
 from fracture_gs import sim as S
-from fracture_gs.sim.layout import COUNT_ESCAPED
+from fracture_gs.sim.storage import COUNT_ESCAPED
 
 
 def one_p2g(sim, run: int):

@@ -10,7 +10,7 @@ import torch
 from fracture_gs.io.config import load_config
 from fracture_gs.pipeline import make_simulator, prepare_scene
 from fracture_gs.sim import Particles, SimulationError, Simulator
-from fracture_gs.sim.grid import fit_grid
+from fracture_gs.sim.grid.domain import fit_grid
 from fracture_gs.sim.neighbourhood import cell_order
 from fracture_gs.sim.simulator import P2G_RUN
 

@@ -1,4 +1,4 @@
-"""G2P's fan-out (`sim.fanout_kernels.g2p_fanout`) with `one_gather`: the listed (not solo) particles and, in the
+"""G2P's fan-out (`sim.grid.fanout_kernels.g2p_fanout`) with `one_gather`: the listed (not solo) particles and, in the
 same launch behind them, every solo particle are gathered; the result is the one of the two launches
 (fan-out for the listed, the plain G2P for the solo particles), particle by particle, the first particle
 included."""

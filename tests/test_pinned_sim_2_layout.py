@@ -7,7 +7,7 @@ import torch
 import warp as wp
 
 from fracture_gs.runtime import ensure_warp
-from fracture_gs.sim.layout import EMPTY_KEY, ROW_FLAG, claim_pool_slot, claim_row, claim_slot0, find_row
+from fracture_gs.sim.grid.layout import EMPTY_KEY, ROW_FLAG, claim_pool_slot, claim_row, claim_slot0, find_row
 
 ensure_warp()
 

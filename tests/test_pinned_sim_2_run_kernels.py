@@ -1,4 +1,4 @@
-"""P2G in runs (`sim.run_kernels.p2g_runs`) on a multi-field grid: a thread whose particles all take the slot
+"""P2G in runs (`sim.grid.run_kernels.p2g_runs`) on a multi-field grid: a thread whose particles all take the slot
 path (none solo) has no run to flush and writes nothing. Warp wraps a negative array index to the end of the
 array, so an empty run flushed at node (−1, −1, −1) would land in the pool's last rows; those are filled with
 −0.0 first (which adding even +0.0 turns into +0.0), so any such write shows."""
@@ -7,7 +7,7 @@ import torch
 from test_transfer_launch import slab
 
 from fracture_gs import sim as S
-from fracture_gs.sim.layout import EMPTY_KEY
+from fracture_gs.sim.grid.layout import EMPTY_KEY
 
 
 def test_runs_without_a_solo_particle_write_nothing_into_unclaimed_pool_rows():

@@ -7,7 +7,7 @@ import types
 import torch
 
 from fracture_gs.runtime import ensure_warp
-from fracture_gs.sim.slot_storage import SlotStorage
+from fracture_gs.sim.grid.slots import SlotStorage
 
 
 def _host(n, fanout=True, slow_first=True, multifield=True, fanout_max=0.25, run=4):

@@ -7,9 +7,9 @@ import torch
 from simutil import config, rel_err
 
 from fracture_gs import sim as S
-from fracture_gs.sim.layout import COUNT_SLOT_OVERFLOW
 from fracture_gs.sim.providers.cuts import voronoi_labels
 from fracture_gs.sim.providers.voronoi import voronoi_sites
+from fracture_gs.sim.storage import COUNT_SLOT_OVERFLOW
 
 
 def slab(seed, device, fragments=2, slots=8, n=3000, sort=None, storage="slots", variant="full"):

@@ -12,9 +12,9 @@ from test_transfer_launch import slab
 from fracture_gs import sim as S
 from fracture_gs.config import PlaneBoundary
 from fracture_gs.runtime import ensure_warp
-from fracture_gs.sim.boundary import Boundaries
-from fracture_gs.sim.boxes import FragmentBoxes
-from fracture_gs.sim.layout import COUNT_ESCAPED, N_COUNTS
+from fracture_gs.sim.boxes.fragment_boxes import FragmentBoxes
+from fracture_gs.sim.physics.boundary import Boundaries
+from fracture_gs.sim.storage import COUNT_ESCAPED, N_COUNTS
 
 DX = 1.0 / n
 
@@ -228,7 +228,7 @@ def test_shared_support_and_mixing_of_known_fields_in_the_slot_storage():
     counted as active, the percentage without its 100, `m > ε_m` as `m >= 0`; each fails here."""
     from simutil import fill_slots
 
-    from fracture_gs.sim.grid import Grid
+    from fracture_gs.sim.grid.fields import Grid
 
     s, eps = 6, 1e-9
     g = Grid((0.0, 0.0, 0.0), 1.0 / s, (s, s, s), "cpu", slots=4)

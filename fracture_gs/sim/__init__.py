@@ -15,8 +15,9 @@ from ..config import (
     TopologyConfig,
 )
 from ..errors import SimulationDiverged
-from . import layout
-from .grid import Grid, fit_grid
+from .grid import layout
+from .grid.domain import fit_grid
+from .grid.fields import Grid
 from .particles import Particles, SimulationError
 from .providers import OracleProvider, ReplayProvider, StressProvider, make_provider
 from .simulator import Simulator

@@ -18,8 +18,8 @@ from ..errors import SimulationDiverged
 from ..profiling import phases
 from ..runtime import capture_lock, launch, side_stream, warp_stream
 from .clock import tick
-from .layout import COUNT_ESCAPED, COUNT_POOL_OVERFLOW, COUNT_SLOT_OVERFLOW
 from .particles import SimulationError
+from .storage import COUNT_ESCAPED, COUNT_POOL_OVERFLOW, COUNT_SLOT_OVERFLOW
 
 
 class FrameLoop:

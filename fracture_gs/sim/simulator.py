@@ -19,22 +19,23 @@ import warp as wp
 from ..config import MATERIALS, ParticleOrder, SimConfig
 from ..runtime import StreamFork, cpu_ranges, ensure_warp, launch, run_ranges, torch_stream
 from ..variants import VARIANT_NAMES, variant_spec
-from .boundary import Boundaries
-from .boxes import FragmentBoxes
+from .boxes.fragment_boxes import FragmentBoxes
 from .clock import FrameClock
-from .constitutive import compute_stress, lame
-from .contact import NORMAL_LATCHED, NORMAL_MASS_GRADIENT
-from .fanout_kernels import LANES, g2p_fanout, p2g_fanout
 from .frame_loop import FrameLoop
-from .grid import Grid, check_inside, fit_grid
-from .layout import COUNT_CLAMPED, MAX_SLOTS, N_COUNTS
+from .grid.domain import check_inside, fit_grid
+from .grid.fanout_kernels import LANES, g2p_fanout, p2g_fanout
+from .grid.fields import Grid
+from .grid.kernels import clear_dense, clear_pool, g2p, grid_update_dense, p2g
+from .grid.run_kernels import p2g_runs
+from .grid.slots import SlotStorage
 from .neighbourhood import cell_order, fragment_centroids
 from .particles import Particles, SimulationError
+from .physics.boundary import Boundaries
+from .physics.constitutive import compute_stress, lame
+from .physics.contact import NORMAL_LATCHED, NORMAL_MASS_GRADIENT
 from .recorded import Recorded
-from .run_kernels import p2g_runs
-from .slot_storage import SlotStorage
+from .storage import COUNT_CLAMPED, MAX_SLOTS, N_COUNTS
 from .topology import Topology
-from .transfer_kernels import clear_dense, clear_pool, g2p, grid_update_dense, p2g
 
 P2G_RUN = 8  # particles per P2G thread in cell order on a GPU: runs of 8 were the fastest on the Table 2 ficus (P2G
 # under half its time one per thread); not while most particles take the slot path (slower there; BENCHMARKS.md)
@@ -96,7 +97,7 @@ class Simulator(SlotStorage, FrameLoop):
         storage = cfg.grid_storage if self.spec.multifield else "none"  # one field: neither slots nor boxes
         slots = cfg.field_slots if storage == "slots" else 1  # boxes (auto) keep no slots, owner words or pool
         self.grid = Grid(origin, dx, shape, self.device, slots, cfg.max_fragments)
-        # the fragment fields after a latch in dense boxes, one per fragment (`boxes.py`), instead of slots
+        # the fragment fields after a latch in dense boxes, one per fragment (`boxes/`), instead of slots
         boxed = storage in ("auto", "boxes")
         self.boxes = FragmentBoxes(shape, origin, dx, self.device, cfg.max_fragments) if boxed else None
         self.boundaries = Boundaries(cfg.boundaries, self.device, shape, cfg.wall_cells)
@@ -124,7 +125,7 @@ class Simulator(SlotStorage, FrameLoop):
         # The particles that are not solo (1.6 % at K = 2 on the Table 2 ficus) do 27 serial slot lookups
         # each; on a GPU their threads finished long after the dense bulk. `fanout` (CUDA default) gives
         # each of them one thread per stencil node in P2G, and a warp in G2P while they are at most
-        # `g2p_fanout_max` of the particles (`fanout_kernels`; when they are the bulk, per-particle threads
+        # `g2p_fanout_max` of the particles (`grid/fanout_kernels.py`; when they are the bulk, per-particle threads
         # already fill the GPU and the warp's shuffles only cost: BENCHMARKS.md). The launches cover a
         # power-of-two capacity ≥ their count, read once per frame in `set_solo` (graphs record again only
         # when it changes). `slow_first`, the earlier remedy, launches them first in G2P otherwise.
@@ -132,7 +133,7 @@ class Simulator(SlotStorage, FrameLoop):
         self.fanout = self.device.startswith("cuda")
         self.g2p_fanout_max = 1.0 / 16
         # P2G of the dense-path particles in runs of `p2g_run` consecutive particles, summed in registers while
-        # they share a cell (`run_kernels`): on (runs of P2G_RUN) for particles sorted by cell on a GPU
+        # they share a cell (`grid/run_kernels.py`): on (runs of P2G_RUN) for particles sorted by cell on a GPU
         # (`sort_particles("cell")`, or `sim.particle_order = "cell"`: the caller sorted them), where it saves
         # global reductions; 0: one thread per particle (runs are correct in any order, only slower out of it)
         self.p2g_run = P2G_RUN if cfg.particle_order == "cell" and self.device != "cpu" else 0
@@ -144,7 +145,7 @@ class Simulator(SlotStorage, FrameLoop):
         self._grad0 = None  # see `_pool_gradient_buffer`
         self._order = torch.arange(n, dtype=torch.int32, device=self.device)
         self._first = torch.full((1,), n, dtype=torch.int32, device=self.device)
-        self.counts = torch.zeros(N_COUNTS, dtype=torch.int32, device=self.device)  # see layout.COUNT_*
+        self.counts = torch.zeros(N_COUNTS, dtype=torch.int32, device=self.device)  # see storage.COUNT_*
         self.box_slack = 0  # extra cells on the active box; grows when a frame had to be redone
         self.frame_redos = 0
         self.pool_rows = 0  # multi-fragment nodes expected per substep (sizes the grid's pool)
@@ -400,7 +401,7 @@ class Simulator(SlotStorage, FrameLoop):
         # gate of latched normals reads: with mass-gradient normals (K > 2) their flags read 0 in P2G
         band = w["band"] if target is not None or self.normal_mode == NORMAL_LATCHED else w["zeros"]
         particle_arrays += [w["stress"] if stress is None else stress, w["fragment"], band]
-        if run > 0:  # `run_kernels.p2g_runs` takes only the first six: its particles are on the dense path
+        if run > 0:  # `grid.run_kernels.p2g_runs` takes only the first six: its particles are on the dense path
             extra = [w["solo"], multi, run, self.clock.view, g.view, lo, hi, counts]
             dim = -(-len(self.particles) // run)
             self._launch(p2g_runs, dim, particle_arrays[:6] + extra)
@@ -554,12 +555,12 @@ class Simulator(SlotStorage, FrameLoop):
         return int(self.counts[COUNT_CLAMPED].item())
 
     def diagnostics(self) -> dict:
-        """Metrics of DESIGN.md "Diagnostics" for the current state (see `diagnostics.py`)."""
+        """Metrics of DESIGN.md "Diagnostics" for the current state (see `diagnostics/tracker.py`)."""
         return self.diagnostics_tracker().snapshot()
 
     def diagnostics_tracker(self):
         if self._diagnostics is None:
-            from .diagnostics import Diagnostics
+            from .diagnostics.tracker import Diagnostics
 
             self._diagnostics = Diagnostics(self)
         return self._diagnostics

@@ -2,7 +2,7 @@
 into `Simulator`.
 
 After a latch the slot storage keeps slot 0 of every node in the dense grid and extra slots in a pool of
-multi-fragment nodes (`grid.Grid`). What the host decides per frame lives here: which particles are "solo"
+multi-fragment nodes (`fields.Grid`). What the host decides per frame lives here: which particles are "solo"
 (no other fragment can reach their stencil: no slot claims), the fan-out capacity and launch order of the
 others on a GPU, P2G's run length, and the pool pass (mass-gradient normals, then normalization, contact
 and boundaries of every field at a pool row).
@@ -15,10 +15,10 @@ from typing import Optional
 import torch
 import warp as wp
 
-from .contact import NORMAL_MASS_GRADIENT
-from .neighbourhood import solo_mask, solo_radius
+from ..neighbourhood import solo_mask, solo_radius
+from ..physics.contact import NORMAL_MASS_GRADIENT
+from .kernels import grid_update_pool
 from .normal_kernels import pool_mass_gradients
-from .transfer_kernels import grid_update_pool
 
 
 class SlotStorage:

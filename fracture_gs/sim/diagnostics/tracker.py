@@ -22,15 +22,10 @@ import weakref
 import torch
 import warp as wp
 
-from ..config import PlaneBoundary
-from ..profiling import phases
-from . import energy as E
-from . import metrics as M
-from .grid import Grid
-from .layout import (
-    COUNT_CLAMPED,
-    COUNT_POOL_OVERFLOW,
-    N_COUNTS,
+from ...config import PlaneBoundary
+from ...profiling import phases
+from ..grid.fields import Grid
+from ..physics.contact import (
     N_PAIR_STATS,
     NEVER,
     PAIR_DPX,
@@ -47,10 +42,13 @@ from .layout import (
     STAT_PNORM,
     STAT_UN_AFTER,
 )
-from .metrics import SEPARATION, reapproach_ratio  # noqa: F401 (re-exported: the tracker's thresholds)
+from ..recorded import Recorded
+from ..storage import COUNT_CLAMPED, COUNT_POOL_OVERFLOW, N_COUNTS
+from . import energy as E
+from . import metrics as M
+from .metrics import SEPARATION, reapproach_ratio
 from .overlap_kernels import VoxelOverlap
 from .penetration import calibrate, collider_packed, surface_penetration, unpack_overlap
-from .recorded import Recorded
 
 VOXEL = 0.6  # Δx: voxel edge of the voxel-occupancy overlap (`penetration.fragment_overlap`)
 CROSSING = 0.1  # Δx: a particle deeper than this behind another fragment's surface is a `fragment_crossing`
