@@ -362,7 +362,7 @@ def test_one_box_is_the_shared_field_transfer_walls_included(device, seed):
     none = wp.zeros(1, dtype=wp.vec3, device=device)
     boxed_sim.boundaries.colliders.wall_cells = int(boxed_sim.cfg.wall_cells)
     boxes.update(c, boxed_sim.eps_m, GRAVITY, 0.0, none, cw, colliders=boxed_sim.boundaries.colliders)
-    boxes.g2p(w, c, boxed_sim._lower, boxed_sim._upper, cw)
+    boxes.g2p(w, c, boxed_sim.lower, boxed_sim.upper, cw)
     floor = (plain.particles.v[:, 2] - (-2.0 - 9.8e-3)).abs() > 1e-3
     assert bool(floor.any()), "the floor changed some velocities"
     for name in ("x", "v", "C", "F"):
@@ -453,13 +453,13 @@ def test_a_substep_in_boxes_is_the_slot_storages(device, seed, fragments):
     boxes.p2g(w, boxed.clock.view, cw, band_flags=w["band"])
     crowded = crowded_particles(boxes, P.x.cpu(), boxed.eps_m)  # [N] a stencil node holds three fields or more
     boxed.boundaries.colliders.wall_cells = int(c.wall_cells)
-    n = tuple(float(a) for a in boxed._normal)
+    n = tuple(float(a) for a in boxed.latched_normal)
     boxes.update(
         boxed.clock.view, boxed.eps_m, c.gravity, c.contact.fill * boxed.node_mass, w["centroids"], cw,
         boxed.boundaries.colliders, e=c.restitution, mu=0.3, latched=n, eps_b=boxed.eps_b,
         mass_gradient=boxed.normal_mode == 1, stats=(wp.from_torch(stats), wp.from_torch(pair_stats), K),
     )  # fmt: skip
-    boxes.g2p(w, boxed.clock.view, boxed._lower, boxed._upper, cw)
+    boxes.g2p(w, boxed.clock.view, boxed.lower, boxed.upper, cw)
     ref_stats = slots.grid.contact_stats.cpu()
     assert float(ref_stats[STAT_GATED]) > 10, "the pieces pressed into each other at many nodes"
     assert bool(crowded.any()) == (fragments > 2)

@@ -464,11 +464,11 @@ def test_solo_particles_skip_slot_claims_bitwise():
         sim = S.Simulator(cfg, particles(x, vol, E=1e4))
         sim.latch(S.Topology.from_plane(sim.particles.x, (0.5, 0.5, 0.5), (1.0, 0.0, 0.0), 1 / 64))
         if not solo:
-            sim._update_solo = lambda travel, sim=sim: sim.set_solo(None)
+            sim.slots.update_solo = lambda travel, slack, slots=sim.slots: slots.set_solo(None)
         for _ in range(3):
             sim.advance(0.004)
         if solo:
-            assert 0.5 < float(sim.solo.float().mean()) < 1.0, "far from the cut the particles are solo"
+            assert 0.5 < float(sim.slots.solo.float().mean()) < 1.0, "far from the cut the particles are solo"
         runs.append(sim)
     for k in ("x", "v", "C", "F"):
         assert torch.equal(getattr(runs[0].particles, k), getattr(runs[1].particles, k)), k
@@ -560,9 +560,9 @@ def test_pool_mass_gradients_are_central_differences_of_each_fields_mass(device,
     K = sim.n_fragments
     args = (P.x.cpu(), P.v.cpu(), P.C.cpu(), P.mass.cpu(), P.volume.cpu(), sim.stress.cpu(), P.fragment.cpu().long())
     gm = ref.p2g(*args, K, g.shape, g.origin, g.dx, dt)[0].reshape(K, *g.shape)  # [K, X, Y, Z] float64
-    sim.set_solo(None)  # every particle through the slot claims
+    sim.slots.set_solo(None)  # every particle through the slot claims
     sim.p2g(dt)
-    grad0 = sim._pool_gradient_buffer()
+    grad0 = sim.slots.pool_gradient_buffer()
     wp.launch(pool_mass_gradients, dim=g.capacity * g.slots, device=sim.device, inputs=[g.view, sim.eps_m, grad0])
     rows = torch.nonzero(g.key.cpu() >= 0).flatten()
     assert len(rows) > 50, "pool rows where pieces meet"
@@ -574,7 +574,7 @@ def test_pool_mass_gradients_are_central_differences_of_each_fields_mass(device,
         i, j, l = n // (g.shape[1] * g.shape[2]), (n // g.shape[2]) % g.shape[1], n % g.shape[2]  # noqa: E741
         for s in range(g.slots):
             if s == 0:
-                k, got = int(g._owner[n] & OWNER_MASK) - 1, sim._grad0[r].cpu().double()
+                k, got = int(g._owner[n] & OWNER_MASK) - 1, sim.slots.grad0[r].cpu().double()
             else:
                 k, got = int(g.pool_owner[r * S1 + s - 1]), g._vel[n_nodes + r * S1 + s - 1].cpu().double()
             if k < 0 or float(gm[k, i, j, l]) <= sim.eps_m:

@@ -189,8 +189,8 @@ def test_the_active_box_holds_every_stencil_the_horizon_can_reach(device, speed)
         sim.particles.x.add_(torch.tensor(v, device=device) * h)
     xi = (sim.particles.x.double().cpu() - torch.tensor(sim.grid.origin, dtype=torch.float64)) / dx
     base = torch.floor(xi - 0.5).long()
-    lo, hi = torch.tensor(sim.box[:3]), torch.tensor(sim.box[3:])
-    assert bool((base >= lo).all() and (base + 2 < hi).all()), (sim.box, base.amin(0), base.amax(0))
+    lo, hi = torch.tensor(sim.slots.box[:3]), torch.tensor(sim.slots.box[3:])
+    assert bool((base >= lo).all() and (base + 2 < hi).all()), (sim.slots.box, base.amin(0), base.amax(0))
     if speed:
         assert float((xi.amax(0) - xi.amin(0)).max()) > 0
     sim.counts.zero_()

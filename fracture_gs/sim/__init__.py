@@ -18,6 +18,7 @@ from ..errors import SimulationDiverged
 from .grid import layout
 from .grid.domain import fit_grid
 from .grid.fields import Grid
+from .options import SimOptions
 from .particles import Particles, SimulationError
 from .providers import OracleProvider, ReplayProvider, StressProvider, make_provider
 from .simulator import Simulator
@@ -36,6 +37,7 @@ __all__ = [
     "ReplayProvider",
     "StressProvider",
     "SimConfig",
+    "SimOptions",
     "SphereBoundary",
     "SimulationDiverged",
     "SimulationError",

@@ -154,7 +154,7 @@ class FragmentBoxes:
 
     def clear(self) -> None:
         """Empty every field (m, p, band mass) for the next P2G. G2P reads only velocities, so this may run
-        beside it (`Simulator._g2p`)."""
+        beside it (`storage.BoxStorage.g2p`)."""
         launch(box_clear, self.capacity, [self.view], self.device)
 
     def update(

@@ -6,7 +6,7 @@ fragments reach, sized between frames from the rows the last frame used (`ensure
 logical fields `mass`, `momentum`, `velocity`, `band_mass` ([K, X, Y, Z, …]) are rebuilt from the
 slots for tests and small diagnostics; `fragment_mass` and `mixing` reduce the slots directly (torch
 twins of `field_sums`, the two launches the per-frame diagnostics use). They
-name a node's fragments from its claims, which the solver's "solo" particles skip (`Simulator.solo`):
+name a node's fragments from its claims, which the solver's "solo" particles skip (`SlotStorage.solo`):
 read them from a grid filled with claims everywhere (the diagnostics' shadow grid, or solo off).
 """
 
