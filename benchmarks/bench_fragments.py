@@ -37,7 +37,7 @@ from fracture_gs.paper.fragments import shattered_state as state
 from fracture_gs.paper.fragments import voronoi_topology as topology
 from fracture_gs.runtime import warp_stream
 from fracture_gs.sim import Simulator
-from fracture_gs.sim.layout import COUNT_ESCAPED, COUNT_SLOT_OVERFLOW
+from fracture_gs.sim.storage import COUNT_ESCAPED, COUNT_SLOT_OVERFLOW
 
 BRANCHES = (("Shared", "stress_zero", "slots"), ("FractureFields", "full", "slots"), ("Boxes", "full", "boxes"))
 
@@ -55,7 +55,7 @@ def build(cfg, P, topo, variant, device, sort="cell", storage="slots"):
     with sim._stream_scope():
         sim.transfer()  # sizes nothing: the pool came from the latch's estimate; count what it needs
     rows = int(sim.grid.rows_used())
-    sim.pool_rows = rows
+    sim.slots.pool_rows = rows
     sim.fit_active_box(0.05)  # a pool sized from the state's own rows, as between frames
     return sim
 
@@ -157,7 +157,9 @@ def main(argv=None) -> int:
                 "samples_ms": ms,  # placement-major: placement j's trials, then placement j + 1's
                 "grid_mib": first.grid_nbytes / 2**20,
                 # the slot storage's fan-out cache beside its grid (boxes have none)
-                "slot_cache_mib": first._slot_cache.numel() * 4 / 2**20 if first.fanout and storage == "slots" else 0.0,
+                "slot_cache_mib": (
+                    first.slots.slot_cache.numel() * 4 / 2**20 if first.options.fanout and storage == "slots" else 0.0
+                ),
                 "pool_rows": int(first.grid.rows_used()),
                 "slot_overflow": int(first.counts[COUNT_SLOT_OVERFLOW]),
                 "escaped": int(first.counts[COUNT_ESCAPED]),

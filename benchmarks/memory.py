@@ -14,7 +14,7 @@ import fracture_gs.pipeline as pipeline
 import fracture_gs.render_sim as runner
 import fracture_gs.render_sim.job as job
 import fracture_gs.render_sim.variant as variant
-import fracture_gs.sim.diagnostics as diagnostics
+import fracture_gs.sim.diagnostics.tracker as diagnostics
 import fracture_gs.sim.simulator as simulator
 from fracture_gs.io.config import find_config, load_config
 from fracture_gs.render import crack_faces

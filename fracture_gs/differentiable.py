@@ -17,8 +17,8 @@ from .io import GaussianSet
 from .pipeline import make_simulator, simulate
 from .render.gaussians import polar_rotation
 from .sim import Particles
-from .sim.constitutive import lame
 from .sim.diff import DiffSimulator
+from .sim.physics.constitutive import lame
 from .variants import variant_spec
 
 

@@ -20,7 +20,7 @@ from .io.gaussian_set import Carrier
 from .profiling import phases
 from .render.gaussians import deform_covariances, limit_stretch, polar_rotation
 from .sim import Particles, SimulationError, Simulator, Topology
-from .sim.grid import fit_grid
+from .sim.grid.domain import fit_grid
 from .sim.neighbourhood import cell_order
 from .sim.providers import ReplayProvider, make_provider
 from .variants import VariantName

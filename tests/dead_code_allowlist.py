@@ -23,9 +23,9 @@ write_video  # io.video: write frames to an mp4
 read_video  # io.video: read an mp4 back as frames
 polar_rotation_reference  # linalg: the float64 twin of the polar rotation kernel
 singular_values_reference  # linalg: the float64 twin of the singular values kernel
-box_volume  # sim.layout: node count of a box
-fragment_overlap  # sim.penetration: the voxel measure of Panel A's overlap
-collider_crossing  # sim.penetration: particles behind a collider plane
+box_volume  # sim.grid.layout: node count of a box
+fragment_overlap  # sim.diagnostics.penetration: the voxel measure of Panel A's overlap
+collider_crossing  # sim.diagnostics.penetration: particles behind a collider plane
 WALL_KEYS  # sweep.cells: the row keys that differ between runs by nature (wall times)
 RUN_KEYS  # sweep.driver: the row keys that say where and when a cell ran
 

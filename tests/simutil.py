@@ -50,7 +50,7 @@ def fill_slots(grid, m, v, band=None):
     slot 0 and fragments 1 … K−1 in pool slots 1 … K−1 of the node's row, inserted at its hash
     position like P2G would (so neighbour lookups find it). m [K, X, Y, Z], v [K, X, Y, Z, 3], band
     [K, …] (default: m); velocities are stored as (p, m) like P2G leaves them."""
-    from fracture_gs.sim.layout import ROW_FLAG
+    from fracture_gs.sim.grid.layout import ROW_FLAG
 
     K = m.shape[0]
     n = grid.n_nodes
@@ -89,8 +89,8 @@ def field_masses(sim):
     otherwise). Reads the code under test's deposits; `foreign_mass` judges them by hand."""
     import warp as wp
 
-    from fracture_gs.sim.grid import Grid
-    from fracture_gs.sim.layout import N_COUNTS
+    from fracture_gs.sim.grid.fields import Grid
+    from fracture_gs.sim.storage import N_COUNTS
 
     if sim.boxed:
         return sim.box_fields()[0].double().cpu()

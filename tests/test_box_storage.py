@@ -11,8 +11,7 @@ import pytest
 import torch
 from test_transfer_launch import slab
 
-from fracture_gs.sim.contact import NORMAL_LATCHED
-from fracture_gs.sim.layout import N_PAIR_STATS, PAIR_GATED, STAT_FIRST_T, STAT_GATED
+from fracture_gs.sim.physics.contact import N_PAIR_STATS, NORMAL_LATCHED, PAIR_GATED, STAT_FIRST_T, STAT_GATED
 from fracture_gs.sim.topology import FractureEvent
 
 FRAME = 4e-3
@@ -94,7 +93,7 @@ def test_a_stencil_that_leaves_its_box_redoes_the_frame_with_larger_boxes(device
 
     sim.fit_active_box = fit_then_kick
     sim.advance(2 * FRAME)
-    assert sim.frame_redos >= 1 and sim.box_slack > 0, "the escape was caught and the frame redone"
+    assert sim.frame_redos >= 1 and sim.runner.box_slack > 0, "the escape was caught and the frame redone"
     sim.fit_active_box = fit
     total = float(P.mass.double().sum())
     assert abs(deposited_mass(sim) - total) <= 1e-5 * total
@@ -123,7 +122,7 @@ def test_boxes_move_without_changing_what_recorded_launches_bake_in(device, seed
     runs = []
     for graphs in (False, True):
         sim, topo = slab(seed, device, fragments, storage="boxes")
-        sim.use_graphs = graphs
+        sim.options = replace(sim.options, use_graphs=graphs)
         sim.latch(topo)
         P = sim.particles
         P.v.copy_(0.5 * (0.5 - P.x) + torch.tensor([0.0, 3.0, 0.0], device=P.x.device))  # and a drift along y
@@ -138,7 +137,7 @@ def test_boxes_move_without_changing_what_recorded_launches_bake_in(device, seed
     if device == "cpu":  # no graphs on the CPU: both ran the same launches
         assert torch.equal(a.x, b.x)
         return
-    assert runs[1]._graph is not None
+    assert runs[1].runner.graph is not None
     torch.testing.assert_close(b.x, a.x, rtol=1e-4, atol=1e-5)
     torch.testing.assert_close(b.v, a.v, rtol=1e-3, atol=1e-4)
 

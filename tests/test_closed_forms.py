@@ -19,11 +19,11 @@ from simutil import block, config, particles
 
 from fracture_gs import sim as S
 from fracture_gs.runtime import ensure_warp
-from fracture_gs.sim import energy as energy_mod
-from fracture_gs.sim import metrics
 from fracture_gs.sim import reference as ref
-from fracture_gs.sim.boundary import Boundaries
-from fracture_gs.sim.constitutive import compute_stress
+from fracture_gs.sim.diagnostics import energy as energy_mod
+from fracture_gs.sim.diagnostics import metrics
+from fracture_gs.sim.physics.boundary import Boundaries
+from fracture_gs.sim.physics.constitutive import compute_stress
 
 FC, NH, VM, DP = 0, 1, 2, 3  # model ids as the kernels number them (constitutive.MATERIAL_IDS)
 E_PA, NU = 1.0e5, 0.3
@@ -127,7 +127,7 @@ def close(a, b, rel, scale=None):
 def test_package_lame_is_the_hand_formula():
     """`constitutive.lame` (used by the simulator's wave speed and the energy) is μ = E/(2(1+ν)),
     λ = Eν/((1+ν)(1−2ν)): at E = 1e5 Pa, ν = 0.3, μ = 38461.54 Pa and λ = 57692.31 Pa."""
-    from fracture_gs.sim.constitutive import lame
+    from fracture_gs.sim.physics.constitutive import lame
 
     for E, nu in ((1e5, 0.3), (2.5e6, 0.45), (7.0, 0.0), (1e3, -0.2)):
         mu, lam = lame(E, nu)
@@ -378,7 +378,7 @@ def test_cfl_step_comes_from_the_stiffest_material(stiff_first):
     assert sim.wave_speed == pytest.approx(c_stiff, rel=1e-5)
     dt = cfl * dx / (2.0 + c_stiff)
     assert sim.cfl_dt(2.0) == pytest.approx(dt, rel=1e-5)
-    n, sub = sim.frame_substeps(1 / 24)
+    n, sub = sim.runner.frame_substeps(1 / 24)
     assert n == math.ceil((1 / 24) / dt) and sub == pytest.approx(1 / 24 / n, rel=1e-12) and sub <= dt
 
 

@@ -8,9 +8,9 @@ import math
 
 import pytest
 
-from fracture_gs.sim import metrics as M
-from fracture_gs.sim.diagnostics import COLLIDER_TOLERANCE, VOXEL
-from fracture_gs.sim.penetration import collider_crossing, fragment_overlap
+from fracture_gs.sim.diagnostics import metrics as M
+from fracture_gs.sim.diagnostics.penetration import collider_crossing, fragment_overlap
+from fracture_gs.sim.diagnostics.tracker import COLLIDER_TOLERANCE, VOXEL
 
 
 @pytest.mark.slow
@@ -50,7 +50,7 @@ def test_piece_gap_is_the_shortest_distance_between_the_two_largest_pieces():
     crumb is no piece); one piece alone has no gap."""
     import torch
 
-    from fracture_gs.sim.metrics import piece_gap
+    from fracture_gs.sim.diagnostics.metrics import piece_gap
 
     g = torch.arange(3, dtype=torch.float64) * 0.1
     big = torch.stack(torch.meshgrid(g, g, g, indexing="ij"), -1).reshape(-1, 3)  # x in [0, 0.2]

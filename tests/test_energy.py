@@ -9,9 +9,9 @@ import torch
 from simutil import block, config, particles, rand_rotations
 
 from fracture_gs import sim as S
-from fracture_gs.sim import energy as E
 from fracture_gs.sim import reference as ref
-from fracture_gs.sim.constitutive import MATERIAL_IDS, dp_alpha
+from fracture_gs.sim.diagnostics import energy as E
+from fracture_gs.sim.physics.constitutive import MATERIAL_IDS, dp_alpha
 
 
 def deformations(n, lo, hi, generator):

@@ -3,13 +3,15 @@ properties (single-field consistency, structural zero realized mixing, per-fragm
 consistency, momentum-conserving approach-only contact), equivalence of the global fragment pass,
 and the controlled re-contact benchmark (Table 4, Panel B)."""
 
+from dataclasses import replace
+
 import pytest
 import torch
 from simutil import block, config, field_masses, fill_slots, foreign_mass, particles, rand_rotations, rel_err
 
 from fracture_gs import sim as S
 from fracture_gs.sim import reference as ref
-from fracture_gs.sim.diagnostics import SEPARATION, reapproach_ratio
+from fracture_gs.sim.diagnostics.metrics import SEPARATION, reapproach_ratio
 
 N = 3000
 
@@ -49,8 +51,9 @@ def test_two_field_transfer_matches_reference(device, seed, fitted):
     sim.cfg.wall_cells = 0
     if fitted:
         sim.fit_active_box(1e-3)
-        assert S.layout.box_volume(sim.box) < 0.7 * g.n_nodes, "the active box must shrink the grid work"
-        sim.set_solo(None)  # the logical fields name each node's fragment from its claims, which solo particles skip
+        assert S.layout.box_volume(sim.slots.box) < 0.7 * g.n_nodes, "the active box must shrink the grid work"
+        # the logical fields name each node's fragment from its claims, which solo particles skip
+        sim.slots.set_solo(None)
     sim.compute_stress(sim.stress, commit=True)
     x0, F0, field = P.x.cpu().clone(), P.F.cpu().clone(), P.fragment.cpu().long()
     gm, gp, gb = ref.p2g(
@@ -291,11 +294,11 @@ def test_escaping_particles_redo_the_frame(seed):
     for slack in (0, 10**4):
         sim = S.Simulator(config(32, variant="full", dt=1e-3, boundaries=[push]), particles(x, vol, E=1e4))
         sim.latch(S.Topology.from_plane(sim.particles.x, (0.45, 0.5, 0.5), (1.0, 0.0, 0.0), 0.05))
-        sim.box_slack = slack
+        sim.runner.box_slack = slack
         sim.advance(1 / 24)
         runs.append(sim)
     redone, whole = runs
-    assert redone.frame_redos >= 1 and redone.box_slack > 0, "the escape must be detected"
+    assert redone.frame_redos >= 1 and redone.runner.box_slack > 0, "the escape must be detected"
     assert whole.frame_redos == 0
     assert (redone.time, redone.substeps, redone.frame) == (whole.time, whole.substeps, whole.frame)
     for k in ("x", "v", "C", "F"):
@@ -315,7 +318,7 @@ def test_active_box_skips_only_empty_nodes(seed, variant):
         sim.latch(topo)
         if fit:
             sim.fit_active_box(0.01)
-            assert S.layout.box_volume(sim.box) < 32**3, "the box must actually shrink the work"
+            assert S.layout.box_volume(sim.slots.box) < 32**3, "the box must actually shrink the work"
         for _ in range(5):
             sim.substep()
         runs.append(sim.particles)
@@ -347,7 +350,7 @@ def test_every_box_transfer_kernel_has_a_table2_phase():
     per-fragment boxes by default, so each kernel a boxed transfer launches must map to its phase (an unmapped
     kernel would read 0 µs in the table)."""
     from fracture_gs.paper.bench import KERNEL_PHASES
-    from fracture_gs.sim import box_kernels as bk
+    from fracture_gs.sim.boxes import kernels as bk
 
     phases = {bk.box_clear: "reset", bk.box_g2p: "g2p"}
     phases.update({kernel: "p2g" for kernel in bk.BOX_P2G.values()})
@@ -376,7 +379,7 @@ def test_recorded_substeps_replay_like_launches(device, seed):
     runs = []
     for graphs in (False, True):
         sim, topo = split_state(seed, device, "full", boundaries=[push])
-        sim.use_graphs = graphs
+        sim.options = replace(sim.options, use_graphs=graphs)
         sim.cfg.adaptive_dt = True
         for frame in range(4):
             sim.advance(0.005)

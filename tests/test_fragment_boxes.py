@@ -1,4 +1,4 @@
-"""`sim.boxes.FragmentBoxes`: a dense box per fragment (docs/DESIGN.md "Grid storage: per-fragment boxes
+"""`sim.boxes.fragment_boxes.FragmentBoxes`: a dense box per fragment (docs/DESIGN.md "Grid storage: per-fragment boxes
 (plan)") against the float64 twins on K dense fields. P2G puts each particle's deposits into its own
 fragment's field only (mass and momentum of every field, relative error ≤ 1e-5); normalization and G2P read
 each particle back from its own field; the contact where fields meet is `reference.contact_fields` with
@@ -11,10 +11,10 @@ from simutil import rel_err
 
 from fracture_gs.runtime import ensure_warp
 from fracture_gs.sim import reference as ref
-from fracture_gs.sim.boundary import Boundaries
-from fracture_gs.sim.boxes import FragmentBoxes
+from fracture_gs.sim.boxes.fragment_boxes import FragmentBoxes
 from fracture_gs.sim.clock import FrameClock
-from fracture_gs.sim.layout import COUNT_ESCAPED, N_COUNTS
+from fracture_gs.sim.physics.boundary import Boundaries
+from fracture_gs.sim.storage import COUNT_ESCAPED, N_COUNTS
 
 N, n, DT, EPS_M = 3000, 24, 1e-3, 1e-9
 GRAVITY = (0.0, 0.0, -9.8)
@@ -267,11 +267,11 @@ def test_the_fast_math_grid_update_is_the_exact_one_to_float32_rounding(device, 
 
 
 def test_per_pair_statistics_cover_the_first_ids_and_the_totals_every_pair(device, seed):
-    """Per-pair contact rows exist for fragment ids below a cap (`layout.PAIR_FRAGMENTS`, so a run allowed 4,096
-    fragments keeps 128² rows, not 4,096²): the four quadrants' contact recorded with a cap of 2 keeps only the
+    """Per-pair contact rows exist for fragment ids below a cap (`physics.contact.PAIR_FRAGMENTS`, so a run allowed
+    4,096 fragments keeps 128² rows, not 4,096²): the four quadrants' contact recorded with a cap of 2 keeps only the
     pair 0–1, equal to its row without the cap, while the totals count every gated pair either way."""
-    from fracture_gs.sim.grid import Grid
-    from fracture_gs.sim.layout import (
+    from fracture_gs.sim.grid.fields import Grid
+    from fracture_gs.sim.physics.contact import (
         N_PAIR_STATS,
         N_STATS,
         NEVER,
@@ -306,7 +306,7 @@ def test_recording_the_contact_statistics_changes_no_velocity(device, seed, fast
     registers, no atomics between the leaders' loads): at the quadrants' fields, nodes of two to four fields with
     friction, both builds give the same velocities (bitwise on the CPU; to float32 rounding with CUDA's
     compiler), and only the recording build writes statistics."""
-    from fracture_gs.sim.layout import N_PAIR_STATS, N_STATS, NEVER, PAIR_FIRST_T, STAT_GATED
+    from fracture_gs.sim.physics.contact import N_PAIR_STATS, N_STATS, NEVER, PAIR_FIRST_T, STAT_GATED
 
     P, w, counts, boxes = state(seed, device)
     cw, c, m, fill, centroids = deposited(P, w, counts, boxes, device)
@@ -362,7 +362,7 @@ def test_one_box_is_the_shared_field_transfer_walls_included(device, seed):
     none = wp.zeros(1, dtype=wp.vec3, device=device)
     boxed_sim.boundaries.colliders.wall_cells = int(boxed_sim.cfg.wall_cells)
     boxes.update(c, boxed_sim.eps_m, GRAVITY, 0.0, none, cw, colliders=boxed_sim.boundaries.colliders)
-    boxes.g2p(w, c, boxed_sim._lower, boxed_sim._upper, cw)
+    boxes.g2p(w, c, boxed_sim.lower, boxed_sim.upper, cw)
     floor = (plain.particles.v[:, 2] - (-2.0 - 9.8e-3)).abs() > 1e-3
     assert bool(floor.any()), "the floor changed some velocities"
     for name in ("x", "v", "C", "F"):
@@ -426,7 +426,7 @@ def test_a_substep_in_boxes_is_the_slot_storages(device, seed, fragments):
     sums to float32 rounding)."""
     from test_transfer_launch import slab
 
-    from fracture_gs.sim.layout import N_PAIR_STATS, N_STATS, NEVER, PAIR_FIRST_T, STAT_FIRST_T, STAT_GATED
+    from fracture_gs.sim.physics.contact import N_PAIR_STATS, N_STATS, NEVER, PAIR_FIRST_T, STAT_FIRST_T, STAT_GATED
 
     sims = []
     for _ in range(2):
@@ -453,13 +453,13 @@ def test_a_substep_in_boxes_is_the_slot_storages(device, seed, fragments):
     boxes.p2g(w, boxed.clock.view, cw, band_flags=w["band"])
     crowded = crowded_particles(boxes, P.x.cpu(), boxed.eps_m)  # [N] a stencil node holds three fields or more
     boxed.boundaries.colliders.wall_cells = int(c.wall_cells)
-    n = tuple(float(a) for a in boxed._normal)
+    n = tuple(float(a) for a in boxed.latched_normal)
     boxes.update(
         boxed.clock.view, boxed.eps_m, c.gravity, c.contact.fill * boxed.node_mass, w["centroids"], cw,
         boxed.boundaries.colliders, e=c.restitution, mu=0.3, latched=n, eps_b=boxed.eps_b,
         mass_gradient=boxed.normal_mode == 1, stats=(wp.from_torch(stats), wp.from_torch(pair_stats), K),
     )  # fmt: skip
-    boxes.g2p(w, boxed.clock.view, boxed._lower, boxed._upper, cw)
+    boxes.g2p(w, boxed.clock.view, boxed.lower, boxed.upper, cw)
     ref_stats = slots.grid.contact_stats.cpu()
     assert float(ref_stats[STAT_GATED]) > 10, "the pieces pressed into each other at many nodes"
     assert bool(crowded.any()) == (fragments > 2)

@@ -329,7 +329,7 @@ def test_a_run_leaves_no_tensors_in_reference_cycles(tmp_path):
 def test_grid_larger_than_free_gpu_memory_is_refused(monkeypatch):
     """On CUDA the grid's buffers are checked against the device's free memory before allocation (seen on an
     H200: a 2048³ grid, 256 GiB, against 139 GiB free); here with the free-memory query stubbed."""
-    from fracture_gs.sim.grid import check_device_memory
+    from fracture_gs.sim.grid.domain import check_device_memory
 
     monkeypatch.setattr(torch.cuda, "mem_get_info", lambda device=None: (10 * 2**30, 80 * 2**30))
     with pytest.raises(SimulationError, match=r"needs ≈ 20.00 GiB but cuda:0 has 10.00 GiB free"):

@@ -13,6 +13,7 @@ from fracture_gs.config import OraclePlane
 from fracture_gs.sim import reference as ref
 from fracture_gs.sim.providers.cuts import plane_cut, split_components, voronoi_labels
 from fracture_gs.sim.providers.voronoi import voronoi_sites
+from fracture_gs.sim.storage import COUNT_SLOT_OVERFLOW
 from fracture_gs.sim.topology import load_history, save_history
 
 STATE = ("x", "v", "C", "F", "mass", "volume")
@@ -81,7 +82,7 @@ def test_k_field_transfer_matches_reference(device, seed, normal):
         gb = torch.zeros_like(gb)
     for name, ours, theirs in (("mass", g.mass, gm), ("momentum", g.momentum, gp), ("band mass", g.band_mass, gb)):
         assert rel_err(ours.cpu(), theirs) <= 1e-5, f"K-field P2G {name} (seed {seed})"
-    assert int(sim.counts[S.layout.COUNT_SLOT_OVERFLOW]) == 0
+    assert int(sim.counts[COUNT_SLOT_OVERFLOW]) == 0
     sim.update_grid(dt)
     gv = ref.grid_update(gm, gp, gb, sim.eps_m, sim.eps_b, dt, sim.cfg.gravity)
     assert rel_err(g.velocity.cpu(), gv) <= 1e-5, f"K-field grid update (seed {seed})"
@@ -151,7 +152,7 @@ def test_slot_overflow_is_counted_and_conserves_mass(device, seed):
     sim.compute_stress(sim.stress, commit=True)
     sim.p2g(1e-3)
     P, g = sim.particles, sim.grid
-    assert int(sim.counts[S.layout.COUNT_SLOT_OVERFLOW]) > 0, "the overflow must be counted"
+    assert int(sim.counts[COUNT_SLOT_OVERFLOW]) > 0, "the overflow must be counted"
     total = float(P.mass.double().sum())
     assert abs(float(g.mass.double().sum()) - total) <= 1e-6 * total, "mass is never dropped"
     per = g.fragment_mass(sim.n_fragments)
@@ -386,7 +387,7 @@ def test_fragment_aware_penetration_between_pieces(seed):
     surface, also turned at random (no preferred axis, no voxel staircase); pushed 3Δx into each other they
     read the kernel radius R (saturated: a lower bound), between fragments 0 and 1 only (scales calibrated
     while touching, as at a latch)."""
-    from fracture_gs.sim.penetration import calibrate, surface_penetration
+    from fracture_gs.sim.diagnostics.penetration import calibrate, surface_penetration
 
     dx = 1 / 32
     g = torch.Generator().manual_seed(seed)
@@ -463,11 +464,11 @@ def test_solo_particles_skip_slot_claims_bitwise():
         sim = S.Simulator(cfg, particles(x, vol, E=1e4))
         sim.latch(S.Topology.from_plane(sim.particles.x, (0.5, 0.5, 0.5), (1.0, 0.0, 0.0), 1 / 64))
         if not solo:
-            sim._update_solo = lambda travel, sim=sim: sim.set_solo(None)
+            sim.slots.update_solo = lambda travel, slack, slots=sim.slots: slots.set_solo(None)
         for _ in range(3):
             sim.advance(0.004)
         if solo:
-            assert 0.5 < float(sim.solo.float().mean()) < 1.0, "far from the cut the particles are solo"
+            assert 0.5 < float(sim.slots.solo.float().mean()) < 1.0, "far from the cut the particles are solo"
         runs.append(sim)
     for k in ("x", "v", "C", "F"):
         assert torch.equal(getattr(runs[0].particles, k), getattr(runs[1].particles, k)), k
@@ -512,7 +513,7 @@ def _overlap_reference(x, fragment, h, K, max_depth=8):
 def test_overlap_packed_matches_its_plain_twin(seed):
     """The vectorised fragment-overlap measure (sorted keys, binary searches, erosion by levels) equals a
     plain-Python twin on random interpenetrating pieces: crossing count, max depth and every pair's depth."""
-    from fracture_gs.sim.penetration import overlap_packed
+    from fracture_gs.sim.diagnostics.penetration import overlap_packed
 
     g = torch.Generator().manual_seed(seed)
     K, h, n = 3, 0.02, 4000
@@ -543,13 +544,13 @@ def test_solo_mask_cube_max_is_the_3d_max_pool(r):
 
 def test_pool_mass_gradients_are_central_differences_of_each_fields_mass(device, seed):
     """The mass-gradient contact normal's ∇m^k at a multi-fragment node (one thread per pool row and slot,
-    before the pool pass: `normal_kernels.pool_mass_gradients`) is the central difference
+    before the pool pass: `grid.normal_kernels.pool_mass_gradients`) is the central difference
     (m^k(i + e_a) − m^k(i − e_a)) / 2Δx of fragment k's nodal masses, neighbours clamped into the grid
     (the float64 dense K-field reference), for every slot holding a field with mass; zero otherwise."""
     import warp as wp
 
-    from fracture_gs.sim.layout import OWNER_MASK
-    from fracture_gs.sim.normal_kernels import pool_mass_gradients
+    from fracture_gs.sim.grid.layout import OWNER_MASK
+    from fracture_gs.sim.grid.normal_kernels import pool_mass_gradients
 
     sim, topo = voronoi_state(seed, device, variant="full")
     sim.latch(topo)
@@ -559,9 +560,9 @@ def test_pool_mass_gradients_are_central_differences_of_each_fields_mass(device,
     K = sim.n_fragments
     args = (P.x.cpu(), P.v.cpu(), P.C.cpu(), P.mass.cpu(), P.volume.cpu(), sim.stress.cpu(), P.fragment.cpu().long())
     gm = ref.p2g(*args, K, g.shape, g.origin, g.dx, dt)[0].reshape(K, *g.shape)  # [K, X, Y, Z] float64
-    sim.set_solo(None)  # every particle through the slot claims
+    sim.slots.set_solo(None)  # every particle through the slot claims
     sim.p2g(dt)
-    grad0 = sim._pool_gradient_buffer()
+    grad0 = sim.slots.pool_gradient_buffer()
     wp.launch(pool_mass_gradients, dim=g.capacity * g.slots, device=sim.device, inputs=[g.view, sim.eps_m, grad0])
     rows = torch.nonzero(g.key.cpu() >= 0).flatten()
     assert len(rows) > 50, "pool rows where pieces meet"
@@ -573,7 +574,7 @@ def test_pool_mass_gradients_are_central_differences_of_each_fields_mass(device,
         i, j, l = n // (g.shape[1] * g.shape[2]), (n // g.shape[2]) % g.shape[1], n % g.shape[2]  # noqa: E741
         for s in range(g.slots):
             if s == 0:
-                k, got = int(g._owner[n] & OWNER_MASK) - 1, sim._grad0[r].cpu().double()
+                k, got = int(g._owner[n] & OWNER_MASK) - 1, sim.slots.grad0[r].cpu().double()
             else:
                 k, got = int(g.pool_owner[r * S1 + s - 1]), g._vel[n_nodes + r * S1 + s - 1].cpu().double()
             if k < 0 or float(gm[k, i, j, l]) <= sim.eps_m:

@@ -1,4 +1,4 @@
-"""The fragment-aware overlap in Warp launches (`sim/overlap_kernels.py`) against its torch twin
+"""The fragment-aware overlap in Warp launches (`sim/diagnostics/overlap_kernels.py`) against its torch twin
 (`penetration.overlap_packed`) and the plain-Python twin: the same crossing count, deepest crossing and
 per-pair depths, exactly (integer counts and voxel levels times h, no rounding to differ)."""
 
@@ -6,8 +6,8 @@ import pytest
 import torch
 from test_many_fragments import _overlap_reference
 
-from fracture_gs.sim.overlap_kernels import VoxelOverlap
-from fracture_gs.sim.penetration import overlap_packed
+from fracture_gs.sim.diagnostics.overlap_kernels import VoxelOverlap
+from fracture_gs.sim.diagnostics.penetration import overlap_packed
 
 
 def _pieces(seed: int, K: int, n: int, spread: float = 0.12):

@@ -1,6 +1,8 @@
-"""P2G in runs (`run_kernels.p2g_runs`, DESIGN.md "Performance rules"): a thread deposits a run of consecutive
+"""P2G in runs (`grid.run_kernels.p2g_runs`, DESIGN.md "Performance rules"): a thread deposits a run of consecutive
 particles and sums in registers those that share a cell, so particles sorted by cell reach each node with one
 reduction per run and cell. Only the order of the float32 sums changes; with runs of one particle, nothing."""
+
+from dataclasses import replace
 
 import pytest
 import torch
@@ -8,12 +10,12 @@ from simutil import rel_err
 from test_transfer_launch import slab
 
 from fracture_gs import sim as S
-from fracture_gs.sim.layout import COUNT_ESCAPED
+from fracture_gs.sim.storage import COUNT_ESCAPED
 
 
 def one_p2g(sim, run: int):
     """The grid after one P2G of the current state ([nodes + pool, 4] float64) and the counters."""
-    sim.p2g_run = run
+    sim.options = replace(sim.options, p2g_run=run)
     sim.grid.reset_claims()
     sim.counts.zero_()
     sim.compute_stress(sim.stress, commit=False)
@@ -63,26 +65,27 @@ def test_runs_with_fragments_advance_the_same(device, seed):
     sims = []
     for run in (0, 4):
         sim, _ = slab(seed, device, sort="cell")
-        sim.fanout = True  # the runs leave the particles that are not solo to the fan-out
-        sim.p2g_run = run
+        # the runs leave the particles that are not solo to the fan-out
+        sim.options = replace(sim.options, fanout=True, p2g_run=run)
         sim.latch(S.Topology.from_plane(sim.particles.x.cpu(), (0.18, 0.5, 0.5), (1.0, 0.2, 0.1), band_width=1.5 / 32))
         for _ in range(3):
             sim.advance(5e-3)
         sims.append(sim)
     plain, runs = sims
-    solo = runs.solo.bool()
+    solo = runs.slots.solo.bool()
     assert 0.5 < float(solo.float().mean()) < 0.95, "both the runs and the fan-out are exercised"
-    assert runs._run_length(1) == 4
+    assert runs.slots.run_length(1) == 4
     for name in ("x", "v", "F"):
         a, b = getattr(plain.particles, name).cpu(), getattr(runs.particles, name).cpu()
         assert rel_err(b, a) <= 1e-5, f"{name} (seed {seed})"
     mp, _ = one_p2g(runs, 4)
     torch.testing.assert_close(mp[:, 3].sum(), runs.particles.mass.sum().double().cpu(), rtol=1e-6, atol=0.0)
     middle, topo = slab(seed, device, sort="cell")
-    middle.fanout, middle.p2g_run = True, 4
+    middle.options = replace(middle.options, fanout=True, p2g_run=4)
     middle.latch(topo)
     middle.advance(5e-3)
-    assert float(middle.solo.float().mean()) < 0.5 and middle._run_length(1) == 0 and middle._run_length(0) == 4
+    slots = middle.slots
+    assert float(slots.solo.float().mean()) < 0.5 and slots.run_length(1) == 0 and slots.run_length(0) == 4
 
 
 def test_runs_are_on_only_for_cell_order_on_a_gpu(device):
@@ -90,11 +93,11 @@ def test_runs_are_on_only_for_cell_order_on_a_gpu(device):
     particles per thread) on a GPU, the interleaved order turns them off, and the CPU keeps one particle per
     thread (a single thread runs the launch: nothing to save)."""
     sim, _ = slab(0, device)
-    assert sim.p2g_run == 0
+    assert sim.options.p2g_run == 0
     sim.sort_particles("cell")
-    assert sim.p2g_run == (8 if device != "cpu" else 0)
+    assert sim.options.p2g_run == (8 if device != "cpu" else 0)
     sim.sort_particles("interleaved")
-    assert sim.p2g_run == 0
+    assert sim.options.p2g_run == 0
 
 
 def test_sorting_after_a_latch_orders_cells_by_fragment_and_keeps_the_topology(device, seed):

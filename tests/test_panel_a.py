@@ -10,7 +10,7 @@ from fracture_gs.io.config import load_config
 from fracture_gs.paper.experiments import run_experiment
 from fracture_gs.paper.paper_tables import table4
 from fracture_gs.paper.protocol import prepare
-from fracture_gs.sim.penetration import surface_penetration
+from fracture_gs.sim.diagnostics.penetration import surface_penetration
 
 
 @pytest.mark.slow

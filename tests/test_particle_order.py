@@ -10,9 +10,9 @@ import torch
 from fracture_gs.io.config import load_config
 from fracture_gs.pipeline import make_simulator, prepare_scene
 from fracture_gs.sim import Particles, SimulationError, Simulator
-from fracture_gs.sim.grid import fit_grid
+from fracture_gs.sim.grid.domain import fit_grid
 from fracture_gs.sim.neighbourhood import cell_order
-from fracture_gs.sim.simulator import P2G_RUN
+from fracture_gs.sim.options import P2G_RUN
 
 
 def bread(order: str, n: int = 1500):
@@ -50,7 +50,8 @@ def test_a_run_in_cell_order_moves_like_the_scene_order_run(device):
         cfg = bread(order)
         gs = prepare_scene(cfg, device).gaussians
         sim = make_simulator(cfg, gs, "baseline", device)
-        assert sim.p2g_run == (P2G_RUN if order == "cell" and device != "cpu" else 0), "runs on a GPU in cell order"
+        runs = P2G_RUN if order == "cell" and device != "cpu" else 0
+        assert sim.options.p2g_run == runs, "runs on a GPU in cell order"
         x0[order] = sim.particles.x.clone()
         for _ in range(3):
             sim.advance(cfg.frame_dt)

@@ -7,7 +7,7 @@ import pytest
 import torch
 
 from fracture_gs.io.gaussian_set import quat_to_matrix
-from fracture_gs.sim.penetration import (
+from fracture_gs.sim.diagnostics.penetration import (
     SPACINGS,
     calibrate,
     depth_from_fraction,

@@ -6,8 +6,8 @@ import torch
 import warp as wp
 
 from fracture_gs.runtime import ensure_warp
-from fracture_gs.sim.boundary import apply_particle_region, cuboid_velocity
 from fracture_gs.sim.clock import FrameClock
+from fracture_gs.sim.physics.boundary import apply_particle_region, cuboid_velocity
 
 ensure_warp()
 

@@ -1,4 +1,4 @@
-"""Per-fragment boxes (`sim.boxes`, `sim.box_kernels`): the band-mass P2G gives each fragment's box the mass of
+"""Per-fragment boxes (`sim.boxes`): the band-mass P2G gives each fragment's box the mass of
 its band particles (the weights of a stencil sum to one), and the mass gradient the latched-normal contact reads
 is the central difference of the box's nodal masses with zero beyond the box, on every axis and at the box's
 faces. Small scenes (2,000 particles on a 24³ grid)."""
@@ -7,10 +7,10 @@ import torch
 import warp as wp
 
 from fracture_gs.runtime import ensure_warp
-from fracture_gs.sim.box_kernels import BoxView, box_mass_gradient
-from fracture_gs.sim.boxes import FragmentBoxes
+from fracture_gs.sim.boxes.fragment_boxes import FragmentBoxes
+from fracture_gs.sim.boxes.kernels import BoxView, box_mass_gradient
 from fracture_gs.sim.clock import FrameClock
-from fracture_gs.sim.layout import N_COUNTS
+from fracture_gs.sim.storage import N_COUNTS
 
 n, N = 24, 2000
 

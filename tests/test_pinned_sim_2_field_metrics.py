@@ -1,4 +1,4 @@
-"""Field statistics of the slot storage (`sim.field_metrics_kernels`, launched by `Grid.field_sums`): the
+"""Field statistics of the slot storage (`sim.grid.field_metrics_kernels`, launched by `Grid.field_sums`): the
 counterfactual mixing of a node is Σ_k m^k ‖v̄ − v^k‖² about the node's mass-weighted mean velocity v̄, with every
 component of every field's momentum, slot 0's included."""
 
@@ -6,7 +6,7 @@ import pytest
 import torch
 from simutil import fill_slots
 
-from fracture_gs.sim.grid import Grid
+from fracture_gs.sim.grid.fields import Grid
 
 
 def test_mixing_uses_all_three_momentum_components_of_slot_zero():

@@ -1,4 +1,4 @@
-"""The multi-field grid's node bookkeeping (`sim.layout`), driven one call at a time from a one-thread kernel:
+"""The multi-field grid's node bookkeeping (`sim.grid.layout`), driven one call at a time from a one-thread kernel:
 slot 0's owner is the low 16 bits of the node's owner word (the pool-row flag is not a fragment), a node without
 a pool row has none (−1), and a fragment finds again the pool slot it claimed, the next fragment taking the next
 free slot of the same row."""
@@ -7,7 +7,7 @@ import torch
 import warp as wp
 
 from fracture_gs.runtime import ensure_warp
-from fracture_gs.sim.layout import EMPTY_KEY, ROW_FLAG, claim_pool_slot, claim_row, claim_slot0, find_row
+from fracture_gs.sim.grid.layout import EMPTY_KEY, ROW_FLAG, claim_pool_slot, claim_row, claim_slot0, find_row
 
 ensure_warp()
 

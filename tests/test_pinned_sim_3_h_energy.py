@@ -7,7 +7,7 @@ import pytest
 import torch
 
 from fracture_gs import sim as S
-from fracture_gs.sim.energy import energies
+from fracture_gs.sim.diagnostics.energy import energies
 
 YOUNG, NU, VOL, MASS = 2e4, 0.25, 1e-3, 0.5
 

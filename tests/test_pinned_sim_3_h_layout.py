@@ -8,7 +8,8 @@ import torch
 import warp as wp
 
 from fracture_gs.runtime import ensure_warp
-from fracture_gs.sim.layout import box_volume, flat, inside, pool_capacity, unflat
+from fracture_gs.sim.grid.layout import box_volume, pool_capacity
+from fracture_gs.sim.stencil import flat, inside, unflat
 
 ensure_warp()
 

@@ -8,7 +8,7 @@ import math
 
 import torch
 
-from fracture_gs.sim.metrics import interface_pairs, piece_gap
+from fracture_gs.sim.diagnostics.metrics import interface_pairs, piece_gap
 
 
 def _x(*rows):

@@ -10,7 +10,7 @@ import types
 import pytest
 import torch
 
-from fracture_gs.sim.diagnostics import Diagnostics
+from fracture_gs.sim.diagnostics.tracker import Diagnostics
 
 G = (0.0, -3.0, -4.0)  # |g| = 5 m/s²
 M = 2.5  # kg

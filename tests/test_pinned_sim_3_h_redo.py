@@ -1,80 +1,113 @@
-"""`sim/frame_loop.py`'s redo policy (`FrameLoop._advance`) on a stand-in simulator whose frame check answers
+"""`sim/frames.py`'s redo policy (`FrameRunner._advance`) on a stand-in simulator whose frame check answers
 from a script: a frame whose particles left the active box is redone with more slack (s → 2s + 2), the second
 escape on the whole grid (per-fragment boxes only grow their slack); a frame whose pool of multi-fragment nodes
 overflowed is redone with a pool for twice the current capacity; slot overflows are reported, never redone;
 after eight tries the frame stands. Every try starts from the saved state, and the frame ends exactly on its
 time. The pool's expected rows follow the rows used, halving at most per try."""
 
-import types
-
 import pytest
 import torch
 
 from fracture_gs.errors import SimulationDiverged
-from fracture_gs.sim.frame_loop import FrameLoop
-from fracture_gs.sim.layout import pool_capacity
+from fracture_gs.sim.boxes.storage import BoxStorage
+from fracture_gs.sim.frames import FrameRunner
+from fracture_gs.sim.grid.layout import pool_capacity
+from fracture_gs.sim.grid.slots import SlotStorage
 
 
-class _Loop:
-    """The attributes and methods `_advance` uses; `checks` scripts `_frame_check`'s answers
-    (bad, escaped, slot overflows, pool overflows, rows used), one per try."""
+class _Grid:
+    def __init__(self, log, capacity):
+        self.log, self.capacity = log, capacity
 
-    MAX_TRIES = FrameLoop.MAX_TRIES
-    _advance = FrameLoop._advance
-
-    def __init__(self, checks, boxed=False, multifield=True, capacity=256, pool_rows=100):
-        self.checks = list(checks)
-        self.log = []
-        self.boxed, self.multifield = boxed, multifield
-        self.grid = types.SimpleNamespace(capacity=capacity)
-        self.grid.ensure_pool = self._ensure_pool
-        self.grid.zero = lambda: self.log.append("zero")
-        self.pool_rows, self.box_slack = pool_rows, 0
-        self.time, self.frame, self.substeps = 1.0, 3, 30
-        self.frame_redos = self.slot_overflow_total = 0
-        self.counts = torch.ones(4, dtype=torch.int32)
-        self._diagnostics = None
-
-    def _ensure_pool(self, rows):
+    def ensure_pool(self, rows):
         self.log.append(("pool", rows))
-        self.grid.capacity = max(self.grid.capacity, pool_capacity(rows))
+        self.capacity = max(self.capacity, pool_capacity(rows))
 
-    def fit_active_box(self, frame_dt):
-        self.log.append(("fit", self.box_slack, self.pool_rows))
-        if self.multifield and not self.boxed:
-            self._ensure_pool(self.pool_rows)
-        return 0.5
+    def zero(self):
+        self.log.append("zero")
 
-    def frame_substeps(self, frame_dt, vmax):
-        self.log.append(("substeps", vmax))
-        return 3, frame_dt / 3
 
-    def _frame_substeps_run(self, n, dt, start):
-        assert self.time == start and self.counts[1:].tolist() == [0, 0, 0]  # a try starts clean
-        self.counts[1:] = 7  # the try's counters
-        self.time += n * dt  # summed Δt (drifts)
-        self.substeps += n
+class _Slots:
+    """The slot storage's pool and whole-grid rules (`SlotStorage`'s own methods) over a logged grid."""
 
-    def _frame_check(self, dt):
-        return self.checks.pop(0)
+    frame_done, grow_pool, whole_grid = SlotStorage.frame_done, SlotStorage.grow_pool, SlotStorage.whole_grid
 
-    def _save_state(self):
-        self.log.append("save")
+    def __init__(self, sim, log, capacity, pool_rows):
+        self.sim, self.log, self.grid, self.pool_rows = sim, log, _Grid(log, capacity), pool_rows
 
-    def _restore_state(self):
-        self.log.append("restore")
-
-    def _reset_boxes(self):
+    def reset_box(self):
         self.log.append("reset_boxes")
 
     def set_solo(self, mask):
         self.log.append(("solo", mask))
 
-    def _poll_provider(self):
+
+class _Boxes:
+    whole_grid = BoxStorage.whole_grid
+
+
+class _Sim:
+    """The attributes `FrameRunner._advance` reads of its simulator; `fit_active_box` logs the slack and pool."""
+
+    def __init__(self, boxed, multifield, capacity, pool_rows):
+        self.log = []
+        self.boxed, self.multifield, self.device = boxed, multifield, "cpu"
+        self.slots = _Slots(self, self.log, capacity, pool_rows)
+        self.storage = _Boxes() if boxed else self.slots
+        self.time, self.frame, self.substeps, self.dt = 1.0, 3, 30, None
+        self.counts = torch.ones(4, dtype=torch.int32)
+        self._diagnostics = None
+        self.runner = None
+
+    def fit_active_box(self, frame_dt):
+        self.log.append(("fit", self.runner.box_slack, self.slots.pool_rows))
+        if self.multifield and not self.boxed:
+            self.slots.grid.ensure_pool(self.slots.pool_rows)
+        return 0.5
+
+
+class _Loop(FrameRunner):
+    """A `FrameRunner` whose substeps and frame check answer from a script: `checks` = (bad, escaped, slot
+    overflows, pool overflows, rows used), one per try."""
+
+    def __init__(self, checks, boxed=False, multifield=True, capacity=256, pool_rows=100):
+        self.host = _Sim(boxed, multifield, capacity, pool_rows)
+        super().__init__(self.host)
+        self.host.runner = self
+        self.checks, self.log = list(checks), self.host.log
+
+    # the simulator's state as the old tests read it
+    time = property(lambda self: self.host.time)
+    frame = property(lambda self: self.host.frame)
+    substeps = property(lambda self: self.host.substeps)
+    pool_rows = property(lambda self: self.host.slots.pool_rows)
+    grid = property(lambda self: self.host.slots.grid)
+
+    def frame_substeps(self, frame_dt, vmax=None):
+        self.log.append(("substeps", vmax))
+        return 3, frame_dt / 3
+
+    def run_substeps(self, n, dt, start):
+        h = self.host
+        assert h.time == start and h.counts[1:].tolist() == [0, 0, 0]  # a try starts clean
+        h.counts[1:] = 7  # the try's counters
+        h.time += n * dt  # summed Δt (drifts)
+        h.substeps += n
+
+    def frame_check(self, dt):
+        return self.checks.pop(0)
+
+    def save_state(self):
+        self.log.append("save")
+
+    def restore_state(self):
+        self.log.append("restore")
+
+    def poll_provider(self):
         self.log.append("poll")
 
-    def _raise_diverged(self, dt, bad):
-        raise SimulationDiverged(f"{bad} diverged", frame=self.frame, count=bad, cause="test")
+    def raise_diverged(self, dt, bad):
+        raise SimulationDiverged(f"{bad} diverged", frame=self.host.frame, count=bad, cause="test")
 
 
 def _fits(loop):

@@ -14,10 +14,10 @@ import torch
 import warp as wp
 
 from fracture_gs.runtime import ensure_warp
-from fracture_gs.sim.box_kernels import BoxView, box_mass_gradient
-from fracture_gs.sim.boxes import FragmentBoxes
+from fracture_gs.sim.boxes.fragment_boxes import FragmentBoxes
+from fracture_gs.sim.boxes.kernels import BoxView, box_mass_gradient
 from fracture_gs.sim.clock import FrameClock
-from fracture_gs.sim.layout import N_COUNTS
+from fracture_gs.sim.storage import N_COUNTS
 
 DT = 1e-3
 
@@ -117,7 +117,7 @@ def test_mass_gradient_of_a_tight_box_reads_zero_beyond_every_face():
     """Boxes fitted tight (no empty layer) to two fragments of random particles deposited by P2G hold mass on all
     six faces; ∇m^k at every node of each box is still (m[i+1] − m[i−1]) / 2Δx per axis with a node beyond the
     box counting as massless, not as the neighbouring row's, box's or buffer's mass."""
-    from fracture_gs.sim.layout import N_COUNTS as NC
+    from fracture_gs.sim.storage import N_COUNTS as NC
 
     ensure_warp()
     n, N = 16, 3000

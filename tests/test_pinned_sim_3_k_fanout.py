@@ -4,13 +4,14 @@ aligned: LANES = 32 = twice the butterfly's first offset, and the launch gives e
 threads (capacity · LANES of them, `listed` = that count) and each solo particle one thread behind them. Whatever
 the device, the fan-out moves every particle as the plain G2P does (`--device cuda` runs the shuffles)."""
 
+import dataclasses
 import re
 
 import torch
 from test_transfer_launch import slab
 
 from fracture_gs import sim as S
-from fracture_gs.sim import fanout_kernels
+from fracture_gs.sim.grid import fanout_kernels
 
 
 def test_one_listed_particle_takes_one_whole_warp():
@@ -23,7 +24,7 @@ def test_one_listed_particle_takes_one_whole_warp():
 
 def _cut_slab(device, fanout):
     sim, _ = slab(0, device)
-    sim.fanout, sim.g2p_fanout_max = fanout, 1.0
+    sim.options = dataclasses.replace(sim.options, fanout=fanout, g2p_fanout_max=1.0)
     sim.latch(S.Topology.from_plane(sim.particles.x.cpu(), (0.18, 0.5, 0.5), (1.0, 0.2, 0.1), band_width=1.5 / 32))
     return sim
 
@@ -34,17 +35,17 @@ def test_fanout_gather_launches_a_warp_per_listed_particle_and_matches_the_plain
     capacity; and every particle's x and v agree with the plain G2P's to float32 rounding."""
     sim = _cut_slab(device, True)
     seen = []
-    plain_launch = sim._launch
+    plain_launch = sim.launch
 
     def record(kernel, dim, inputs):
         if kernel is fanout_kernels.g2p_fanout:
             seen.append((dim, inputs[-1]))
         plain_launch(kernel, dim, inputs)
 
-    sim._launch = record
+    sim.launch = record
     sim.advance(1e-3)
     assert seen, "the fan-out gathered"
-    cap, n = sim._fan_cap, len(sim.particles)
+    cap, n = sim.slots.fan_cap, len(sim.particles)
     assert cap > 0 and all(s == (32 * cap + n, 32 * cap) for s in seen), (seen, cap, n)
     other = _cut_slab(device, False)
     other.advance(1e-3)

@@ -6,8 +6,8 @@ its own) the results still equal the torch twin's (`penetration.overlap_packed`)
 
 import torch
 
-from fracture_gs.sim.overlap_kernels import VoxelOverlap
-from fracture_gs.sim.penetration import overlap_packed
+from fracture_gs.sim.diagnostics.overlap_kernels import VoxelOverlap
+from fracture_gs.sim.diagnostics.penetration import overlap_packed
 
 
 def test_tables_hold_twice_the_particles_in_the_smallest_power_of_two():

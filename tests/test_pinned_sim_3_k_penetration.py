@@ -8,7 +8,7 @@ import pytest
 import torch
 from test_penetration_resolution import stratified
 
-from fracture_gs.sim.penetration import _Cells, calibrate
+from fracture_gs.sim.diagnostics.penetration import _Cells, calibrate
 
 
 def test_filled_density_is_each_pieces_number_density_and_one_for_an_empty_id(one_thread):

@@ -15,8 +15,9 @@ import warp as wp
 from simutil import block, fill_slots, particles
 
 from fracture_gs import sim as S
-from fracture_gs.sim.layout import OWNER_MASK
-from fracture_gs.sim.normal_kernels import pool_mass_gradients
+from fracture_gs.sim.grid.layout import OWNER_MASK
+from fracture_gs.sim.grid.normal_kernels import pool_mass_gradients
+from fracture_gs.sim.physics.contact import NORMAL_MASS_GRADIENT
 
 SHAPE = (8, 8, 8)
 
@@ -38,7 +39,7 @@ def _sim():
     )
     sim = S.Simulator(cfg, particles(torch.cat([a, b]), vol), device="cpu")
     sim.latch(S.Topology.from_plane(sim.particles.x, (0.5, 0.5, 0.5), (1.0, 0.0, 0.0), 0.0))
-    assert sim.normal_mode == S.contact.NORMAL_MASS_GRADIENT
+    assert sim.normal_mode == NORMAL_MASS_GRADIENT
     c = sim.centroids[:2].double()
     assert float(c[1, 0] - c[0, 0]) > 0.1 and float((c[1] - c[0])[1:].abs().max()) < 1e-6, "centroids along +x"
     sim.grid.ensure_pool(2 * sim.grid.n_nodes)
@@ -106,7 +107,7 @@ def test_pool_mass_gradient_is_zero_for_a_field_at_the_activity_threshold():
     for (k, node), value in at.items():
         m[(k, *node)] = float(value)
     fill_slots(g, m, torch.zeros(2, *SHAPE, 3, dtype=torch.float64))
-    grad0 = sim._pool_gradient_buffer()
+    grad0 = sim.slots.pool_gradient_buffer()
     wp.launch(pool_mass_gradients, dim=g.capacity * g.slots, inputs=[g.view, sim.eps_m, grad0], device="cpu")
     mf = m.float().double()
     want = _central(mf)  # [2, X, Y, Z, 3]
@@ -119,7 +120,7 @@ def test_pool_mass_gradient_is_zero_for_a_field_at_the_activity_threshold():
         r = _row(g, n)
         node = (n // 64, (n // 8) % 8, n % 8)
         assert int(g._owner[n] & OWNER_MASK) - 1 == 0 and int(g.pool_owner[r * S1]) == 1
-        got[(0, *node)] = sim._grad0[r].double()
+        got[(0, *node)] = sim.slots.grad0[r].double()
         got[(1, *node)] = g._vel[g.n_nodes + r * S1].double()
     for (k, node), value in at.items():
         if value == eps:

@@ -13,10 +13,11 @@ from simutil import block
 from fracture_gs.runtime import ensure_warp
 from fracture_gs.sim import reference as ref
 from fracture_gs.sim.clock import FrameClock
-from fracture_gs.sim.grid import Grid
-from fracture_gs.sim.layout import COUNT_ESCAPED, N_COUNTS, GridView
-from fracture_gs.sim.run_kernels import add_particle, flush_run, p2g_runs, stencil_sums
-from fracture_gs.sim.transfer_kernels import stencil
+from fracture_gs.sim.grid.fields import Grid
+from fracture_gs.sim.grid.layout import GridView
+from fracture_gs.sim.grid.run_kernels import flush_run, p2g_runs
+from fracture_gs.sim.stencil import add_particle, stencil, stencil_sums
+from fracture_gs.sim.storage import COUNT_ESCAPED, N_COUNTS
 
 wp.set_module_options({"mode": "debug"})  # this file's own kernel only (`_one_run`): index checks compiled in
 

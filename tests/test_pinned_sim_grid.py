@@ -1,13 +1,14 @@
-"""`sim/grid.py` host rules: where an automatic grid goes (the particles, their margin and `grid_bounds`,
-each padded by the wall cells plus two on both sides), where an explicit origin snaps, which particles
-count as inside, the size guard's message, and the grid's memory footprint by buffer."""
+"""`sim/grid/domain.py` and `sim/grid/fields.py` host rules: where an automatic grid goes (the particles, their
+margin and `grid_bounds`, each padded by the wall cells plus two on both sides), where an explicit origin snaps,
+which particles count as inside, the size guard's message, and the grid's memory footprint by buffer."""
 
 import pytest
 import torch
 
 from fracture_gs.config import SimConfig
 from fracture_gs.errors import SimulationError
-from fracture_gs.sim.grid import Grid, check_grid_size, check_inside, fit_grid
+from fracture_gs.sim.grid.domain import check_grid_size, check_inside, fit_grid
+from fracture_gs.sim.grid.fields import Grid
 
 
 def _auto(**kw):

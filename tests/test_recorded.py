@@ -43,11 +43,11 @@ def test_solo_flags_from_the_recorded_mask_equal_the_mask(device):
         P, g = sim.particles, sim.grid
         gravity = math.hypot(*sim.cfg.gravity)
         travel = sim.fit_active_box(cfg.frame_dt) * cfg.frame_dt + 0.5 * gravity * cfg.frame_dt**2
-        reach = 4.0 * g.dx + 2.0 * travel + sim.box_slack * g.dx
+        reach = 4.0 * g.dx + 2.0 * travel + sim.runner.box_slack * g.dx
         want = solo_mask(P.x, P.fragment, g.origin, g.dx, g.shape, reach)
         if want is not None:
-            assert torch.equal(sim.solo, want)
+            assert torch.equal(sim.slots.solo, want)
             checked += 1
     assert checked >= 10
     if device.startswith("cuda"):
-        assert sim._queries.graphs
+        assert sim.slots.queries.graphs

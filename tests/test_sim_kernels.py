@@ -8,7 +8,7 @@ from simutil import config, rand_rotations, rel_err
 from fracture_gs import sim as S
 from fracture_gs.runtime import ensure_warp
 from fracture_gs.sim import reference as ref
-from fracture_gs.sim.constitutive import rotation_of
+from fracture_gs.sim.physics.constitutive import rotation_of
 
 N = 3000
 
@@ -52,7 +52,7 @@ def test_released_band_carries_no_stress_and_keeps_its_plastic_return(device, se
     """Eq. stress_release: a particle banded by an event ≤ `release` carries τ = 0 under every model, one banded
     by a later event keeps its stress, and the plastic models still commit their return mapping into F (the
     hyperelastic models skip τ's polar iterations there; the result is the same)."""
-    from fracture_gs.sim.constitutive import compute_stress
+    from fracture_gs.sim.physics.constitutive import compute_stress
 
     sim = random_state(seed, device)
     P = sim.particles

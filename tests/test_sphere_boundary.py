@@ -19,7 +19,7 @@ from fracture_gs import sim as S
 from fracture_gs.config import CuboidBoundary, PlaneBoundary, SphereBoundary
 from fracture_gs.errors import ConfigError, SimulationError
 from fracture_gs.io.config import config_from_dict, dump_config, load_config, validate
-from fracture_gs.sim.boundary import Boundaries, Colliders, apply_boundaries
+from fracture_gs.sim.physics.boundary import Boundaries, Colliders, apply_boundaries
 
 wp.set_module_options({"enable_backward": False})
 

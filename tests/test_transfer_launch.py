@@ -2,14 +2,16 @@
 not solo first in G2P, and one P2G thread per (such particle, stencil node). Both change only which thread
 does what; the physics is the same up to the order of float32 sums, which these tests bound."""
 
+from dataclasses import replace
+
 import pytest
 import torch
 from simutil import config, rel_err
 
 from fracture_gs import sim as S
-from fracture_gs.sim.layout import COUNT_SLOT_OVERFLOW
 from fracture_gs.sim.providers.cuts import voronoi_labels
 from fracture_gs.sim.providers.voronoi import voronoi_sites
+from fracture_gs.sim.storage import COUNT_SLOT_OVERFLOW
 
 
 def slab(seed, device, fragments=2, slots=8, n=3000, sort=None, storage="slots", variant="full"):
@@ -33,12 +35,12 @@ def slab(seed, device, fragments=2, slots=8, n=3000, sort=None, storage="slots",
 
 
 def advanced_pair(setting: str, frames: int, seed, device, *slab_args):
-    """The same slab latched and advanced `frames` frames of 5 ms twice: with the simulator's `setting` off,
-    then on."""
+    """The same slab latched and advanced `frames` frames of 5 ms twice: with the launch switch `setting`
+    (`SimOptions`) off, then on."""
     sims = []
     for on in (False, True):
         sim, topo = slab(seed, device, *slab_args)
-        setattr(sim, setting, on)
+        sim.options = replace(sim.options, **{setting: on})
         sim.latch(topo)
         for _ in range(frames):
             sim.advance(5e-3)
@@ -47,15 +49,15 @@ def advanced_pair(setting: str, frames: int, seed, device, *slab_args):
 
 
 def test_particles_that_are_not_solo_launch_first(device, seed):
-    """G2P may launch the particles that are not solo first (`Simulator.slow_first`, on by default on a
+    """G2P may launch the particles that are not solo first (`SimOptions.slow_first`, on by default on a
     GPU, where their slot lookups then run under the dense bulk): every particle is still gathered
     exactly once, so two pieces advance bitwise as with the plain launch (G2P is per particle), and the
     next P2G still deposits every particle's mass (Σ of every slot's mass = Σ m_p)."""
     plain, split = advanced_pair("slow_first", 3, seed, device)
-    solo = split.solo.bool()
+    solo = split.slots.solo.bool()
     assert 0.05 < float(solo.float().mean()) < 0.95, "both launch parts are exercised"
-    assert int(split._first) == int((~solo).sum())
-    assert torch.equal(split._order[: int(split._first)].sort().values.long(), torch.nonzero(~solo).flatten())
+    assert int(split.slots.first) == int((~solo).sum())
+    assert torch.equal(split.slots.order[: int(split.slots.first)].sort().values.long(), torch.nonzero(~solo).flatten())
     split.compute_stress(split.stress, commit=False)
     split.p2g(1e-3)
     total = split.grid._mp[:, 3].sum().double()  # every slot, dense and pooled (solo deposits claim no owner)
@@ -70,7 +72,7 @@ def test_particles_that_are_not_solo_launch_first(device, seed):
 
 @pytest.mark.parametrize("fragments,slots", [(2, 8), (6, 2)])
 def test_particles_that_are_not_solo_fan_out_one_thread_per_node(device, seed, fragments, slots):
-    """The particles that are not solo may fan out (`Simulator.fanout`, on by default on a GPU, so their
+    """The particles that are not solo may fan out (`SimOptions.fanout`, on by default on a GPU, so their
     slot lookups do not run 27 in a row after the dense bulk): in P2G one thread per stencil node makes the
     deposit the particle's own loop would, so one P2G puts every particle's mass and momentum into the same
     fields (on the CPU the claims come in the same order: the same slots and overflow counts, with 2 slots
@@ -81,26 +83,27 @@ def test_particles_that_are_not_solo_fan_out_one_thread_per_node(device, seed, f
     sims = []
     for fanout in (False, True):
         sim, topo = slab(seed, device, fragments, slots)
-        sim.fanout = fanout
+        sim.options = replace(sim.options, fanout=fanout)
         sim.latch(topo)
-        assert sim._fan_cap == 0 and sim._slot_cache.numel() == 1, "nothing fans out before the frame's solo flags"
+        host = sim.slots
+        assert host.fan_cap == 0 and host.slot_cache.numel() == 1, "nothing fans out before the frame's solo flags"
         for _ in range(3):
             sim.advance(5e-3)
         sims.append(sim)
     plain, fanned = sims
-    solo = fanned.solo.bool()
+    solo = fanned.slots.solo.bool()
     assert float(solo.float().mean()) < 0.95, "the fan-out is exercised"
     assert fragments > 2 or float(solo.float().mean()) > 0.05, "so are the dense deposits (two pieces)"
-    cap = fanned._fan_cap  # a power of two, or every particle
+    cap = fanned.slots.fan_cap  # a power of two, or every particle
     assert cap >= int((~solo).sum()) and (cap & (cap - 1) == 0 or cap == len(solo))
-    assert fanned._slot_cache.numel() == 27 * cap, "the slot cache is sized with the capacity"
+    assert fanned.slots.slot_cache.numel() == 27 * cap, "the slot cache is sized with the capacity"
     for name in ("x", "v", "F"):
         a, b = getattr(plain.particles, name).cpu(), getattr(fanned.particles, name).cpu()
         assert rel_err(b, a) <= 1e-5, f"{name} (seed {seed})"
     # one P2G of the same state both ways
     grids = []
     for fanout in (False, True):
-        fanned.fanout = fanout
+        fanned.options = replace(fanned.options, fanout=fanout)
         fanned.grid.reset_claims()
         fanned.counts.zero_()
         fanned.compute_stress(fanned.stress, commit=False)
@@ -127,9 +130,9 @@ def test_particles_that_are_not_solo_fan_out_one_thread_per_node(device, seed, f
     for fanout, most, slow_first, one_gather in arms:
         for name, value in start.items():
             getattr(fanned.particles, name).copy_(value)
-        fanned.fanout, fanned.g2p_fanout_max, fanned.slow_first = fanout, most, slow_first
-        fanned.one_gather = one_gather
-        fanned._g2p()
+        switches = dict(fanout=fanout, g2p_fanout_max=most, slow_first=slow_first, one_gather=one_gather)
+        fanned.options = replace(fanned.options, **switches)
+        fanned.storage.g2p()
         gathered.append({name: getattr(fanned.particles, name).cpu().clone() for name in start})
     assert not torch.equal(gathered[1]["x"], start["x"].cpu()), "G2P moved the particles"
     for name, a, b in [(n, gathered[0][n], other[n]) for other in gathered[1:] for n in start]:
@@ -146,7 +149,7 @@ def test_particles_that_are_not_solo_fan_out_one_thread_per_node(device, seed, f
 @pytest.mark.parametrize("fragments", [2, 6])
 def test_independent_launches_beside_each_other_change_nothing(device, seed, fragments):
     """On a GPU the pool's reset, the P2G fan-out and the pool pass run on a second stream beside the dense
-    kernels (`Simulator.concurrent`: a fork and a join per phase, parallel paths of the recorded substep).
+    kernels (`SimOptions.concurrent`: a fork and a join per phase, parallel paths of the recorded substep).
     The dense grid pass leaves every node with a pool row to the pool pass, and the fan-out deposits other
     particles than the dense ones, so nothing either side writes is read by the other before the join:
     frames advance the same as with every launch in one stream, up to the order of P2G's float32 atomic
@@ -154,7 +157,7 @@ def test_independent_launches_beside_each_other_change_nothing(device, seed, fra
     one, two = advanced_pair("concurrent", 4, seed, device, fragments, 8)
     assert int(two.grid.rows_used()) > 0, "the pool pass ran"
     if device.startswith("cuda"):
-        assert two._fan_cap > 0 and two._fork.forks > 0, "the fan-out ran on the fork's stream"
+        assert two.slots.fan_cap > 0 and two.fork.forks > 0, "the fan-out ran on the fork's stream"
     for name in ("x", "v", "F"):
         a, b = getattr(one.particles, name).cpu(), getattr(two.particles, name).cpu()
         if device == "cpu":

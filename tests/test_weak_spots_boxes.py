@@ -12,9 +12,9 @@ from test_transfer_launch import slab
 from fracture_gs import sim as S
 from fracture_gs.config import PlaneBoundary
 from fracture_gs.runtime import ensure_warp
-from fracture_gs.sim.boundary import Boundaries
-from fracture_gs.sim.boxes import FragmentBoxes
-from fracture_gs.sim.layout import COUNT_ESCAPED, N_COUNTS
+from fracture_gs.sim.boxes.fragment_boxes import FragmentBoxes
+from fracture_gs.sim.physics.boundary import Boundaries
+from fracture_gs.sim.storage import COUNT_ESCAPED, N_COUNTS
 
 DX = 1.0 / n
 
@@ -189,8 +189,8 @@ def test_the_active_box_holds_every_stencil_the_horizon_can_reach(device, speed)
         sim.particles.x.add_(torch.tensor(v, device=device) * h)
     xi = (sim.particles.x.double().cpu() - torch.tensor(sim.grid.origin, dtype=torch.float64)) / dx
     base = torch.floor(xi - 0.5).long()
-    lo, hi = torch.tensor(sim.box[:3]), torch.tensor(sim.box[3:])
-    assert bool((base >= lo).all() and (base + 2 < hi).all()), (sim.box, base.amin(0), base.amax(0))
+    lo, hi = torch.tensor(sim.slots.box[:3]), torch.tensor(sim.slots.box[3:])
+    assert bool((base >= lo).all() and (base + 2 < hi).all()), (sim.slots.box, base.amin(0), base.amax(0))
     if speed:
         assert float((xi.amax(0) - xi.amin(0)).max()) > 0
     sim.counts.zero_()
@@ -228,7 +228,7 @@ def test_shared_support_and_mixing_of_known_fields_in_the_slot_storage():
     counted as active, the percentage without its 100, `m > ε_m` as `m >= 0`; each fails here."""
     from simutil import fill_slots
 
-    from fracture_gs.sim.grid import Grid
+    from fracture_gs.sim.grid.fields import Grid
 
     s, eps = 6, 1e-9
     g = Grid((0.0, 0.0, 0.0), 1.0 / s, (s, s, s), "cpu", slots=4)

@@ -171,8 +171,8 @@ KERNEL_PHASES = {
     "box_grid_update_fast_quiet_n0": "grid",
     "box_g2p": "g2p",
 }
-"""Warp kernel name -> Table 2 phase (the transfer kernels of sim/transfer_kernels.py, run_kernels.py,
-fanout_kernels.py and, for the per-fragment boxes, box_kernels.py)."""
+"""Warp kernel name -> Table 2 phase (the transfer kernels of sim/grid/kernels.py, run_kernels.py,
+fanout_kernels.py and, for the per-fragment boxes, sim/boxes/kernels.py)."""
 
 
 def kernel_times(sim: Simulator, dt: float, steps: int = 50) -> dict | None:

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from typing import Optional
 
-from ..sim.energy import relative_change
+from ..sim.diagnostics.energy import relative_change
 
 VIOLATION = 0.01  # a rise above this fraction of the frame's total, in a frame without drivers
 MAX_LISTED = 8  # events and violations written out in summary.md (summary.json has them all)

@@ -26,7 +26,7 @@ from ..pipeline import FrameOutput, make_simulator, simulate
 from ..profiling import phases
 from ..runtime import current_lane, side_stream, stream_lane
 from ..sim import SimulationDiverged
-from ..sim.metrics import piece_gap
+from ..sim.diagnostics.metrics import piece_gap
 from .context import Export, RunContext
 from .painter import Painter
 from .summary import VariantSummary, summarize

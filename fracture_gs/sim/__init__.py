@@ -15,8 +15,10 @@ from ..config import (
     TopologyConfig,
 )
 from ..errors import SimulationDiverged
-from . import layout
-from .grid import Grid, fit_grid
+from .grid import layout
+from .grid.domain import fit_grid
+from .grid.fields import Grid
+from .options import SimOptions
 from .particles import Particles, SimulationError
 from .providers import OracleProvider, ReplayProvider, StressProvider, make_provider
 from .simulator import Simulator
@@ -35,6 +37,7 @@ __all__ = [
     "ReplayProvider",
     "StressProvider",
     "SimConfig",
+    "SimOptions",
     "SphereBoundary",
     "SimulationDiverged",
     "SimulationError",

@@ -16,7 +16,7 @@ def cell_order(x: torch.Tensor, origin, dx: float, shape, mode: str = "interleav
     """Permutation of particles (new i = old order[i]) for P2G's atomics.
 
     `cell`: order of the stencil's base node ⌊ξ − 0.5⌋ (the cells of the grid shifted by half a cell):
-    consecutive particles share all 27 nodes, which `run_kernels.p2g_runs` sums before the atomics (in
+    consecutive particles share all 27 nodes, which `grid.run_kernels.p2g_runs` sums before the atomics (in
     one warp they would otherwise add to the same nodes at once). `interleaved`: the k-th
     particle of every cell, in cell order, then the (k+1)-th, ... — neighbours in memory are
     neighbouring cells, so a warp keeps locality while few of its lanes add to the same node. `fragment` ([N],

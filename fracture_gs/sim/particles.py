@@ -8,7 +8,7 @@ import torch
 
 from ..config import MATERIALS, MaterialConfig, SceneConfig
 from ..errors import SimulationError
-from .constitutive import MATERIAL_IDS, dp_alpha
+from .physics.constitutive import MATERIAL_IDS, dp_alpha
 
 
 def _per_particle(value, n: int, name: str, device) -> torch.Tensor:

@@ -155,7 +155,7 @@ def contact_fields(v, m, frag, band, eps_m, eps_b, normals, e=0.0, mu=0.0, touch
     band [M,S], normals(a_slot, b_slot, lo_slot, hi_slot) → [M,3] unit normals from lo into hi,
     touching(a_slot, b_slot) → [M] bool contact gate, default: both band-supported):
     slot pairs a < b in order, each oriented by fragment id, approach-only normal impulse with
-    restitution e, then Coulomb friction capped at μ·J (contact.py, float64)."""
+    restitution e, then Coulomb friction capped at μ·J (physics/contact.py, float64)."""
     v = v.double().clone()
     M, S = m.shape
     for a in range(S):

@@ -32,7 +32,7 @@ from ...errors import ConfigError
 from ...variants import VARIANT_NAMES, variant_spec
 from ..formats import is_splat_file
 
-MAX_FIELD_SLOTS = 8  # sim.layout.MAX_SLOTS (io does not import sim)
+MAX_FIELD_SLOTS = 8  # sim.storage.MAX_SLOTS (io does not import sim)
 MAX_IMAGE_SIDE = 8192  # pixels; larger frames exceed H.264 levels and the rasterizers' tile budgets
 MAX_PARTICLES = 100_000_000  # a built-in asset's particle count (≈ 20 GB of state on the GPU)
 MAX_FRAMES = 1_000_000

@@ -1,4 +1,4 @@
-"""Differentiable MLS-MPM kernels: the same equations as `transfer_kernels.py` and `constitutive.py`,
+"""Differentiable MLS-MPM kernels: the same equations as `stencil.py`, `grid/kernels.py` and `physics/constitutive.py`,
 written out-of-place (every launch reads one state and writes a new one, as `wp.Tape` needs) on
 dense per-fragment fields [K · X·Y·Z], in a module compiled with backward kernels.
 
@@ -13,8 +13,8 @@ from __future__ import annotations
 
 import warp as wp
 
-from ..boundary import Colliders, cuboid_velocity, plane_velocity, sphere_velocity, wall_velocity
-from ..transfer_kernels import gather, node_terms, stencil
+from ..physics.boundary import Colliders, cuboid_velocity, plane_velocity, sphere_velocity, wall_velocity
+from ..stencil import gather, node_terms, stencil
 
 wp.set_module_options({"enable_backward": True})
 
@@ -179,7 +179,7 @@ def contact_pair(
     mu: float,
     v_out: wp.array(dtype=wp.vec3),  # [K · X·Y·Z]: v_in with fields a, b projected
 ):
-    """The approach-only, momentum-conserving contact of `contact.py` between fields a and b."""
+    """The approach-only, momentum-conserving contact of `physics/contact.py` between fields a and b."""
     n = wp.tid()
     for k in range(K):
         v_out[k * n_nodes + n] = v_in[k * n_nodes + n]

@@ -31,9 +31,9 @@ from ...config import SimConfig
 from ...errors import SimulationError
 from ...runtime import ensure_warp, torch_stream
 from ...variants import variant_spec
-from ..boundary import Boundaries
-from ..constitutive import MATERIAL_IDS
-from ..grid import fit_grid
+from ..grid.domain import fit_grid
+from ..physics.boundary import Boundaries
+from ..physics.constitutive import MATERIAL_IDS
 from . import kernels as K
 
 DIFF_MATERIALS = ("fixed_corotated", "neo_hookean")

@@ -13,7 +13,8 @@ from __future__ import annotations
 
 import warp as wp
 
-from .layout import EMPTY_KEY, OWNER_MASK, ROW_FLAG, GridView, field_index, find_pool_slot, find_row, flat, unflat
+from ..stencil import flat, unflat
+from .layout import EMPTY_KEY, OWNER_MASK, ROW_FLAG, GridView, field_index, find_pool_slot, find_row
 
 wp.set_module_options({"enable_backward": False})
 

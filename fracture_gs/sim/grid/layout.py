@@ -1,4 +1,4 @@
-"""The grid's storage layout and the solver's counters: one owner, read by grid, kernels and diagnostics.
+"""The slot storage's layout: one owner, read by the grid, its kernels and the diagnostics.
 
 Fields live in *slots* (DESIGN.md "Many fragments"). Slot 0 is dense: one (p, m) and one velocity
 per node, for whichever fragment reached the node first in this substep's P2G (`owner`, the
@@ -34,20 +34,6 @@ OWNER_MASK = 0xFFFF  # low bits of the owner word: fragment id + 1 of slot 0 (0 
 ROW_FLAG = 0x10000  # the node has a pool row
 EMPTY_KEY = -1  # a free pool row
 MAX_PROBES = 64  # linear probing gives up here (a pool overflow, then a redo with a larger pool)
-MAX_SLOTS = 8  # compile-time bound on sim.field_slots (registers of the pool pass)
-
-# solver counters (int32, one device array; read once per frame)
-COUNT_CLAMPED, COUNT_ESCAPED, COUNT_SLOT_OVERFLOW, COUNT_POOL_OVERFLOW = range(4)
-N_COUNTS = 4
-
-# contact statistics accumulated by the grid update (float32, indices into Grid.contact_stats)
-STAT_GATED, STAT_PROJECTED, STAT_DPX, STAT_DPY, STAT_DPZ, STAT_PNORM, STAT_UN_AFTER, STAT_DVT, STAT_FIRST_T = range(9)
-N_STATS = 9
-# per fragment pair (a < b, row a·K + b of Grid.pair_stats)
-PAIR_FIRST_T, PAIR_DPX, PAIR_DPY, PAIR_DPZ, PAIR_PNORM, PAIR_GATED = range(6)
-N_PAIR_STATS = 6
-PAIR_FRAGMENTS = 128  # per-pair statistics for fragments below this id (K² rows: 393 KB, not max_fragments²)
-NEVER = 1e30  # a first-contact time before any contact
 
 
 def box_volume(box: tuple) -> int:
@@ -61,29 +47,6 @@ def pool_capacity(rows: int) -> int:
     while c < 2 * rows:
         c *= 2
     return c
-
-
-@wp.func
-def inside(node: wp.vec3i, lo: wp.vec3i, hi: wp.vec3i):
-    return (
-        node[0] >= lo[0]
-        and node[0] < hi[0]
-        and node[1] >= lo[1]
-        and node[1] < hi[1]
-        and node[2] >= lo[2]
-        and node[2] < hi[2]
-    )
-
-
-@wp.func
-def flat(node: wp.vec3i, lo: wp.vec3i, dims: wp.vec3i):
-    d = node - lo
-    return (d[0] * dims[1] + d[1]) * dims[2] + d[2]
-
-
-@wp.func
-def unflat(n: int, shape: wp.vec3i):
-    return wp.vec3i(n // (shape[1] * shape[2]), (n // shape[2]) % shape[1], n % shape[2])
 
 
 @wp.func

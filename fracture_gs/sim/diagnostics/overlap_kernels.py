@@ -21,7 +21,7 @@ from __future__ import annotations
 import torch
 import warp as wp
 
-from ..runtime import ensure_warp, warp_stream
+from ...runtime import ensure_warp, warp_stream
 
 wp.set_module_options({"enable_backward": False})
 

@@ -18,27 +18,17 @@ from __future__ import annotations
 
 import warp as wp
 
-from .layout import (
-    N_PAIR_STATS,
-    PAIR_DPX,
-    PAIR_DPY,
-    PAIR_DPZ,
-    PAIR_FIRST_T,
-    PAIR_GATED,
-    PAIR_PNORM,
-    STAT_DPX,
-    STAT_DPY,
-    STAT_DPZ,
-    STAT_DVT,
-    STAT_FIRST_T,
-    STAT_GATED,
-    STAT_PNORM,
-    STAT_PROJECTED,
-    STAT_UN_AFTER,
-)
-
 NORMAL_LATCHED = 0
 NORMAL_MASS_GRADIENT = 1
+
+# contact statistics accumulated by the grid update (float32, indices into Grid.contact_stats)
+STAT_GATED, STAT_PROJECTED, STAT_DPX, STAT_DPY, STAT_DPZ, STAT_PNORM, STAT_UN_AFTER, STAT_DVT, STAT_FIRST_T = range(9)
+N_STATS = 9
+# per fragment pair (a < b, row a·K + b of Grid.pair_stats)
+PAIR_FIRST_T, PAIR_DPX, PAIR_DPY, PAIR_DPZ, PAIR_PNORM, PAIR_GATED = range(6)
+N_PAIR_STATS = 6
+PAIR_FRAGMENTS = 128  # per-pair statistics for fragments below this id (K² rows: 393 KB, not max_fragments²)
+NEVER = 1e30  # a first-contact time before any contact
 
 
 @wp.func

@@ -22,15 +22,10 @@ import weakref
 import torch
 import warp as wp
 
-from ..config import PlaneBoundary
-from ..profiling import phases
-from . import energy as E
-from . import metrics as M
-from .grid import Grid
-from .layout import (
-    COUNT_CLAMPED,
-    COUNT_POOL_OVERFLOW,
-    N_COUNTS,
+from ...config import PlaneBoundary
+from ...profiling import phases
+from ..grid.fields import Grid
+from ..physics.contact import (
     N_PAIR_STATS,
     NEVER,
     PAIR_DPX,
@@ -47,10 +42,13 @@ from .layout import (
     STAT_PNORM,
     STAT_UN_AFTER,
 )
-from .metrics import SEPARATION, reapproach_ratio  # noqa: F401 (re-exported: the tracker's thresholds)
+from ..recorded import Recorded
+from ..storage import COUNT_CLAMPED, COUNT_POOL_OVERFLOW, N_COUNTS
+from . import energy as E
+from . import metrics as M
+from .metrics import SEPARATION, reapproach_ratio
 from .overlap_kernels import VoxelOverlap
 from .penetration import calibrate, collider_packed, surface_penetration, unpack_overlap
-from .recorded import Recorded
 
 VOXEL = 0.6  # Δx: voxel edge of the voxel-occupancy overlap (`penetration.fragment_overlap`)
 CROSSING = 0.1  # Δx: a particle deeper than this behind another fragment's surface is a `fragment_crossing`
@@ -202,7 +200,7 @@ class Diagnostics:
         }
         row.update(self._energy_row(h))
         if sim.latched:
-            pool_rows = 0 if sim.boxed else sim.pool_rows  # per-fragment boxes have no pool of multi-field nodes
+            pool_rows = 0 if sim.boxed else sim.slots.pool_rows  # per-fragment boxes have no pool of multi-field nodes
             row.update(fragments=sim.n_fragments, slot_overflow=sim.slot_overflow, pool_rows=pool_rows)
             row.update(self._transfer_row(h))
             row.update(self._interface_row(h))
@@ -219,7 +217,7 @@ class Diagnostics:
         latch, the fragment count, the particle buffers, the band release. The same kernels: the same
         numbers."""
         sim = self.sim
-        if not (sim.latched and sim.use_graphs and self.recorded.records):
+        if not (sim.latched and sim.options.use_graphs and self.recorded.records):
             return self._particle_numbers_now()
         P = sim.particles
         key = (len(sim.topologies), sim.n_fragments, sim.counts.data_ptr())
@@ -277,7 +275,7 @@ class Diagnostics:
             self.shadow.n_fields = sim.n_fragments
             # the shadow claims a row at every node two fragments reach (the solver's solo particles
             # claim none), so it sizes its pool from its own last frame, not only from the solver's
-            self.shadow.ensure_pool(max(rows, sim.pool_rows, self.shadow_rows, 256))
+            self.shadow.ensure_pool(max(rows, sim.slots.pool_rows, self.shadow_rows, 256))
             self.shadow_counts.zero_()
             sim.p2g(
                 sim.dt, target=self.shadow, multifield=True, stress=self.shadow_stress_wp, counts=self.shadow_counts_wp

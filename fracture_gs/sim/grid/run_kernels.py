@@ -3,7 +3,7 @@ those that share a stencil base, so particles sorted by their stencil's base nod
 (`neighbourhood.cell_order(mode="cell")`) reach each of their 27 nodes with one global reduction per run and
 base instead of one per particle.
 
-The same deposits as `transfer_kernels.p2g`'s dense path (Eq. multifield_p2g, slot 0):
+The same deposits as `kernels.p2g`'s dense path (Eq. multifield_p2g, slot 0):
 m_i += Σ_p w_ip m_p,  p_i += Σ_p w_ip m_p (v_p + C_p(x_i − x_p)) − Δt V⁰ τ_p ∇w_ip.
 Any order is correct (a change of base flushes the sums); with run = 1 the fields are bitwise `p2g`'s, otherwise
 they differ by the order of float32 sums. Particles that are not solo on a multi-field grid are left to
@@ -17,13 +17,12 @@ from __future__ import annotations
 
 import warp as wp
 
-from .clock import Clock, clock_dt
-from .layout import COUNT_ESCAPED, GridView, flat, inside
-from .transfer_kernels import atomic_add_vec4, deposit, node_terms, stencil
+from ..clock import Clock, clock_dt
+from ..stencil import add_particle, atomic_add_vec4, flat, inside, stencil, stencil_sums
+from ..storage import COUNT_ESCAPED
+from .layout import GridView
 
 wp.set_module_options({"enable_backward": False})
-
-stencil_sums = wp.types.matrix(shape=(27, 4), dtype=float)  # (momentum, mass) of the 27 stencil nodes
 
 
 @wp.func
@@ -35,25 +34,6 @@ def flush_run(g: GridView, base: wp.vec3i, acc: stencil_sums):
                 q = 9 * i + 3 * j + l
                 n = flat(base + wp.vec3i(i, j, l), wp.vec3i(0, 0, 0), g.shape)
                 atomic_add_vec4(g.mp, n, wp.vec4(acc[q, 0], acc[q, 1], acc[q, 2], acc[q, 3]))
-
-
-@wp.func
-def add_particle(
-    acc: stencil_sums, f: wp.vec3, w: wp.mat33, dw: wp.mat33, dx: float, inv_dx: float, m: float, vp: wp.vec3,
-    Cp: wp.mat33, force: wp.mat33,
-):  # fmt: skip
-    """`acc` plus one particle's 27 deposits (`transfer_kernels.deposit`: mass m, velocity vp, affine Cp, stress
-    term force = −Δt V⁰ τ), the sums a run keeps in registers."""
-    out = acc
-    for i in range(3):
-        for j in range(3):
-            for l in range(3):  # noqa: E741
-                q = 9 * i + 3 * j + l
-                weight, grad, dpos = node_terms(i, j, l, f, w, dw, dx, inv_dx)
-                d = deposit(weight, grad, dpos, m, vp, Cp, force)
-                for c in range(4):
-                    out[q, c] = out[q, c] + d[c]
-    return out
 
 
 @wp.kernel

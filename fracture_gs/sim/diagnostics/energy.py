@@ -6,7 +6,7 @@ device tensors that read nothing back to the host (the tracker records them in i
     elastic        Σ V⁰ ψ(F_e)
 
 ψ is each model's strain energy per unit rest volume, written from its textbook form; its derivative
-P = ∂ψ/∂F gives the Kirchhoff stress τ = P Fᵀ the kernels (`constitutive.py`) simulate:
+P = ∂ψ/∂F gives the Kirchhoff stress τ = P Fᵀ the kernels (`physics/constitutive.py`) simulate:
 
     fixed-corotated   μ ‖F − R‖² + λ/2 (J − 1)²                        (R the rotation of F = R S)
     neo-Hookean       μ/2 (tr FᵀF − 3) − μ ln J + λ/2 ln² J
@@ -25,10 +25,10 @@ import math
 
 import torch
 
-from ..config import CuboidBoundary, ParticleRegion, SphereBoundary
-from ..linalg import polar_rotation, singular_values
-from ..runtime import device_constant
-from .constitutive import MATERIAL_IDS, SIGMA_MIN, lame
+from ...config import CuboidBoundary, ParticleRegion, SphereBoundary
+from ...linalg import polar_rotation, singular_values
+from ...runtime import device_constant
+from ..physics.constitutive import MATERIAL_IDS, SIGMA_MIN, lame
 from .metrics import kinetic_energy
 
 FIXED_COROTATED, NEO_HOOKEAN, STVK_HENCKY_VM, DRUCKER_PRAGER = (

@@ -32,12 +32,11 @@ from __future__ import annotations
 
 import warp as wp
 
-from .boundary import Colliders, apply_boundaries
-from .clock import Clock, clock_dt, clock_time
-from .contact import NORMAL_LATCHED, NORMAL_MASS_GRADIENT, contact_normal, contact_pair
-from .layout import COUNT_ESCAPED, COUNT_SLOT_OVERFLOW, MAX_SLOTS
-from .run_kernels import add_particle, stencil_sums
-from .transfer_kernels import atomic_add_vec4, finish_g2p, gather, normalized, stencil
+from ..clock import Clock, clock_dt, clock_time
+from ..physics.boundary import Colliders, apply_boundaries
+from ..physics.contact import NORMAL_LATCHED, NORMAL_MASS_GRADIENT, contact_normal, contact_pair
+from ..stencil import add_particle, atomic_add_vec4, finish_g2p, gather, normalized, stencil, stencil_sums
+from ..storage import COUNT_ESCAPED, COUNT_SLOT_OVERFLOW, MAX_SLOTS
 
 wp.set_module_options({"enable_backward": False})
 
@@ -47,7 +46,7 @@ vec_fi = wp.types.vector(length=MAX_FIELDS, dtype=wp.int32)
 
 @wp.struct
 class BoxView:
-    """Every fragment's box (`boxes.FragmentBoxes.view`)."""
+    """Every fragment's box (`fragment_boxes.FragmentBoxes.view`)."""
 
     lo: wp.array(dtype=wp.vec3i)  # [K_max] lowest node of box k
     dims: wp.array(dtype=wp.vec3i)  # [K_max] nodes per axis
@@ -69,7 +68,7 @@ class BoxView:
 
 @wp.struct
 class BoxContact:
-    """What the grid update's contact reads (`boxes.FragmentBoxes.update` fills it)."""
+    """What the grid update's contact reads (`fragment_boxes.FragmentBoxes.update` fills it)."""
 
     eps_b: float  # latched normals: two fields touch where both band masses exceed this [kg]
     fill_mass: float  # mass-gradient normals: two fields touch where m_a + m_b ≥ this [kg]
@@ -194,7 +193,7 @@ def _box_p2g(band: bool) -> wp.Kernel:
         counts: wp.array(dtype=wp.int32),  # [N_COUNTS]
         band: wp.array(dtype=wp.int32),  # [N] γ_p ≠ 0: an interface-band particle (read by the band build only)
     ):
-        """Deposits of `run` consecutive particles a thread (`run_kernels.p2g_runs` on boxes): those with the
+        """Deposits of `run` consecutive particles a thread (`grid.run_kernels.p2g_runs` on boxes): those with the
         same fragment and stencil base are summed in registers and reach their box as one reduction per node
         (run = 1: one particle a thread). The box's bounds are loaded when the fragment changes and the stencil
         is checked against its box when the run changes, not per particle (per particle, the check was a

@@ -17,7 +17,9 @@ from __future__ import annotations
 
 import warp as wp
 
-from .layout import EMPTY_KEY, MAX_SLOTS, OWNER_MASK, GridView, flat
+from ..stencil import flat
+from ..storage import MAX_SLOTS
+from .layout import EMPTY_KEY, OWNER_MASK, GridView
 
 wp.set_module_options({"enable_backward": False})
 

@@ -7,7 +7,7 @@ node its own thread makes every chain one node long (DESIGN.md "Performance rule
 
 P2G (Eq. multifield_p2g): thread t = 27 i + q deposits node q of the i-th listed particle,
 m_i^k += w m_p,  p_i^k += w m_p (v_p + C_p(x_i − x_p)) − Δt V⁰ τ_p ∇w, with the same slot claims as
-`transfer_kernels.p2g`'s loop. G2P (Eqs. field_g2p, field_apic, field_deformation): a warp of 32
+`kernels.p2g`'s loop. G2P (Eqs. field_g2p, field_apic, field_deformation): a warp of 32
 threads per particle, lane q < 27 loads node q of the particle's own field and the warp sums
 v = Σ w v_i, B = Σ w v_i (x_i − x_p)ᵀ and ∇v = Σ v_i ∇wᵀ by shuffles; lane 0 writes the particle.
 On the CPU the lanes cannot cooperate, so lane 0 gathers all 27 nodes itself (`coop` = 0).
@@ -19,20 +19,10 @@ from __future__ import annotations
 
 import warp as wp
 
-from .clock import Clock, clock_dt
-from .layout import GridView, flat
-from .transfer_kernels import (
-    atomic_add_vec4,
-    deposit,
-    deposit_index,
-    finish_g2p,
-    gather_slot0,
-    node_index,
-    node_terms_q,
-    routed_field,
-    stencil,
-    stencil_offset,
-)
+from ..clock import Clock, clock_dt
+from ..stencil import atomic_add_vec4, deposit, finish_g2p, flat, node_terms_q, stencil, stencil_offset
+from .kernels import deposit_index, gather_slot0, node_index, routed_field
+from .layout import GridView
 
 wp.set_module_options({"enable_backward": False})
 

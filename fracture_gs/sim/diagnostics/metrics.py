@@ -1,5 +1,5 @@
 """The per-frame metrics as device tensors (docs/DESIGN.md "Diagnostics"): each function returns 0-d
-(or small) float64 tensors and never reads back to the host, so the tracker (`diagnostics.py`)
+(or small) float64 tensors and never reads back to the host, so the tracker (`tracker.py`)
 packs a whole frame's numbers into one tensor and reads it once.
 """
 
@@ -7,8 +7,8 @@ from __future__ import annotations
 
 import torch
 
-from ..linalg import singular_values
-from ..runtime import device_constant
+from ...linalg import singular_values
+from ...runtime import device_constant
 
 EPS = 1e-30
 SEPARATION = 0.1  # Δx: an interface whose opening exceeds this has separated (docs/DESIGN.md)

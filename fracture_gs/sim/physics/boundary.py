@@ -10,10 +10,10 @@ from __future__ import annotations
 import torch
 import warp as wp
 
-from ..config import CuboidBoundary, ParticleRegion, PlaneBoundary, SphereBoundary
-from ..errors import SimulationError
-from ..runtime import ensure_warp, launch
-from .clock import Clock
+from ...config import CuboidBoundary, ParticleRegion, PlaneBoundary, SphereBoundary
+from ...errors import SimulationError
+from ...runtime import ensure_warp, launch
+from ..clock import Clock
 
 wp.set_module_options({"enable_backward": False})  # forward-only kernels compile in half the time
 

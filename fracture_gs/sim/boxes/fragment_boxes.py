@@ -1,4 +1,4 @@
-"""`FragmentBoxes`: the host side of `box_kernels` — a dense box per fragment, fitted to its particles.
+"""`FragmentBoxes`: the host side of `kernels` — a dense box per fragment, fitted to its particles.
 
 The multi-field grid storage of `Simulator` with `sim.grid_storage = "boxes"` (docs/DESIGN.md "Grid storage:
 per-fragment boxes"): K boxes in one buffer, refitted every frame, and the launches of a substep on them
@@ -12,18 +12,9 @@ from __future__ import annotations
 import torch
 import warp as wp
 
-from ..runtime import ensure_warp, launch
-from .box_kernels import (
-    BOX_P2G,
-    MAX_FIELDS,
-    BoxContact,
-    BoxView,
-    box_clear,
-    box_g2p,
-    fragment_bounds,
-    grid_update_kernel,
-)
-from .contact import NORMAL_LATCHED, NORMAL_MASS_GRADIENT
+from ...runtime import ensure_warp, launch
+from ..physics.contact import NORMAL_LATCHED, NORMAL_MASS_GRADIENT
+from .kernels import BOX_P2G, MAX_FIELDS, BoxContact, BoxView, box_clear, box_g2p, fragment_bounds, grid_update_kernel
 
 GROWTH = 1.25  # capacity headroom when the boxes outgrow the buffer
 BOUNDS_RUN = 32  # consecutive particles a thread of `fragment_bounds` reduces before its atomics
@@ -163,7 +154,7 @@ class FragmentBoxes:
 
     def clear(self) -> None:
         """Empty every field (m, p, band mass) for the next P2G. G2P reads only velocities, so this may run
-        beside it (`Simulator._g2p`)."""
+        beside it (`storage.BoxStorage.g2p`)."""
         launch(box_clear, self.capacity, [self.view], self.device)
 
     def update(

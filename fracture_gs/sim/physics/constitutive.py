@@ -13,7 +13,7 @@ import math
 import torch
 import warp as wp
 
-from ..linalg import polar_newton
+from ...linalg import polar_newton
 
 wp.set_module_options({"enable_backward": False})  # forward-only kernels compile in half the time
 
