@@ -31,12 +31,12 @@ def cell_order(x: torch.Tensor, origin, dx: float, shape, mode: str = "interleav
         f = fragment.long().clamp_min(0)
         key = key * (int(f.max()) + 1) + f
     order = torch.argsort(key, stable=True)
-    if mode == "interleaved":
-        sorted_key = key[order]
+    if mode == "interleaved" and len(order):
+        sorted_key = key[order] - key[order[0]]  # from 0: particles below the origin have negative keys
         _, counts = torch.unique_consecutive(sorted_key, return_counts=True)
         starts = torch.repeat_interleave(torch.cumsum(counts, 0) - counts, counts)
         rank = torch.arange(len(order), device=key.device) - starts
-        order = order[torch.argsort(rank * (int(sorted_key.max()) + 1) + sorted_key, stable=True)]
+        order = order[torch.argsort(rank * (int(sorted_key[-1]) + 1) + sorted_key, stable=True)]
     return order
 
 
