@@ -7,13 +7,15 @@ given is such an error too (`run.refuse_ignored_flags`). The heavy work lives
 in modules imported only when a command needs them (`fracture_gs.render_sim`, `fracture_gs.paper`), so
 `--help`, `info` and `validate` stay fast and work on any machine.
 
-This module imports nothing heavy at its top: the parser and the commands (torch, Warp) are imported
-inside `main`'s handler, so Ctrl-C at any moment, the first second of imports included, exits 130
-with one line.
+This module imports nothing heavy at its top: the parser and the commands are imported inside `main`'s
+handler, so Ctrl-C at any moment, the first second of imports included, exits 130 with one line. The
+parser, `info`, `validate` and every flag check import neither torch nor Warp nor gsplat: a command
+imports them (and prepares Warp, `devices._prepare_warp`) once its flags and config are checked.
 """
 
 import os
 import sys
+import time
 
 TYPE_CHECKING = False  # typing is not imported at the top: see the module doc
 if TYPE_CHECKING:
@@ -28,7 +30,6 @@ class CliError(Exception):
 
 __all__ = ["CliError", "PROG", "build_parser", "main", "resolve_device"]
 
-_WARP_COMMANDS = ("render-sim", "bench", "figures", "sweep")
 _LAZY = {"build_parser": "parser", "resolve_device": "devices"}
 _SUBMODULES = ("devices", "parser", "report", "run", "sweep")
 
@@ -123,18 +124,19 @@ class _Interrupts:
 def main(argv: "Optional[Sequence[str]]" = None) -> int:
     """Console entry point; returns the exit code (0 ok, 2 user error, 130 interrupted). Everything that can
     take time, the imports of torch and Warp included, runs inside the KeyboardInterrupt handler."""
+    entered = time.perf_counter()
     args = None
     argv_was_none = argv is None  # the process itself (console script, python -m): it exits when main returns
     interrupts = _Interrupts()
     try:
         interrupts.install()
-        from .devices import _prepare_warp
         from .parser import build_parser
 
         parser = build_parser()
         argv = list(argv) if argv is not None else sys.argv[1:]
         args = parser.parse_args(argv)
         args.argv = argv  # what was typed, for the commands that record it
+        args.entered, args.is_process = entered, argv_was_none  # for --profile's start-up rows
         if not args.command:
             parser.print_help()
             return 0
@@ -143,9 +145,6 @@ def main(argv: "Optional[Sequence[str]]" = None) -> int:
         # a run's buffers change size every frame (fragments, boxes, visible Gaussians): expandable segments keep
         # torch's CUDA cache near what is allocated (a 150k-Gaussian capture held 69 GiB reserved for 17 in use)
         os.environ.setdefault("PYTORCH_CUDA_ALLOC_CONF", "expandable_segments:True")
-        if args.command in _WARP_COMMANDS:
-            _prepare_warp()
-        interrupts.check()
         code = commands[args.command](args)
         interrupts.check()
         return code
