@@ -90,6 +90,16 @@ class _Interrupts:
     def __init__(self) -> None:
         self.hit = False
         self.previous = None
+        self.held = 0  # > 0 inside `held_interrupts()`: a SIGINT is recorded, raised on leaving
+
+    def __enter__(self) -> "_Interrupts":
+        self.held += 1
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.held -= 1
+        if not self.held and exc[0] is None:  # an exception already leaving the block goes on as it is
+            self.check()
 
     def install(self) -> None:
         import signal
@@ -103,7 +113,8 @@ class _Interrupts:
 
     def _handler(self, signum, frame) -> None:
         self.hit = True
-        raise KeyboardInterrupt
+        if not self.held:
+            raise KeyboardInterrupt
 
     def check(self) -> None:
         """Raise the KeyboardInterrupt that was dropped, if one was."""
@@ -121,15 +132,34 @@ class _Interrupts:
             self.previous = None
 
 
+_running: "Optional[_Interrupts]" = None  # main()'s, while it runs
+
+
+def held_interrupts():
+    """A context in which Ctrl-C is recorded rather than raised, and raised as KeyboardInterrupt when it ends:
+    for `import torch`, whose C++ start-up calls back into Python, so a KeyboardInterrupt raised there ends the
+    process with std::terminate (exit -6) instead of 130. Ctrl-C then takes effect once torch has loaded.
+    Outside main() (the package used as a library) or its thread it holds nothing back."""
+    import threading
+
+    if _running is None or threading.current_thread() is not threading.main_thread():
+        import contextlib
+
+        return contextlib.nullcontext()
+    return _running
+
+
 def main(argv: "Optional[Sequence[str]]" = None) -> int:
     """Console entry point; returns the exit code (0 ok, 2 user error, 130 interrupted). Everything that can
     take time, the imports of torch and Warp included, runs inside the KeyboardInterrupt handler."""
     entered = time.perf_counter()
     args = None
     argv_was_none = argv is None  # the process itself (console script, python -m): it exits when main returns
-    interrupts = _Interrupts()
+    global _running
+    interrupts, outer = _Interrupts(), _running
     try:
         interrupts.install()
+        _running = interrupts
         from .parser import build_parser
 
         parser = build_parser()
@@ -169,10 +199,15 @@ def main(argv: "Optional[Sequence[str]]" = None) -> int:
             return 1
         raise
     finally:
+        _running = outer
         interrupts.restore(leaving=argv_was_none)
 
 
 def _interrupted(args) -> int:
+    # CPython records a KeyboardInterrupt that escapes code run from a string (`eval("...")`: inspect evaluates
+    # string annotations that way, which Warp does as it imports) and, for `python -m`, kills the process by
+    # SIGINT at exit although this handler caught it; the next string it runs clears that record, so run one.
+    eval("None")
     partial = getattr(args, "partial_out", None)  # set by a command once it knows its output folder
     where = f"partial outputs are in {partial}" if partial else "nothing was written"
     print(f"\n{PROG}: interrupted; {where}.", file=sys.stderr)

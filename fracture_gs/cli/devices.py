@@ -6,7 +6,7 @@ import os
 import re
 import sys
 
-from . import CliError
+from . import CliError, held_interrupts
 
 DEVICE_RE = re.compile(r"^(auto|cpu|cuda(:\d+)?)$")
 
@@ -14,7 +14,8 @@ DEVICE_RE = re.compile(r"^(auto|cpu|cuda(:\d+)?)$")
 def _cuda_devices() -> tuple[bool, int, str]:
     """(available, count, reason) from torch, imported lazily; never touches gsplat."""
     try:
-        import torch
+        with held_interrupts():  # Ctrl-C inside torch's C++ start-up would abort the process: raise it after
+            import torch
     except Exception as exc:  # noqa: BLE001 - report, do not crash
         return False, 0, f"torch cannot be imported ({exc})"
     if not torch.cuda.is_available():

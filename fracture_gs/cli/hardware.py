@@ -102,13 +102,31 @@ def cuda_status() -> tuple[bool, str, list[tuple[str, float, str]]]:
         return False, "torch is not installed", []
     if built is None:
         return False, "CPU-only torch build", []
-    driver, found, why = driver_devices()
+    try:
+        driver, found, why = driver_devices()
+    except (AttributeError, OSError, ValueError):  # a driver library that cannot be queried: ask torch, as a run does
+        return _from_torch()
     if not found:
         return False, f"{why}; torch built for CUDA {built}", []
     have = f"{driver // 1000}.{driver % 1000 // 10}" if driver else "unknown"
     if driver and driver // 1000 < int(built.split(".")[0]):
         return False, f"the driver supports CUDA {have}, older than torch's CUDA {built}; update the driver", found
     return True, f"{len(found)} device(s), CUDA {built} (driver {have})", found
+
+
+def _from_torch() -> tuple[bool, str, list[tuple[str, float, str]]]:
+    """`cuda_status` the slow way, through torch (imported here), for a driver the probe cannot read."""
+    from .devices import _cuda_devices
+
+    available, count, reason = _cuda_devices()
+    found = []
+    if available:
+        import torch
+
+        for i in range(count):
+            props = torch.cuda.get_device_properties(i)
+            found.append((props.name, props.total_memory / 2**30, f"sm_{props.major}{props.minor}"))
+    return available, reason, found
 
 
 def warp_cache_dir() -> str:
