@@ -9,8 +9,8 @@ little slower). Only that stream: a device-wide sync would make the renderer's t
 solver's queued substeps and the solver for the renderer's frame, a serialisation the unprofiled run
 does not have (each worker draws on its own stream, `runtime.side_stream(device, "render")`).
 
-Start-up has rows of its own (STARTUP), noted with `phases.note_startup` whether or not profiling is on, since
-most of it happens before a run enables the timer: "imports", the process's start to the run (the
+Start-up has rows of its own (STARTUP), noted with `phases.note_startup`, which works with the timer off, since
+most of start-up happens before a run enables it: "imports", the process's start to the run (the
 interpreter, torch, Warp and the package loading, the flag and config checks: noted by the CLI, which knows
 the run is the process's purpose), "warp init" (`wp.init()`, noted by `runtime.ensure_warp`) and "module
 loads" (Warp kernel modules loaded during the run, each from the kernel cache or compiled: the CLI's Warp
