@@ -8,15 +8,37 @@ every section boundary, so GPU work is charged to the phase that launched it (a 
 little slower). Only that stream: a device-wide sync would make the renderer's thread wait for the
 solver's queued substeps and the solver for the renderer's frame, a serialisation the unprofiled run
 does not have (each worker draws on its own stream, `runtime.side_stream(device, "render")`).
+
+Start-up has rows of its own (STARTUP), noted with `phases.note_startup`, which works with the timer off, since
+most of start-up happens before a run enables it: "imports", the process's start to the run (the
+interpreter, torch, Warp and the package loading, the flag and config checks: noted by the CLI, which knows
+the run is the process's purpose), "warp init" (`wp.init()`, noted by `runtime.ensure_warp`) and "module
+loads" (Warp kernel modules loaded during the run, each from the kernel cache or compiled: the CLI's Warp
+logger reads Warp's own load lines). The next report shows them and forgets them.
 """
 
 from __future__ import annotations
 
 import contextlib
+import os
 import threading
 import time
 
 PHASES = ("setup", "simulate", "diagnostics", "render", "compose", "encode", "io")
+STARTUP = ("imports", "warp init", "module loads")
+"""Start-up rows of the report, before the phases: the first two happen before the run, module loads inside it."""
+
+
+def process_seconds() -> float | None:
+    """Seconds since this process started (Linux: its start time in /proc against the boot clock, 10 ms
+    steps), or None where that is not known."""
+    try:
+        with open("/proc/self/stat") as fh:
+            fields = fh.read().rsplit(")", 1)[1].split()  # after the command name, which may hold spaces
+        started = int(fields[19]) / os.sysconf("SC_CLK_TCK")  # field 22, starttime: ticks since boot
+        return max(0.0, time.clock_gettime(time.CLOCK_BOOTTIME) - started)
+    except (OSError, ValueError, IndexError, AttributeError):
+        return None
 
 
 class PhaseTimer:
@@ -30,6 +52,7 @@ class PhaseTimer:
         self._local = threading.local()
         self.seconds: dict[str, float] = {}
         self.calls: dict[str, int] = {}
+        self.startup: dict[str, list] = {}  # name -> [seconds, count, compiled] (STARTUP), until reported
         self._t0 = None
 
     def enable(self, sync_device=None) -> None:
@@ -39,6 +62,15 @@ class PhaseTimer:
 
     def disable(self) -> None:
         self.enabled = False
+
+    def note_startup(self, name: str, seconds: float, compiled: bool = False) -> None:
+        """Add `seconds` of start-up work to row `name` (STARTUP; `compiled`: a module load that compiled rather
+        than came from the kernel cache). Noted with profiling on or off; the next report shows it."""
+        with self._lock:
+            row = self.startup.setdefault(name, [0.0, 0, 0])
+            row[0] += seconds
+            row[1] += 1
+            row[2] += int(compiled)
 
     def _sync(self) -> None:
         if self.sync_device is not None:
@@ -83,15 +115,28 @@ class PhaseTimer:
                 self.calls[name] = self.calls.get(name, 0) + 1
 
     def report(self) -> str:
-        """A Markdown table: phase, busy seconds, share of the wall time, calls."""
+        """A Markdown table: phase, busy seconds, share of the wall time, calls; the start-up rows first (those
+        before the run have no share of its wall time). The start-up rows are forgotten once reported."""
         wall = time.perf_counter() - self._t0 if self._t0 is not None else 0.0
         names = [p for p in PHASES if p in self.seconds] + sorted(set(self.seconds) - set(PHASES))
+        with self._lock:
+            startup, self.startup = self.startup, {}
+        before = sum(startup[p][0] for p in STARTUP[:2] if p in startup)
         lines = [
-            f"wall time {wall:.2f} s (phases overlap: rendering runs beside the solver)",
+            f"wall time {wall:.2f} s (phases overlap: rendering runs beside the solver)"
+            + (f", after {before:.2f} s of start-up" if before else ""),
             "",
             "| phase | busy s | % of wall | calls |",
             "|---|---:|---:|---:|",
         ]
+        for p in (p for p in STARTUP if p in startup):
+            seconds, count, compiled = startup[p]
+            if p == "module loads":  # inside the run: part of the phase that first launched each module
+                label = f"{p} ({count - compiled} cached, {compiled} compiled)"
+                share = f"{100.0 * seconds / wall:.0f}" if wall > 0 else "0"
+            else:
+                label, share = p, "before the run"
+            lines.append(f"| {label} | {seconds:.2f} | {share} | {count} |")
         for p in names:
             share = 100.0 * self.seconds[p] / wall if wall > 0 else 0.0
             lines.append(f"| {p} | {self.seconds[p]:.2f} | {share:.0f} | {self.calls[p]} |")

@@ -29,10 +29,17 @@ _streams: dict[int, object] = {}
 
 
 def ensure_warp() -> None:
-    """Initialise Warp once. The library leaves `wp.config` to the application (the CLI quiets Warp's
-    start-up and module-load lines for its own process, `cli.devices._prepare_warp`)."""
+    """Initialise Warp once (its time is the "warp init" row of `--profile`). The library leaves `wp.config` to
+    the application (the CLI quiets Warp's start-up and module-load lines for its own process,
+    `cli.devices._prepare_warp`)."""
     if not _initialised():
+        import time
+
+        from .profiling import phases
+
+        start = time.perf_counter()
         wp.init()
+        phases.note_startup("warp init", time.perf_counter() - start)
 
 
 def _initialised() -> bool:

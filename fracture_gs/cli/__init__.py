@@ -7,13 +7,15 @@ given is such an error too (`run.refuse_ignored_flags`). The heavy work lives
 in modules imported only when a command needs them (`fracture_gs.render_sim`, `fracture_gs.paper`), so
 `--help`, `info` and `validate` stay fast and work on any machine.
 
-This module imports nothing heavy at its top: the parser and the commands (torch, Warp) are imported
-inside `main`'s handler, so Ctrl-C at any moment, the first second of imports included, exits 130
-with one line.
+This module imports nothing heavy at its top: the parser and the commands are imported inside `main`'s
+handler, so Ctrl-C at any moment, the first second of imports included, exits 130 with one line. The
+parser, `info`, `validate` and every flag check import neither torch nor Warp nor gsplat: a command
+imports them (and prepares Warp, `devices._prepare_warp`) once its flags and config are checked.
 """
 
 import os
 import sys
+import time
 
 TYPE_CHECKING = False  # typing is not imported at the top: see the module doc
 if TYPE_CHECKING:
@@ -28,7 +30,6 @@ class CliError(Exception):
 
 __all__ = ["CliError", "PROG", "build_parser", "main", "resolve_device"]
 
-_WARP_COMMANDS = ("render-sim", "bench", "figures", "sweep")
 _LAZY = {"build_parser": "parser", "resolve_device": "devices"}
 _SUBMODULES = ("devices", "parser", "report", "run", "sweep")
 
@@ -89,6 +90,16 @@ class _Interrupts:
     def __init__(self) -> None:
         self.hit = False
         self.previous = None
+        self.held = 0  # > 0 inside `held_interrupts()`: a SIGINT is recorded, raised on leaving
+
+    def __enter__(self) -> "_Interrupts":
+        self.held += 1
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.held -= 1
+        if not self.held and exc[0] is None:  # an exception already leaving the block goes on as it is
+            self.check()
 
     def install(self) -> None:
         import signal
@@ -102,7 +113,8 @@ class _Interrupts:
 
     def _handler(self, signum, frame) -> None:
         self.hit = True
-        raise KeyboardInterrupt
+        if not self.held:
+            raise KeyboardInterrupt
 
     def check(self) -> None:
         """Raise the KeyboardInterrupt that was dropped, if one was."""
@@ -120,21 +132,41 @@ class _Interrupts:
             self.previous = None
 
 
+_running: "Optional[_Interrupts]" = None  # main()'s, while it runs
+
+
+def held_interrupts():
+    """A context in which Ctrl-C is recorded rather than raised, and raised as KeyboardInterrupt when it ends:
+    for `import torch`, whose C++ start-up calls back into Python, so a KeyboardInterrupt raised there ends the
+    process with std::terminate (exit -6) instead of 130. Ctrl-C then takes effect once torch has loaded.
+    Outside main() (the package used as a library) or its thread it holds nothing back."""
+    import threading
+
+    if _running is None or threading.current_thread() is not threading.main_thread():
+        import contextlib
+
+        return contextlib.nullcontext()
+    return _running
+
+
 def main(argv: "Optional[Sequence[str]]" = None) -> int:
     """Console entry point; returns the exit code (0 ok, 2 user error, 130 interrupted). Everything that can
     take time, the imports of torch and Warp included, runs inside the KeyboardInterrupt handler."""
+    entered = time.perf_counter()
     args = None
     argv_was_none = argv is None  # the process itself (console script, python -m): it exits when main returns
-    interrupts = _Interrupts()
+    global _running
+    interrupts, outer = _Interrupts(), _running
     try:
         interrupts.install()
-        from .devices import _prepare_warp
+        _running = interrupts
         from .parser import build_parser
 
         parser = build_parser()
         argv = list(argv) if argv is not None else sys.argv[1:]
         args = parser.parse_args(argv)
         args.argv = argv  # what was typed, for the commands that record it
+        args.entered, args.is_process = entered, argv_was_none  # for --profile's start-up rows
         if not args.command:
             parser.print_help()
             return 0
@@ -143,9 +175,6 @@ def main(argv: "Optional[Sequence[str]]" = None) -> int:
         # a run's buffers change size every frame (fragments, boxes, visible Gaussians): expandable segments keep
         # torch's CUDA cache near what is allocated (a 150k-Gaussian capture held 69 GiB reserved for 17 in use)
         os.environ.setdefault("PYTORCH_CUDA_ALLOC_CONF", "expandable_segments:True")
-        if args.command in _WARP_COMMANDS:
-            _prepare_warp()
-        interrupts.check()
         code = commands[args.command](args)
         interrupts.check()
         return code
@@ -170,10 +199,15 @@ def main(argv: "Optional[Sequence[str]]" = None) -> int:
             return 1
         raise
     finally:
+        _running = outer
         interrupts.restore(leaving=argv_was_none)
 
 
 def _interrupted(args) -> int:
+    # CPython records a KeyboardInterrupt that escapes code run from a string (`eval("...")`: inspect evaluates
+    # string annotations that way, which Warp does as it imports) and, for `python -m`, kills the process by
+    # SIGINT at exit although this handler caught it; the next string it runs clears that record, so run one.
+    eval("None")
     partial = getattr(args, "partial_out", None)  # set by a command once it knows its output folder
     where = f"partial outputs are in {partial}" if partial else "nothing was written"
     print(f"\n{PROG}: interrupted; {where}.", file=sys.stderr)

@@ -6,7 +6,7 @@ import os
 import re
 import sys
 
-from . import CliError
+from . import CliError, held_interrupts
 
 DEVICE_RE = re.compile(r"^(auto|cpu|cuda(:\d+)?)$")
 
@@ -14,7 +14,8 @@ DEVICE_RE = re.compile(r"^(auto|cpu|cuda(:\d+)?)$")
 def _cuda_devices() -> tuple[bool, int, str]:
     """(available, count, reason) from torch, imported lazily; never touches gsplat."""
     try:
-        import torch
+        with held_interrupts():  # Ctrl-C inside torch's C++ start-up would abort the process: raise it after
+            import torch
     except Exception as exc:  # noqa: BLE001 - report, do not crash
         return False, 0, f"torch cannot be imported ({exc})"
     if not torch.cuda.is_available():
@@ -45,9 +46,14 @@ def resolve_device(spec: str) -> str:
     return f"cuda:{index}"
 
 
+MODULE_LOAD_RE = re.compile(r"^\s*Module (\S+).*? load on device '[^']*'.*? took ([0-9.]+) ms\s*\((\w+)\)")
+"""Warp's line for a kernel module load (`Module NAME HASH load on device 'cpu' took 1.20 ms  (cached)`)."""
+
+
 class _QuietWarpLogger:
     """Warp's messages for the CLI: debug and info lines (module loads, the start-up banner) dropped,
-    warnings and errors passed to the logger that was active before."""
+    warnings and errors passed to the logger that was active before. A module load line of a profiled run
+    becomes a "module loads" row of its profile (`profiling.STARTUP`), cached or compiled."""
 
     def __init__(self, inner) -> None:
         self.inner = inner
@@ -56,7 +62,12 @@ class _QuietWarpLogger:
         pass
 
     def info(self, message: str) -> None:
-        pass
+        from ..profiling import phases
+
+        if phases.enabled:
+            match = MODULE_LOAD_RE.match(message)
+            if match and match[3] in ("cached", "compiled"):
+                phases.note_startup("module loads", float(match[2]) / 1000.0, compiled=match[3] == "compiled")
 
     def warning(self, message: str, category=None, stacklevel: int = 1) -> None:
         self.inner.warning(message, category=category, stacklevel=stacklevel + 1)

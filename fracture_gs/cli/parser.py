@@ -7,7 +7,7 @@ import re
 from typing import get_args
 
 from ..config import CaptureMaterial, CaptureQuality, LoadKind, ParticleOrder
-from ..io.formats import FORMATS
+from ..io.detect import FORMATS
 from . import PROG, CliError
 from .sweep import add_sweep_parser
 

@@ -3,67 +3,30 @@
 from __future__ import annotations
 
 import argparse
-import importlib
-import os
 import platform
 import sys
 from pathlib import Path
-from typing import Any, Optional, Sequence
+from typing import Any, Sequence
 
-from . import devices  # looked up at call time: tests pretend a GPU by patching devices._cuda_devices
-
-
-def _version_of(module: str) -> tuple[Optional[Any], str]:
-    """Import a module lazily: (module or None, version or the failure)."""
-    try:
-        mod = importlib.import_module(module)
-    except Exception as exc:  # noqa: BLE001 - info reports every failure
-        return None, f"not importable ({type(exc).__name__}: {exc})"
-    return mod, str(getattr(mod, "__version__", getattr(getattr(mod, "config", None), "version", "unknown")))
-
-
-def _warp_cache_dir(wp: Any) -> str:
-    """Warp's kernel cache directory, found the way warp.init() would, without initializing it."""
-    configured = getattr(wp.config, "kernel_cache_dir", None)
-    if configured:
-        return str(configured)
-    if os.environ.get("WARP_CACHE_PATH"):
-        return os.path.realpath(os.environ["WARP_CACHE_PATH"]) + "  (WARP_CACHE_PATH)"
-    try:
-        from warp._src.build import appdirs  # private: only used to print the default location
-
-        return appdirs.user_cache_dir(appname="warp", appauthor="NVIDIA", version=wp.config.version)
-    except Exception:  # noqa: BLE001
-        return "(default location; set WARP_CACHE_PATH to choose one)"
+from . import hardware
 
 
 def _info_lines() -> list[tuple[str, str]]:
-    """Rows of `fracture-gs info`."""
+    """Rows of `fracture-gs info`: nothing here imports torch, Warp or gsplat (`hardware`)."""
     from .. import __version__
 
     rows = [
         ("fracture-gs", f"{__version__}  ({Path(__file__).resolve().parent})"),
         ("python", f"{platform.python_version()}  ({sys.executable})"),
         ("platform", platform.platform()),
+        ("torch", hardware.version("torch")),
     ]
-    torch, version = _version_of("torch")
-    rows.append(("torch", version))
-    available, count, reason = devices._cuda_devices()
-    if torch is not None:
-        rows.append(
-            ("cuda", f"{count} device(s), CUDA {torch.version.cuda}" if available else f"not available: {reason}")
-        )
-        for i in range(count):
-            props = torch.cuda.get_device_properties(i)
-            rows.append(
-                (f"  cuda:{i}", f"{props.name}, {props.total_memory / 2**30:.1f} GiB, sm_{props.major}{props.minor}")
-            )
-    wp, version = _version_of("warp")
-    rows.append(("warp", version))
-    if wp is not None:
-        rows.append(("  kernel cache", _warp_cache_dir(wp)))
-    _, version = _version_of("gsplat")
-    rows.append(("gsplat", version))
+    available, reason, found = hardware.cuda_status()
+    rows.append(("cuda", reason if available else f"not available: {reason}"))
+    rows += [(f"  cuda:{i}", f"{name}, {gib:.1f} GiB, {sm}") for i, (name, gib, sm) in enumerate(found)]
+    rows.append(("warp", hardware.version("warp-lang")))
+    rows.append(("  kernel cache", hardware.warp_cache_dir()))
+    rows.append(("gsplat", hardware.version("gsplat")))
     if available:
         rows.append(("renderer", f"auto -> gsplat rasterization on cuda:0 ({reason})"))
     else:
@@ -87,8 +50,7 @@ def _video_encoder() -> str:
         exe = ffmpeg().get_ffmpeg_exe()
     except OutputError as exc:
         return f"unavailable: {exc}"
-    _, version = _version_of("imageio_ffmpeg")
-    return f"imageio-ffmpeg {version}, ffmpeg {exe}"
+    return f"imageio-ffmpeg {hardware.version('imageio-ffmpeg')}, ffmpeg {exe}"
 
 
 def cmd_info(args: argparse.Namespace) -> int:

@@ -210,6 +210,9 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     if args.list:
         _print_list(path, opts, total)
         return 0
+    from .devices import _prepare_warp
+
+    _prepare_warp()
     try:
         report = run_sweep(path, opts, cells)
     except RankFailure as exc:

@@ -1,9 +1,5 @@
-"""Every splat file format in and out: what a file is (by its bytes), read it, write it.
-
-`detect_format(path)` looks at the content, never at the suffix (a `.splat` renamed `.ply` is still a
-`.splat`): "ply" (a 3DGS PLY as the Inria trainer writes it), "compressed-ply" (PlayCanvas/SuperSplat),
-"spz" (Niantic, versions 2-4), "splat" (antimatter15) or "ksplat" (recognised only to refuse it). Anything
-else is a `PlyError` naming what the file looks like and the formats that are read.
+"""Every splat file format in and out: read it, write it (what a file is, by its bytes: `detect`, whose names
+are re-exported here).
 
 `read_gaussians(path)` returns the Gaussians in the package's activated convention, PLY axes (RDF),
 with the rows that hold NaN/inf, degenerate scales or a zero quaternion dropped and counted, as
@@ -26,206 +22,40 @@ its SH degree is what it stores, nothing is invented.
 from __future__ import annotations
 
 import os
-import struct
-import zlib
 from pathlib import Path
 
 import numpy as np
-import tomllib
 import torch
 
 from ..errors import PlyError
 from . import gsply_io, splat_file
+from .detect import (
+    FORMATS,
+    READ,
+    SCENE_SUFFIXES,
+    SUFFIX,
+    as_path,
+    detect_format,
+    is_splat_file,
+    ply_header,
+    refuse,
+    spz_header,
+)
 from .gaussian_set import GaussianSet
-from .ply import SIGMA_RANGE, as_device, as_gaussians, as_path, load_ply_lenient, save_ply, write_failed
+from .ply import SIGMA_RANGE, as_device, as_gaussians, load_ply_lenient, save_ply, write_failed
 
-FORMATS = ("ply", "compressed-ply", "splat", "spz")
-"""The formats read and written (`--export-format`)."""
-SUFFIX = {"ply": ".ply", "compressed-ply": ".compressed.ply", "splat": ".splat", "spz": ".spz"}
-SCENE_SUFFIXES = (".ply", ".splat", ".spz", ".ksplat")
-"""Suffixes taken as a scene without looking inside (`.compressed.ply` ends in `.ply`)."""
-READ = "3DGS .ply, compressed .ply (SuperSplat/PlayCanvas), .splat (antimatter15) and .spz (Niantic)"
-_GAUSSIAN_PROPS = ("f_dc_0", "opacity", "scale_0", "rot_0")
+__all__ = [
+    "FORMATS",
+    "READ",
+    "SCENE_SUFFIXES",
+    "SUFFIX",
+    "detect_format",
+    "is_splat_file",
+    "read_gaussians",
+    "spz_header",
+    "write_gaussians",
+]
 _COMPRESSED_CHUNK_PROPS = 18  # min/max of position, log-scale and colour
-_IMAGES = {
-    b"\x89PNG\r\n\x1a\n": "a PNG image",
-    b"\xff\xd8\xff": "a JPEG image",
-    b"GIF87a": "a GIF image",
-    b"GIF89a": "a GIF image",
-    b"II*\x00": "a TIFF image",
-    b"MM\x00*": "a TIFF image",
-    b"\x76\x2f\x31\x01": "an OpenEXR image",
-}
-
-
-def _refuse(path, what: str, fix: str = "") -> PlyError:
-    fix = fix or "pass a splat file in one of those formats"
-    return PlyError(f"{path}: {what}, not Gaussians this package reads ({READ}); {fix}.")
-
-
-# ----------------------------------------------------------------------------- detection
-
-
-def _ply_header(head: bytes):
-    """(elements {name: (count, [property names])}, header bytes) of a PLY, or None if no end_header
-    is found in `head`."""
-    end = head.find(b"end_header")
-    if end < 0:
-        return None
-    stop = head.find(b"\n", end)
-    header_len = (stop + 1) if stop >= 0 else len(head)
-    elements, current = {}, None
-    for line in head[:end].decode("ascii", "replace").splitlines():
-        words = line.split()
-        if len(words) >= 3 and words[0] == "element":
-            current = words[1]
-            elements[current] = (int(words[2]) if words[2].isdigit() else -1, [])
-        elif len(words) >= 3 and words[0] == "property" and current is not None:
-            elements[current][1].append(words[-1])
-    return elements, header_len
-
-
-def _ply_kind(path, head: bytes) -> str:
-    parsed = _ply_header(head)
-    if parsed is None:
-        return "ply"  # a broken header: load_ply says what is wrong with it
-    elements, _ = parsed
-    vertex = elements.get("vertex", (0, []))[1]
-    if "chunk" in elements and "packed_position" in vertex:
-        return "compressed-ply"
-    if "vertex" not in elements:
-        return "ply"  # load_ply names the missing element
-    if any(p in vertex for p in _GAUSSIAN_PROPS):
-        return "ply"
-    shown = ", ".join(vertex[:6]) + (", ..." if len(vertex) > 6 else "")
-    others = [e for e in elements if e != "vertex"]
-    kind = "a mesh" if "face" in others else "a point cloud"
-    raise _refuse(
-        path,
-        f"is a PLY {kind} (its vertices have {shown or 'no properties'}, none of the Gaussian properties "
-        "f_dc_0, opacity, scale_0, rot_0)",
-        "export the scene's Gaussians from the splatting trainer or editor",
-    )
-
-
-def spz_header(path, head: bytes) -> tuple[int, int, int, int]:
-    """(version, Gaussians, SH degree, fractional bits) of an SPZ file; PlyError if it is not one."""
-    if head[:2] == b"\x1f\x8b":
-        try:
-            inner = zlib.decompressobj(16 + zlib.MAX_WBITS).decompress(head, 16)
-        except zlib.error:
-            inner = b""
-        if inner[:4] != b"NGSP":
-            raise _refuse(path, "is gzip-compressed data without an SPZ header", "decompress it and pass what it holds")
-    else:
-        inner = head
-    if len(inner) < 16:
-        raise _refuse(path, "is an SPZ file cut off inside its header", "download or export it again")
-    _, version, n, degree, bits = struct.unpack_from("<IIIBB", inner)
-    if version == 1:
-        raise _refuse(
-            path,
-            "is an SPZ version 1 file (float16 positions), an early layout that is not read",
-            "re-save it with a current SPZ tool (versions 2-4 are read)",
-        )
-    if not 2 <= version <= 4 or degree > 3 or (head[:2] == b"\x1f\x8b") != (version < 4):
-        raise _refuse(path, f"is an SPZ file of version {version} with SH degree {degree}", "save it as SPZ 2-4")
-    return version, n, degree, bits
-
-
-def _is_ksplat(head: bytes, size: int) -> bool:
-    """mkkellogg's GaussianSplats3D `.ksplat`: no magic; a 4096-byte header starting with version 0.x
-    (uint8 major 0, minor ≤ 9), then uint32 max sections, sections, max splats, splats and a uint16
-    compression level 0-2 (the layout of its SplatBuffer), followed by 1024-byte section headers."""
-    if size < 4096 + 1024 or len(head) < 24 or head[0] != 0 or head[1] > 9 or head[2:4] != b"\0\0":
-        return False
-    max_sections, sections, max_splats, splats = struct.unpack_from("<4I", head, 4)
-    level = struct.unpack_from("<H", head, 20)[0]
-    return (
-        1 <= sections <= max_sections <= 1 << 16
-        and 1 <= splats <= max_splats
-        and level <= 2
-        and size >= 4096 + 1024 * max_sections
-    )
-
-
-def _text_kind(head: bytes, path) -> str | None:
-    """'TOML text' / 'text' when the start of the file is UTF-8 text, else None."""
-    if b"\0" in head:
-        return None
-    for cut in range(4):  # the 64 KiB window may end inside a multi-byte character
-        try:
-            text = head[: len(head) - cut].decode("utf-8-sig")
-            break
-        except UnicodeDecodeError:
-            continue
-    else:
-        return None
-    try:
-        tomllib.loads(Path(path).read_text("utf-8-sig") if len(head) < 65536 else text)
-        return "TOML text (a config?)"
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError, RecursionError):
-        first = next((ln.strip() for ln in text.splitlines() if ln.strip()), "")
-        return f"text (first line {first[:40]!r})"
-
-
-def detect_format(path) -> str:
-    """The format of a splat file from its bytes: "ply", "compressed-ply", "spz", "splat" or "ksplat".
-    Raises PlyError (one sentence: what the file looks like, the formats read, the fix) otherwise."""
-    path = as_path("detect_format", path)
-    if os.path.isdir(path):
-        raise PlyError(f"{path}: is a folder, not a file; pass the scene file inside it ({READ} are read).")
-    if not os.path.isfile(path):
-        raise PlyError(f"{path}: no such file; check the path to the scene ({READ} are read).")
-    size = os.path.getsize(path)
-    if size == 0:
-        raise _refuse(path, "is empty (0 bytes)", "export the scene again")
-    with open(path, "rb") as fh:
-        head = fh.read(65536)
-    if head.startswith((b"ply\n", b"ply\r")):
-        return _ply_kind(path, head)
-    if head[:4] == b"NGSP" or head[:2] == b"\x1f\x8b":
-        spz_header(path, head)
-        return "spz"
-    for magic, what in _IMAGES.items():
-        if head.startswith(magic):
-            raise _refuse(path, f"is {what}", "pass the splat file the images were trained into")
-    if head[:4] == b"RIFF" and head[8:12] == b"WEBP":
-        raise _refuse(path, "is a WebP image", "pass the splat file the images were trained into")
-    if head[:4] == b"PK\x03\x04":
-        raise _refuse(
-            path,
-            "is a ZIP archive (a PlayCanvas .sog bundle is one)",
-            "convert it to .ply with splat-transform (npx @playcanvas/splat-transform in.sog out.ply)",
-        )
-    if head[:4] == b"glTF":
-        raise _refuse(path, "is a binary glTF model", "export the scene's Gaussians as .ply")
-    if _is_ksplat(head, size):
-        return "ksplat"
-    text = _text_kind(head, path)
-    if text is not None:
-        raise _refuse(path, f"is {text}", "pass a config under a .toml name, a scene as one of those formats")
-    # `.splat` has no magic number: a headerless run of 32-byte rows is accepted when nearly every
-    # sampled row decodes to a Gaussian (finite means, positive finite scales, non-zero quaternion).
-    # Binary data that happens to look like that would be misread; nothing else can tell.
-    if size % splat_file.ROW_BYTES == 0 and splat_file.plausible_rows(np.memmap(path, np.uint8, "r")) >= 0.9:
-        return "splat"
-    raise _refuse(path, f"is binary data of {size:,} bytes in no format recognised")
-
-
-def is_splat_file(path) -> bool:
-    """Whether a scene path names a splat file: its suffix is one of SCENE_SUFFIXES, or the file exists
-    and its content is a splat format (whatever its suffix says)."""
-    text = as_path("is_splat_file", path)
-    if text.lower().endswith(SCENE_SUFFIXES):
-        return True
-    if not os.path.isfile(text):
-        return False
-    try:
-        detect_format(text)
-    except (PlyError, OSError):
-        return False
-    return True
 
 
 # ----------------------------------------------------------------------------- reading
@@ -244,7 +74,7 @@ def _usable(a: dict) -> np.ndarray:  # [N] bool
 
 def _compressed_layout(path, head: bytes) -> None:
     """One sentence for a compressed PLY whose layout gsply cannot decode or whose data is cut off."""
-    elements, header_len = _ply_header(head)
+    elements, header_len = ply_header(head)
     chunks, chunk_props = elements["chunk"]
     n, vertex = elements["vertex"]
     sh_props = len(elements.get("sh", (0, []))[1])
@@ -254,7 +84,7 @@ def _compressed_layout(path, head: bytes) -> None:
         "packed_scale",
         "packed_color",
     ]:
-        raise _refuse(
+        raise refuse(
             path,
             f"is a compressed PLY of an early layout ({len(chunk_props)} chunk bounds, not 18 with colour)",
             "open and save it again in SuperSplat, or convert it with splat-transform",

@@ -28,6 +28,7 @@ import torch
 from plyfile import PlyData, PlyElement
 
 from ..errors import ArgumentError, OutputError, PlyError
+from .detect import as_path
 from .gaussian_set import SIGMA_RANGE, GaussianSet
 
 INTERIOR_PROP = "fgs_interior"
@@ -83,23 +84,6 @@ def inverse_opacity(p: np.ndarray) -> np.ndarray:
 
 
 # ----------------------------------------------------------------------------- arguments
-
-
-def as_path(where: str, value, name: str = "path") -> str:
-    """A path argument of the public functions as str (str, bytes or os.PathLike); another type or an empty
-    path is an ArgumentError naming `where`'s argument `name`."""
-    try:
-        text = os.fsdecode(value) if isinstance(value, (str, bytes, os.PathLike)) else None
-    except (TypeError, UnicodeDecodeError):
-        text = None
-    if text is None:
-        raise ArgumentError(
-            f"{where}: {name} must be a file path (str or pathlib.Path), got {type(value).__name__} {value!r:.40}; "
-            "pass e.g. 'scene.ply'."
-        )
-    if not text.strip():
-        raise ArgumentError(f"{where}: {name} is empty; pass the file's path, e.g. 'scene.ply'.")
-    return text
 
 
 def as_device(where: str, device) -> torch.device:

@@ -36,7 +36,7 @@ from ..errors import ConfigError
 from ..io.config import apply_overrides, config_from_dict, config_to_dict, find_config
 from ..io.config import load_config as load_scene_config
 from ..io.config.dump import dump_dict
-from ..io.formats import is_splat_file
+from ..io.detect import is_splat_file
 from .spec import SceneBlock, SweepSpec
 
 

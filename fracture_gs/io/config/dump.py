@@ -8,7 +8,7 @@ import math
 from typing import Any, Optional
 
 from ...config import BOUNDARY_TYPES, BUILTIN_SCENES, SceneConfig
-from ..formats import is_splat_file
+from ..detect import is_splat_file
 
 
 def to_plain_value(value: Any) -> Any:

@@ -17,7 +17,7 @@ import tomllib
 
 from ...config import SceneConfig
 from ...errors import ConfigError
-from ..formats import is_splat_file
+from ..detect import is_splat_file
 from .build import build_scene, describe
 from .dump import to_dict
 from .validate import validate

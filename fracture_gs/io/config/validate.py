@@ -30,7 +30,7 @@ from ...config import (
 )
 from ...errors import ConfigError
 from ...variants import VARIANT_NAMES, variant_spec
-from ..formats import is_splat_file
+from ..detect import is_splat_file
 
 MAX_FIELD_SLOTS = 8  # sim.storage.MAX_SLOTS (io does not import sim)
 MAX_IMAGE_SIDE = 8192  # pixels; larger frames exceed H.264 levels and the rasterizers' tile budgets
