@@ -92,6 +92,7 @@ class Viewer:
     """The viewer of one run: a viser server, its controls and the pusher thread. `close()` stops it."""
 
     def __init__(self, view: RunView, host: str = "127.0.0.1", port: int = 8080, preview: int = 20_000):
+        check_port(host, port)
         try:
             import viser
         except ImportError:
@@ -99,7 +100,6 @@ class Viewer:
                 "fracture-gs view needs viser, which is not installed; install it with "
                 "pip install 'fracture-gs[view]' (or pip install 'viser>=1.1,<1.2')."
             ) from None
-        check_port(host, port)
         self.view, self.header = view, view.header
         self.scale = math.sqrt(float(self.header["cov_unit"]))
         self.server = viser.ViserServer(host=host, port=port, label=f"fracture-gs · {self.header.get('name', '')}")
@@ -139,11 +139,13 @@ class Viewer:
         forward = (target - eye) / max(np.linalg.norm(target - eye), 1e-30)
         right = np.cross(forward, up)
         right = right / max(np.linalg.norm(right), 1e-30)
-        lo, hi = self.view.frame(self.view.variants[0], 0).box
-        extent = max(float(np.abs((hi - lo) @ np.abs(right))), float(np.linalg.norm(hi - lo)) * 0.5, 1e-6)
+        boxes = [self.view.frame(v, k).box for v in self.view.variants for k in (0, self.view.counts[v] - 1)]
+        lo, hi = np.min([b[0] for b in boxes], 0), np.max([b[1] for b in boxes], 0)  # every variant, first and last
+        extent = max(float((hi - lo) @ np.abs(right)), float(np.linalg.norm(hi - lo)) * 0.5, 1e-6)
         n = len(self.view.variants)
-        self.offsets = {v: right * (i - (n - 1) / 2) * extent * 1.25 for i, v in enumerate(self.view.variants)}
-        self.label_lift = np.asarray(up, np.float64) / np.linalg.norm(up) * (float(np.linalg.norm(hi - lo)) * 0.6)
+        self.offsets = {v: right * (i - (n - 1) / 2) * extent * 1.15 for i, v in enumerate(self.view.variants)}
+        up_unit = up / np.linalg.norm(up)
+        self.label_at = (lo + hi) / 2 + up_unit * float((hi - lo) @ np.abs(up_unit)) * 0.65  # above the object
 
     def _controls(self) -> None:
         gui, view = self.server.gui, self.view
@@ -167,6 +169,7 @@ class Viewer:
         moving = lambda _: self._changed(moving=True)
         for handle in (self.frame, self.variant, self.side):
             handle.on_update(moving)
+        self.side.on_update(lambda _: [self.video_camera(c) for c in self.server.get_clients().values()])
         for handle in (self.color, self.highlight, self.background, self.budget):
             handle.on_update(lambda _: self._changed(moving=False))
         self.frame.on_update(lambda _: setattr(self.time, "value", self._time_text(int(self.frame.value))))
@@ -332,7 +335,7 @@ class Viewer:
             name = f"/labels/{v}"
             if len(shown) > 1 and name not in self.handles:
                 self.handles[name] = self.server.scene.add_label(
-                    name, v, position=tuple(self.offsets[v] + self.label_lift), anchor="bottom-center"
+                    name, v, position=tuple(self.offsets[v] + self.label_at), anchor="bottom-center"
                 )
             elif len(shown) == 1 and name in self.handles:
                 self.handles.pop(name).remove()
