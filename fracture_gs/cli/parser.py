@@ -372,7 +372,15 @@ def add_view_parser(sub) -> None:
         type=int,
         default=20_000,
         help="while the frame changes (scrubbing, playing), first send at most N Gaussians, then the whole frame "
-        "once the slider rests; 0 sends every Gaussian at once (default 20000: a browser without a GPU keeps up)",
+        "once the slider rests; 0 sends every Gaussian at once (default 20000)",
+    )
+    p.add_argument(
+        "--max-splats",
+        metavar="N",
+        type=int,
+        default=0,
+        help="draw at most N Gaussians per panel (every k-th, widened to cover the rest), for a browser without a "
+        "GPU, whose software WebGL spends 2-20 µs per splat; 0 draws them all (default)",
     )
 
 

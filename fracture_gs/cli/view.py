@@ -16,11 +16,11 @@ def cmd_view(args: argparse.Namespace) -> int:
     from ..viewer.server import serve
     from ..viewer.store import open_run
 
-    if args.preview < 0:
-        raise CliError(
-            f"--preview {args.preview} must be 0 (send every Gaussian) or more; write it like --preview 20000."
-        )
-    return serve(open_run(Path(args.run_dir)), host=args.host, port=args.port, preview=args.preview)
+    for flag, value in (("--preview", args.preview), ("--max-splats", args.max_splats)):
+        if value < 0:
+            raise CliError(f"{flag} {value} must be 0 (every Gaussian) or more; write it like {flag} 20000.")
+    view = open_run(Path(args.run_dir))
+    return serve(view, host=args.host, port=args.port, preview=args.preview, max_splats=args.max_splats)
 
 
 def check_can_serve(host: str, port: int) -> None:

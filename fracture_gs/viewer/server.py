@@ -9,7 +9,11 @@ Frames stream on demand: a change of state (frame, variant, colours) wakes one p
 frames now shown from the run folder (`store`), packs them (`panels`, an LRU cache of packed frames) and replaces
 the buffers of the splat nodes on screen; requests that arrive while it works collapse into the latest. While the
 frame changes (scrubbing, playing) and a frame has more than `preview` drawn Gaussians, a preview of that many
-goes first and the whole frame follows once the slider rests, so a software-rendered browser keeps up.
+goes first and the whole frame follows once the slider rests.
+`max_splats` caps the Gaussians drawn per panel at rest too (every k-th, widened), for a browser that draws
+without a GPU: Chromium's own software WebGL (SwiftShader) spends ~20 µs per splat on two cores, and viser
+redraws the scene every second, so a frame of 100k Gaussians would keep it busy. A browser with a GPU draws
+millions of splats at interactive rates and needs no cap (the default).
 
 Safety: it listens on 127.0.0.1 unless told otherwise, and its HTTP server hands out viser's client files only
 (requests are matched against that build folder, `..` refused): nothing of the run folder or elsewhere is served;
@@ -91,7 +95,9 @@ def camera_at(header: dict, frame: int) -> tuple[np.ndarray, np.ndarray, np.ndar
 class Viewer:
     """The viewer of one run: a viser server, its controls and the pusher thread. `close()` stops it."""
 
-    def __init__(self, view: RunView, host: str = "127.0.0.1", port: int = 8080, preview: int = 20_000):
+    def __init__(
+        self, view: RunView, host: str = "127.0.0.1", port: int = 8080, preview: int = 20_000, max_splats: int = 0
+    ):
         check_port(host, port)
         try:
             import viser
@@ -111,13 +117,14 @@ class Viewer:
         self.cache: OrderedDict = OrderedDict()
         self.cache_bytes = 0
         self.handles: dict = {}
-        self.pushed: list = []  # (monotonic time, state key, full?) of what went to the browser, newest last
+        self.pushed: list = []  # (monotonic time, state key, whole?, Gaussians sent) newest last
         self._wake = threading.Condition()
-        self._dirty, self._moving, self._pending_full, self._changed_at = True, False, False, time.monotonic()
+        # the first push is a preview: the page opens at once, the whole frame follows
+        self._dirty, self._moving, self._pending_full, self._changed_at = True, True, False, time.monotonic()
         self._stop = threading.Event()
         self._playing = False
         self._layout()
-        self._controls()
+        self._controls(int(max_splats))
         self.pusher = threading.Thread(target=self._push_loop, name="fgs-view-push", daemon=True)
         self.pusher.start()
         self.player = threading.Thread(target=self._play_loop, name="fgs-view-play", daemon=True)
@@ -147,7 +154,7 @@ class Viewer:
         up_unit = up / np.linalg.norm(up)
         self.label_at = (lo + hi) / 2 + up_unit * float((hi - lo) @ np.abs(up_unit)) * 0.65  # above the object
 
-    def _controls(self) -> None:
+    def _controls(self, max_splats: int) -> None:
         gui, view = self.server.gui, self.view
         notes = "".join(f"\n- {n}" for n in view.notes)
         gui.add_markdown(f"**{self.header.get('name', '')}** · {view.n:,} Gaussians{notes}")
@@ -163,6 +170,7 @@ class Viewer:
             "background", initial_value=True, disabled="background_means" not in view.static
         )
         self.budget = gui.add_number("scrub preview", initial_value=self.preview, min=0, step=1000)
+        self.max_splats = gui.add_number("max splats", initial_value=max_splats, min=0, step=1000, hint="0: all")
         self.camera = gui.add_button("video camera")
         self.png = gui.add_button("save PNG")
 
@@ -170,7 +178,7 @@ class Viewer:
         for handle in (self.frame, self.variant, self.side):
             handle.on_update(moving)
         self.side.on_update(lambda _: [self.video_camera(c) for c in self.server.get_clients().values()])
-        for handle in (self.color, self.highlight, self.background, self.budget):
+        for handle in (self.color, self.highlight, self.background, self.budget, self.max_splats):
             handle.on_update(lambda _: self._changed(moving=False))
         self.frame.on_update(lambda _: setattr(self.time, "value", self._time_text(int(self.frame.value))))
         self.play.on_click(lambda _: self._toggle_play())
@@ -268,9 +276,12 @@ class Viewer:
                     return
                 dirty, moving = self._dirty, self._moving
                 self._dirty = False
-            budget = int(self.budget.value or 0) if dirty and (moving or self._playing) else 0
+            rest = max(int(self.max_splats.value or 0), 0)
+            budget = rest
+            if dirty and (moving or self._playing):
+                budget = min([b for b in (max(int(self.budget.value or 0), 0), rest) if b > 0], default=0)
             try:
-                self._pending_full = self.push(self.state(), budget)
+                self._pending_full = self.push(self.state(), budget, rest)
             except Exception as exc:  # noqa: BLE001 - the viewer stays up; the terminal says what failed
                 print(f"fracture-gs view: could not show the frame: {type(exc).__name__}: {exc}")
                 self._pending_full = False
@@ -290,17 +301,19 @@ class Viewer:
             self.cache_bytes -= self.cache.popitem(last=False)[1].nbytes
         return buf
 
-    def push(self, state: tuple, budget: int = 0) -> bool:
-        """Put `state` on screen; returns whether what was sent is a preview (a whole frame should follow)."""
+    def push(self, state: tuple, budget: int = 0, rest: int = 0) -> bool:
+        """Put `state` on screen with at most `budget` Gaussians per panel (0: all); returns whether a fuller
+        picture (at most `rest` per panel) should follow once the state rests."""
         frame, shown, mode, highlight, background = state
-        partial = False
+        partial, sent = False, 0
         wanted: dict[str, tuple] = {}
         for v in shown:
-            drawn = int(np.count_nonzero(self.view.frame(v, frame).flags & 1)) if budget else 0
+            drawn = int(np.count_nonzero(self.view.frame(v, frame).flags & 1)) if budget or rest else 0
             b = budget if budget and drawn > budget else 0
-            partial |= b > 0
+            partial |= panels.preview_stride(drawn, b) != panels.preview_stride(drawn, rest)
             pos = self.offsets[v] if len(shown) > 1 else np.zeros(3)
             wanted[f"/run/{v}"] = (self._buffer(v, frame, mode, highlight, b), pos)
+            sent += len(wanted[f"/run/{v}"][0])
             if background and "background_means" in self.view.static:
                 key = ("background", highlight)
                 if key not in self.cache:
@@ -325,7 +338,7 @@ class Viewer:
                 handle.position = tuple(float(p) for p in pos)
                 handle.buffer = buf
             self._labels(shown)
-        self.pushed.append((time.monotonic(), state, not partial))
+        self.pushed.append((time.monotonic(), state, not partial, sent))
         del self.pushed[:-64]
         return partial
 
@@ -348,11 +361,11 @@ class Viewer:
         self.server.stop()
 
 
-def serve(view: RunView, host: str = "127.0.0.1", port: int = 8080, preview: int = 20_000) -> int:
+def serve(view: RunView, host: str = "127.0.0.1", port: int = 8080, preview: int = 20_000, max_splats: int = 0) -> int:
     """Serve `view` until Ctrl-C (then exit 0)."""
     from .store import describe
 
-    viewer = Viewer(view, host, port, preview)
+    viewer = Viewer(view, host, port, preview, max_splats)
     print(f"fracture-gs view: {describe(view)}")
     for note in view.notes:
         print(f"fracture-gs view: {note}")
