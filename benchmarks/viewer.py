@@ -6,15 +6,17 @@
 
 Writes a synthetic run through render-sim's own writer (`viewer.record`): a slab of N Gaussians (σ ≈ 3 mm) that
 splits in two at frame 1 and opens a little every frame. Then serves it (`viewer.server.Viewer`) and drives
-headless Chromium (Debian's package, WebGL in software: SwiftShader) the way the tests do:
+Chromium (Debian's package) the way the tests do (`tests/browserutil.py`: WebGL on Mesa's llvmpipe under Xvfb,
+or headless SwiftShader with FRACTURE_GS_HEADLESS=1; the JSON names the renderer):
 
-* open: from the page's load event to the first picture with the object drawn, and to the whole frame drawn;
-* scrub: the slider thumb focused and moved one frame with the keyboard, to the first changed picture (the
-  preview, when the frame has more than --preview Gaussians) and to the whole frame drawn and settled;
-* memory: bytes per Gaussian per frame on disk, and the peak Python allocation (tracemalloc) of reading and
-  packing one frame, and the packed frame kept in the viewer's cache.
+* open: from the page's load event to the first finished draw of the frame's splats;
+* scrub: the slider thumb focused and moved one frame with the keyboard (ArrowRight), to the first finished draw
+  of the new frame (the preview, when the frame has more than --preview Gaussians) and of the whole frame;
+* memory: bytes per Gaussian per frame on disk, the peak Python allocation (tracemalloc) of reading and packing
+  one frame, and the packed frame kept in the viewer's cache.
 
-"Drawn" is observed by taking screenshots, so each time includes one screenshot (an upper bound).
+A draw is timed in the page: a script wraps WebGL's texture uploads and instanced draws, and reads one pixel back
+after the first draw that follows new splats, so that its time is when that draw finished, not when it was queued.
 """
 
 from __future__ import annotations
@@ -71,27 +73,62 @@ def make_run(out: Path, n: int, frames: int) -> dict:
     return {"write_ms_per_frame": 1e3 * (time.perf_counter() - t0) / (frames + 1)}
 
 
-def wait_full(viewer, frame: int, timeout: float) -> None:
+HOOK = """
+window.__ev = [];
+let pending = false;
+const G = WebGL2RenderingContext.prototype;
+for (const name of ['texImage2D', 'texSubImage2D']) {
+  const orig = G[name];
+  G[name] = function (...a) {
+    const r = orig.apply(this, a);
+    if (a.length >= 9 && a[7] === this.UNSIGNED_INT) { window.__ev.push(['upload', performance.now(), 0]); pending = true; }
+    return r;
+  };
+}
+const px = new Uint8Array(4);
+for (const name of ['drawElementsInstanced', 'drawArraysInstanced']) {
+  const orig = G[name];
+  G[name] = function (...a) {
+    const r = orig.apply(this, a);
+    if (pending) {  // the first draw after new splats: wait for it to finish (one pixel read back), then note it
+      this.readPixels(0, 0, 1, 1, this.RGBA, this.UNSIGNED_BYTE, px);
+      window.__ev.push(['draw', performance.now(), a[a.length - 1]]);
+      pending = false;
+    }
+    return r;
+  };
+}
+"""
+"""Recorded in the page: each upload of the splat texture, and the first instanced draw after it once finished
+(with its instance count); other draws (viser redraws the scene every second) are left alone."""
+
+
+def shown_after(page, t0: float, counts: tuple, timeout: float = 120.0) -> tuple[float, int]:
+    """Page-clock time [ms] and splat count of the first finished draw of one of `counts` splats after a splat
+    upload later than t0 (a preview the browser had no time to draw before the whole frame came is skipped)."""
     end = time.monotonic() + timeout
     while time.monotonic() < end:
-        if viewer.pushed and viewer.pushed[-1][2] and viewer.pushed[-1][1][0] == frame:
-            return
-        time.sleep(0.01)
-    raise TimeoutError(f"frame {frame} never pushed whole")
+        uploaded = None
+        for kind, t, n in page.evaluate("window.__ev"):
+            if kind == "upload" and t > t0 and uploaded is None:
+                uploaded = t
+            elif kind == "draw" and uploaded is not None and t > uploaded and n in counts:
+                return t, n
+        time.sleep(0.02)
+    raise TimeoutError(f"no draw of {counts} splats after {t0:.0f} ms")
 
 
-def settle(page, before, timeout: float) -> tuple[float, np.ndarray]:
-    """Seconds until two shots in a row agree (and differ from `before` when given)."""
-    from browserutil import picture
-
-    t0, end = time.perf_counter(), time.monotonic() + timeout
-    last = picture(page)
+def sent(viewer, frame: int, whole: bool, timeout: float = 60.0) -> int:
+    """Gaussians the viewer sent for `frame`: its whole frame, or its first push (the preview)."""
+    end = time.monotonic() + timeout
     while time.monotonic() < end:
-        now = picture(page)
-        if np.abs(now.astype(int) - last).max() <= 2 and (before is None or np.abs(now.astype(int) - before).max() > 8):
-            return time.perf_counter() - t0, now
-        last = now
-    raise TimeoutError("the picture never settled")
+        pushes = [(full, count) for _, state, full, count in viewer.pushed if state[0] == frame]
+        if whole and any(full for full, _ in pushes):
+            return next(count for full, count in pushes if full)
+        if not whole and pushes:
+            return pushes[0][1]
+        time.sleep(0.01)
+    raise TimeoutError(f"frame {frame} never pushed")
 
 
 def main(argv=None) -> int:
@@ -99,12 +136,13 @@ def main(argv=None) -> int:
     p.add_argument("--gaussians", type=int, default=100_000)
     p.add_argument("--frames", type=int, default=40)
     p.add_argument("--preview", type=int, default=20_000, help="the viewer's --preview (0: every Gaussian at once)")
+    p.add_argument("--max-splats", type=int, default=0, help="the viewer's --max-splats (0: every Gaussian)")
     p.add_argument("--scrubs", type=int, default=5)
     p.add_argument("--width", type=int, default=800)
     p.add_argument("--height", type=int, default=600)
     a = p.parse_args(argv)
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))  # the tests' browser helpers
-    from browserutil import free_port, ink, launch, picture
+    from browserutil import free_port, launch, renderer
     from playwright.sync_api import sync_playwright
 
     from fracture_gs.viewer import format as fmt
@@ -112,11 +150,12 @@ def main(argv=None) -> int:
     from fracture_gs.viewer.server import Viewer
     from fracture_gs.viewer.store import open_run
 
-    out: dict = {"gaussians": a.gaussians, "frames": a.frames, "preview": a.preview}
+    out: dict = {"gaussians": a.gaussians, "frames": a.frames, "preview": a.preview, "max_splats": a.max_splats}
     with tempfile.TemporaryDirectory() as tmp:
         out.update(make_run(Path(tmp), a.gaussians, a.frames))
         view = open_run(tmp)
         size = (Path(tmp) / "view" / "full.frames").stat().st_size
+        assert fmt.frame_bytes(a.gaussians) * (a.frames + 1) == size
         out["disk_bytes_per_gaussian_frame"] = size / (a.frames + 1) / a.gaussians
         tracemalloc.start()
         t0 = time.perf_counter()
@@ -125,38 +164,35 @@ def main(argv=None) -> int:
         out["read_pack_peak_bytes_per_gaussian"] = tracemalloc.get_traced_memory()[1] / a.gaussians
         tracemalloc.stop()
         out["cached_bytes_per_gaussian_frame"] = buf.nbytes / a.gaussians
-        assert fmt.frame_bytes(a.gaussians) * (a.frames + 1) == size
-        viewer = Viewer(view, port=free_port(), preview=a.preview)
+        viewer = Viewer(view, port=free_port(), preview=a.preview, max_splats=a.max_splats)
         try:
             with sync_playwright() as pw:
                 browser = launch(pw)
                 page = browser.new_page(viewport={"width": a.width, "height": a.height})
-                page.goto(viewer.url)  # returns at the load event
-                t0 = time.perf_counter()
-                while ink(picture(page)).mean() < 0.01:
-                    if time.perf_counter() - t0 > 120:
-                        raise TimeoutError("nothing drawn in 120 s")
-                out["open_first_picture_s"] = time.perf_counter() - t0
-                settle(page, None, 120)
-                out["open_whole_frame_s"] = time.perf_counter() - t0
+                page.add_init_script(HOOK)
+                page.goto(viewer.url)
+                out["renderer"] = renderer(page)
+                loaded = page.evaluate("performance.getEntriesByType('navigation')[0].loadEventEnd")
+                out["open_s"] = (shown_after(page, 0.0, (sent(viewer, 0, True),))[0] - loaded) / 1e3
+                page.wait_for_timeout(2000)
                 thumb = page.locator("[role=slider]").first
-                firsts, wholes = [], []
-                for i in range(a.scrubs):
-                    before = picture(page)
+                firsts, wholes, previews_drawn = [], [], 0
+                for i in range(1, a.scrubs + 1):
                     thumb.focus()
-                    t0 = time.perf_counter()
+                    t0 = page.evaluate("performance.now()")
                     page.keyboard.press("ArrowRight")
-                    while np.abs(picture(page).astype(int) - before).max() <= 8:
-                        if time.perf_counter() - t0 > 60:
-                            raise TimeoutError("the picture never changed")
-                    firsts.append(time.perf_counter() - t0)
-                    wait_full(viewer, i + 1, 60)
-                    settle(page, None, 60)
-                    wholes.append(time.perf_counter() - t0)
-                out["scrub_first_picture_s"] = statistics.median(firsts)
-                out["scrub_whole_frame_s"] = statistics.median(wholes)
-                out["scrub_first_picture_all_s"] = [round(x, 3) for x in firsts]
-                out["scrub_whole_frame_all_s"] = [round(x, 3) for x in wholes]
+                    preview, whole = sent(viewer, i, False), sent(viewer, i, True)
+                    first, n = shown_after(page, t0, (preview, whole))
+                    firsts.append((first - t0) / 1e3)
+                    previews_drawn += n != whole
+                    done = first if n == whole else shown_after(page, first, (whole,))[0]
+                    wholes.append((done - t0) / 1e3)
+                    page.wait_for_timeout(2000)
+                out["previews_drawn"] = previews_drawn
+                out["scrub_first_s"] = statistics.median(firsts)
+                out["scrub_whole_s"] = statistics.median(wholes)
+                out["scrub_first_all_s"] = [round(x, 3) for x in firsts]
+                out["scrub_whole_all_s"] = [round(x, 3) for x in wholes]
                 browser.close()
         finally:
             viewer.close()

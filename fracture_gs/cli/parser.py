@@ -339,6 +339,7 @@ _VIEW_EPILOG = """\
 examples:
   fracture-gs view runs/bread                       open http://127.0.0.1:8080 in a browser
   fracture-gs view runs/bread --port 8090           another port
+  fracture-gs view runs/bread --max-splats 20000    a browser without a GPU: fewer splats, each widened
   ssh -L 8080:localhost:8080 gpu-box                from your laptop, for a run on gpu-box
 
 Serves the run's recorded frames (RUN_DIR/view/, written by render-sim) as a page that draws the Gaussians as
