@@ -117,13 +117,15 @@ def test_toggling_the_variant_changes_the_picture(session):
 
 
 def test_side_by_side_draws_every_variant(session):
-    """`side by side`, ticked in the browser, draws both variants at once: two red blocks, one per panel."""
+    """`side by side`, ticked in the browser, draws both variants at once: two red blocks, one per panel, and
+    three separate pieces of ink across the picture (`baseline`'s blocks touch, `full`'s have split)."""
     page, viewer, _ = session
     settled(page, viewer, show(viewer, LAST, "full"))
     assert runs(columns(red(picture(page)))) == 1
     page.get_by_text("side by side").click()
     img = settled(page, viewer, (LAST, ("baseline", "full"), "scene", False, True))
     assert runs(columns(red(img))) == 2
+    assert runs(columns(ink(img)[red(img).any(1)])) == 3  # in the blocks' rows (the labels are above them)
     show(viewer, LAST, "full")
 
 
@@ -200,3 +202,33 @@ def test_background_of_a_capture_is_drawn_and_toggled(session, tmp_path):
     finally:
         viewer.close()
         page.goto(session[1].url)
+
+
+def test_play_advances_the_frames_and_pause_stops_them(session):
+    """`play` steps the frame slider at the run's frame rate (and the page follows); `pause` stops it where it is."""
+    page, viewer, _ = session
+    settled(page, viewer, show(viewer, 0, "full"))
+    page.get_by_role("button", name="play").click()
+    page.wait_for_timeout(1200)
+    page.get_by_role("button", name="pause").click()
+    stopped = int(viewer.frame.value)
+    played = {state[0] for _, state, _, _ in viewer.pushed}
+    assert stopped > 0 and len(played) >= 3, (stopped, played)
+    page.wait_for_timeout(600)
+    assert int(viewer.frame.value) == stopped
+    show(viewer, 0, "full")
+
+
+def test_band_highlight_fades_the_object(session):
+    """`band & interfaces`, ticked in the browser, fades everything outside the fracture band toward light grey
+    (`panels.colors`): the red block's red drops to 0.35 of its saturation over a light base."""
+    page, viewer, _ = session
+    before = settled(page, viewer, show(viewer, 2, "full"))
+    page.get_by_text("band & interfaces").click()
+    after = settled(page, viewer, (2, ("full",), "scene", True, True))
+    assert viewer.highlight.value is True
+    left = lambda img: img[ink(img) & (np.arange(img.shape[1]) < columns(ink(img)).min() + 40)[None, :]]
+    sat = lambda px: float(np.median(px.max(-1).astype(int) - px.min(-1)))
+    assert sat(left(after)) < 0.5 * sat(left(before))
+    page.get_by_text("band & interfaces").click()
+    settled(page, viewer, (2, ("full",), "scene", False, True))

@@ -102,3 +102,21 @@ def test_the_browser_draws_the_broken_loaf(bread):
             browser.close()
     finally:
         viewer.close()
+
+
+def test_render_sim_view_opens_the_viewer_on_the_finished_run(tmp_path, monkeypatch, capsys):
+    """`render-sim --view` checks the port before simulating, runs, then serves the run it just wrote: the viewer
+    gets that folder's record with every frame of each variant (serving is replaced here by a stand-in that
+    returns at once)."""
+    from fracture_gs import cli
+    from fracture_gs.viewer import server
+
+    checked, served = [], []
+    monkeypatch.setattr(server, "check_port", lambda host, port: checked.append((host, port)))
+    monkeypatch.setattr(server, "serve", lambda view, **kw: served.append(view) or 0)
+    out = tmp_path / "run"
+    args = ["render-sim", "bread", "--frames", "3", "--variants", "baseline,full", "--out", str(out), "--view"]
+    assert cli.main([*args, "--particles", "1500", "--resolution", "64x48", "--device", "cpu"]) == 0
+    assert checked == [("127.0.0.1", 8080)]
+    assert len(served) == 1 and served[0].run_dir == out and served[0].counts == {"baseline": 4, "full": 4}
+    assert f"view/ (fracture-gs view {out})" in capsys.readouterr().out
