@@ -160,3 +160,14 @@ def test_help_does_not_import_viser():
     assert out.returncode == 0, out.stderr
     assert "RUN_DIR" in out.stdout and "ssh -L" in out.stdout
     assert out.stdout.splitlines()[-1] == "False"
+
+
+def test_without_viser_the_viewer_says_how_to_install_it(run, monkeypatch, capsys):
+    """viser is an optional extra: without it `fracture-gs view` and `render-sim --view` (before simulating) end
+    with one line naming the install command."""
+    monkeypatch.setitem(sys.modules, "viser", None)  # `import viser` now raises ImportError
+    assert cli.main(["view", str(run), "--port", str(free_port())]) == 2
+    assert "pip install 'fracture-gs[view]'" in capsys.readouterr().err
+    assert cli.main(["render-sim", "bread", "--view", "--device", "cpu"]) == 2
+    err = capsys.readouterr().err
+    assert "--view needs viser" in err and "pip install 'fracture-gs[view]'" in err

@@ -25,13 +25,13 @@ def cmd_view(args: argparse.Namespace) -> int:
 
 def check_can_serve(host: str, port: int) -> None:
     """Before a long render-sim --view run: viser is installed and the port is free, or one sentence why not."""
-    import importlib.util
-
     from ..viewer.server import check_port
 
-    if importlib.util.find_spec("viser") is None:
+    try:
+        import viser  # noqa: F401 - only whether it imports
+    except ImportError:
         raise CliError(
             "--view needs viser, which is not installed; install it with pip install 'fracture-gs[view]', or drop "
             "--view and open the run later with `fracture-gs view DIR`."
-        )
+        ) from None
     check_port(host, port)

@@ -116,11 +116,11 @@ class Viewer:
         self.preview = int(preview)
         self.cache: OrderedDict = OrderedDict()
         self.cache_bytes = 0
+        self.backgrounds: dict[bool, np.ndarray] = {}
         self.handles: dict = {}
         self.pushed: list = []  # (monotonic time, state key, whole?, Gaussians sent) newest last
         self._wake = threading.Condition()
-        # the first push is a preview: the page opens at once, the whole frame follows
-        self._dirty, self._moving, self._pending_full, self._changed_at = True, True, False, time.monotonic()
+        self._dirty, self._moving, self._pending_full, self._changed_at = True, False, False, time.monotonic()
         self._stop = threading.Event()
         self._playing = False
         self._layout()
@@ -315,10 +315,9 @@ class Viewer:
             wanted[f"/run/{v}"] = (self._buffer(v, frame, mode, highlight, b), pos)
             sent += len(wanted[f"/run/{v}"][0])
             if background and "background_means" in self.view.static:
-                key = ("background", highlight)
-                if key not in self.cache:
-                    self.cache[key] = panels.background_buffer(self.view.static, self.scale, faded=highlight)
-                wanted[f"/background/{v}"] = (self.cache[key], pos)
+                if highlight not in self.backgrounds:  # static: packed once per look (faded or not)
+                    self.backgrounds[highlight] = panels.background_buffer(self.view.static, self.scale, highlight)
+                wanted[f"/background/{v}"] = (self.backgrounds[highlight], pos)
         with self.server.atomic():
             for name in [n for n in self.handles if n not in wanted]:
                 self.handles.pop(name).remove()
