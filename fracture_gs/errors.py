@@ -54,3 +54,8 @@ class RenderError(FractureGSError, ValueError):
 class ArgumentError(FractureGSError, TypeError, ValueError):
     """A Python API argument of the wrong type, shape or value: `<function>: <argument> <problem>; <fix>.`
     Both a TypeError and a ValueError, so code that caught what torch or os raised before keeps working."""
+
+
+class ViewError(FractureGSError, ValueError):
+    """A run folder `fracture-gs view` cannot show (no viewable frames, another version's record, a damaged
+    file), or a viewer that cannot start (the port is taken, viser missing)."""

@@ -13,6 +13,8 @@ _.debug  # the logger interface Warp's quiet logger must offer (cli/devices.py)
 _._negative_number_matcher  # argparse reads it to tell "-64x48" from a flag (cli/parser.py)
 _._num_to_string  # matplotlib's LogFormatter calls it (paper/accuracy.py)
 corotated_kirchhoff_grad  # registered by @wp.func_grad as the adjoint Warp calls (sim/diff/kernels.py)
+_.up_direction  # a viser camera property: assigning it moves the browser's camera (viewer/server.py)
+_.buffer  # a viser splat node property: assigning it sends the new splats to the browser (viewer/server.py)
 
 # Public API a user reads, exercised by the tests.
 _.last_simulator  # FractureSim / differentiable: the simulator of the last forward, to inspect

@@ -1,4 +1,4 @@
-"""`fracture-gs` command line: render-sim, init, bench, figures, sweep, info, validate.
+"""`fracture-gs` command line: render-sim, init, bench, figures, sweep, view, info, validate.
 
 Every user error (bad config, bad PLY, missing file, bad flag) ends as one line
 `fracture-gs: error: <sentence>` on stderr and exit code 2, never a traceback (set
@@ -31,7 +31,7 @@ class CliError(Exception):
 __all__ = ["CliError", "PROG", "build_parser", "main", "resolve_device"]
 
 _LAZY = {"build_parser": "parser", "resolve_device": "devices"}
-_SUBMODULES = ("devices", "parser", "report", "run", "sweep")
+_SUBMODULES = ("devices", "parser", "report", "run", "sweep", "view")
 
 
 def __getattr__(name: str) -> object:
@@ -50,6 +50,7 @@ def _commands() -> dict:
     from .report import cmd_info, cmd_validate
     from .run import cmd_bench, cmd_figures, cmd_init, cmd_render_sim
     from .sweep import cmd_sweep
+    from .view import cmd_view
 
     return {
         "render-sim": cmd_render_sim,
@@ -59,6 +60,7 @@ def _commands() -> dict:
         "validate": cmd_validate,
         "init": cmd_init,
         "sweep": cmd_sweep,
+        "view": cmd_view,
     }
 
 

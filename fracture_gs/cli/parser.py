@@ -228,6 +228,17 @@ def build_parser() -> argparse.ArgumentParser:
         help="print where the wall time goes by phase (simulate, diagnostics, render, compose, encode, io); "
         "also written to profile.md",
     )
+    p.add_argument(
+        "--view",
+        action="store_true",
+        help="when the run ends, open it in the viewer (as `fracture-gs view DIR`, on 127.0.0.1:8080)",
+    )
+    p.add_argument(
+        "--no-view-record",
+        action="store_true",
+        help="do not record the frames for `fracture-gs view` (view/ in --out: 18 bytes per Gaussian, frame and "
+        "variant, about 1 GB for 171k Gaussians, 100 frames and 3 variants)",
+    )
     _add_common_run_flags(p, "output folder (default: runs/<config name>)")
 
     p = sub.add_parser(
@@ -320,7 +331,69 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--device", default="cpu", help="the device the run will use: sets the resolution budget and panel")
     p.add_argument("--force", action="store_true", help="overwrite FILE if it exists")
     add_sweep_parser(sub)
+    add_view_parser(sub)
     return parser
+
+
+_VIEW_EPILOG = """\
+examples:
+  fracture-gs view runs/bread                       open http://127.0.0.1:8080 in a browser
+  fracture-gs view runs/bread --port 8090           another port
+  fracture-gs view runs/bread --max-splats 20000    a browser without a GPU: fewer splats, each widened
+  ssh -L 8080:localhost:8080 gpu-box                from your laptop, for a run on gpu-box
+
+Serves the run's recorded frames (RUN_DIR/view/, written by render-sim) as a page that draws the Gaussians as
+splats in the browser: orbit, pan and zoom, a frame slider with play/pause, the variants toggled or side by side,
+colour by fragment, the fracture band and its interfaces highlighted, the videos' camera as a preset view, and a
+button that saves the current view as a PNG (downloaded, and kept in RUN_DIR/views/). Ctrl-C stops it.
+"""
+
+
+def add_view_parser(sub) -> None:
+    """`fracture-gs view RUN_DIR [--port N] [--host H] [--preview N]`."""
+    p = sub.add_parser(
+        "view",
+        help="look at a run in 3D in the browser (orbit, scrub frames, compare variants)",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description="Serve a render-sim run's frames as an interactive 3D viewer (viser).",
+        epilog=_VIEW_EPILOG,
+    )
+    p.add_argument("run_dir", metavar="RUN_DIR", help="the --out folder of a render-sim run")
+    p.add_argument("--port", metavar="N", type=_port, default=8080, help="port to listen on (default 8080)")
+    p.add_argument(
+        "--host",
+        metavar="H",
+        default="127.0.0.1",
+        help="address to listen on (default 127.0.0.1: this machine only; 0.0.0.0: every network interface, so "
+        "anyone who can reach the machine sees the run)",
+    )
+    p.add_argument(
+        "--preview",
+        metavar="N",
+        type=int,
+        default=20_000,
+        help="while the frame changes (scrubbing, playing), first send at most N Gaussians, then the whole frame "
+        "once the slider rests; 0 sends every Gaussian at once (default 20000)",
+    )
+    p.add_argument(
+        "--max-splats",
+        metavar="N",
+        type=int,
+        default=0,
+        help="draw at most N Gaussians per panel (every k-th, widened to cover the rest), for a browser without a "
+        "GPU, whose software WebGL spends 2-20 µs per splat; 0 draws them all (default)",
+    )
+
+
+def _port(text: str) -> int:
+    """argparse type for --port: an integer in 1 … 65535."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer; write it like --port 8080") from None
+    if not 1 <= value <= 65535:
+        raise argparse.ArgumentTypeError(f"{value} is not a port (1 … 65535); write it like --port 8080")
+    return value
 
 
 def add_capture_options(p: argparse.ArgumentParser) -> None:

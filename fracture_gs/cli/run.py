@@ -90,6 +90,13 @@ def cmd_render_sim(args: argparse.Namespace) -> int:
     )
     device, devices = run_devices(args)  # after the config's checks: `auto` asks torch, which takes seconds to load
     refuse_render_sim(cfg, args, devices)
+    view = getattr(args, "view", False)
+    if view:
+        if getattr(args, "no_view_record", False):
+            raise CliError("--view shows the recorded frames, which --no-view-record turns off; drop one of them.")
+        from .view import check_can_serve
+
+        check_can_serve("127.0.0.1", 8080)  # now, not after the run
     out_dir = output_dir(args.out if args.out is not None else Path("runs") / cfg.name)
     from ..profiling import phases
 
@@ -113,6 +120,8 @@ def cmd_render_sim(args: argparse.Namespace) -> int:
         extra["devices"] = devices
     if getattr(args, "schedule", None) and args.schedule != "in-turn":
         extra["schedule"] = args.schedule.replace("-", "_")
+    if getattr(args, "no_view_record", False):
+        extra["record_view"] = False
     with sigint_event() as stop:
         summary = run(cfg, list(cfg.variants), device, out_dir, profile=args.profile, stop=stop, **extra)
     table = out_dir / "summary.md"
@@ -120,6 +129,7 @@ def cmd_render_sim(args: argparse.Namespace) -> int:
     print(
         f"outputs in {out_dir}: comparison.mp4, one <variant>.mp4 each, frames/, metrics.jsonl, summary.json, "
         "topology.npz, config.toml"
+        + ("" if extra.get("record_view") is False else f", view/ (fracture-gs view {out_dir})")
     )
     if summary.profile:
         print(summary.profile, end="")
@@ -134,8 +144,12 @@ def cmd_render_sim(args: argparse.Namespace) -> int:
             f"fracture-gs: error: {'; '.join(failed)}; every frame and metric written before that is in {out_dir}",
             file=sys.stderr,
         )
-        return 1
-    return 0
+    if view:
+        from ..viewer.server import serve
+        from ..viewer.store import open_run
+
+        serve(open_run(out_dir))
+    return 1 if failed else 0
 
 
 def cmd_bench(args: argparse.Namespace) -> int:

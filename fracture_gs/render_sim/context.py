@@ -54,6 +54,9 @@ class RunContext:
     """The order they run in: one with an event provider first (the leader), `baseline` last."""
     export: Optional[Export] = None
     """Splat-file export of the frames, or None."""
+    view: Optional[Path] = None
+    """The run's view record folder (`viewer.record`: what `fracture-gs view` shows), which each variant's frames
+    are appended to, or None (not recorded)."""
 
 
 @dataclass

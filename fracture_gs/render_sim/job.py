@@ -1,7 +1,8 @@
 """`fracture-gs render-sim`: simulate each variant, render it, and write videos, metrics and a summary.
 
 Outputs in DIR: <variant>.mp4, comparison.mp4 (side by side, captions, circular fracture insets),
-frames/compare_NNNN.png, metrics.jsonl, summary.json, summary.md, topology.npz, config.toml.
+frames/compare_NNNN.png, metrics.jsonl, summary.json, summary.md, topology.npz, config.toml, and view/ (the
+frames as `fracture-gs view` shows them).
 Ctrl-C or a divergence keeps every frame and metric already written.
 """
 
@@ -20,6 +21,7 @@ from ..io.video import ffmpeg
 from ..pipeline import prepare_scene
 from ..profiling import phases
 from ..render.splat import gsplat_needs_compile
+from ..viewer.record import start_record
 from .comparison import compose_comparison
 from .context import Export, RunContext, ScheduleResult
 from .energy_report import energy_markdown
@@ -43,6 +45,7 @@ def run_render_sim(
     devices: Optional[list] = None,
     stop=None,
     schedule: Literal["in_turn", "threads"] = "in_turn",
+    record_view: bool = True,
 ) -> RunSummary:
     """The main job. Returns the run's summary (also written to summary.json / summary.md); with `profile`, the
     time per phase is in its `profile` and profile.md; with `export_ply` = N, every N-th frame of every variant
@@ -54,7 +57,9 @@ def run_render_sim(
     outputs, metrics.jsonl's rows interleaved).
     `stop`: a threading Event that interrupts the run at the next frame, like Ctrl-C (the CLI sets it from its
     SIGINT handler, so an interrupt Python drops inside a finalizer still stops the run; with `devices` the
-    worker processes stop on Ctrl-C themselves and the event only marks the summary)."""
+    worker processes stop on Ctrl-C themselves and the event only marks the summary).
+    `record_view`: also record every drawn frame for `fracture-gs view` in view/ (`viewer.record`, 18 bytes per
+    Gaussian per frame and variant)."""
     if schedule not in SCHEDULES:
         raise ValueError(f"schedule must be 'in_turn' or 'threads', got {schedule!r}")
     out_dir = output_dir(out_dir)
@@ -79,6 +84,7 @@ def run_render_sim(
         variants=tuple(variants),
         order=tuple(sorted(variants, key=lambda v: v == "baseline")),  # a variant with a provider leads
         export=Export(int(export_ply), scene, export_format) if export_ply else None,
+        view=start_record(out_dir, cfg, gs, scene.background, variants) if record_view else None,
     )
     with open(out_dir / "metrics.jsonl", "w") as metrics_file:
         result = _schedule(ctx, painter, metrics_file, devices, schedule, stop)

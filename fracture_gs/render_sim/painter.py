@@ -92,6 +92,16 @@ class Painter:
         shade = 0.55 + 0.45 * colors.mean(1, keepdim=True).clamp(0, 1)
         return torch.where((fragment >= 0)[:, None], rgb * shade, colors)
 
+    def view_colors(self, out: FrameOutput) -> tuple[torch.Tensor, torch.Tensor]:  # -> [N,3] in [0,1], [N] bool
+        """For the viewer's record, after drawing `out`: each Gaussian's SH-DC colour (exposed interior in the colour
+        the frame drew it) and whether the frame drew it."""
+        rgb = self.surface_dc.clone()
+        if self.exposed_rgb is not None:
+            rgb[self.exposed_idx] = self.exposed_rgb
+        drawn = torch.zeros(len(rgb), dtype=torch.bool, device=rgb.device)
+        drawn[self._visible(out)] = True
+        return rgb, drawn
+
     def __call__(self, out: FrameOutput) -> np.ndarray:
         cam = self.camera(out.frame)
         keep = self._visible(out)  # [M] indices

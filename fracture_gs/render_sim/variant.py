@@ -27,6 +27,7 @@ from ..profiling import phases
 from ..runtime import current_lane, side_stream, stream_lane
 from ..sim import SimulationDiverged
 from ..sim.diagnostics.metrics import piece_gap
+from ..viewer.record import FrameRecorder
 from .context import Export, RunContext
 from .painter import Painter
 from .summary import VariantSummary, summarize
@@ -37,10 +38,11 @@ class FrameSink:
     while the solver runs frame n + 1 (Warp's and torch's kernels release the GIL). A bounded queue
     keeps at most two frames in flight; an error on the worker is raised in the caller at the next
     `put` or at `close`. Closing always drains what was queued (Ctrl-C and divergences keep every
-    frame simulated so far)."""
+    frame simulated so far). A `recorder` also gets each frame drawn, for the viewer."""
 
-    def __init__(self, painter: Painter, video_path: Path, fps: int, store: list):
+    def __init__(self, painter: Painter, video_path: Path, fps: int, store: list, recorder=None):
         self.painter, self.store = painter, store
+        self.recorder: Optional[FrameRecorder] = recorder
         self.video = VideoWriter(video_path, fps=fps)
         self.error: Optional[BaseException] = None
         self.queue: queue.Queue = queue.Queue(maxsize=2)
@@ -62,6 +64,8 @@ class FrameSink:
             try:
                 with phases.section("render"), self._on_render_stream(out):
                     img = self.painter(out)
+                    if self.recorder is not None:  # the colours and visibility just drawn, read on this stream
+                        self.recorder.write(out, *self.painter.view_colors(out))
                 with phases.section("encode"):
                     self.video.write(img)
                 self.store.append(img)
@@ -93,6 +97,8 @@ class FrameSink:
         self.thread.join()
         with phases.section("encode"):
             self.video.close()
+        if self.recorder is not None:
+            self.recorder.close()
         if self.error is not None:
             raise self.error
 
@@ -117,7 +123,8 @@ def run_variant(
     sim = make_simulator(cfg, gs, variant, ctx.device, topology=topology, provider=provider)
     rows, status, t0 = [], "ok", time.perf_counter()
     bar = progress_bar(cfg.frames, f"{variant:>20s}", position)
-    sink = FrameSink(painter.for_variant(), ctx.out_dir / f"{variant}.mp4", cfg.render.fps, frames_store)
+    recorder = FrameRecorder(ctx.view, variant) if ctx.view is not None else None
+    sink = FrameSink(painter.for_variant(), ctx.out_dir / f"{variant}.mp4", cfg.render.fps, frames_store, recorder)
     interrupted = False
     try:
         for out in simulate(

@@ -1,0 +1,160 @@
+"""Writing a run's view record (`RUN_DIR/view/`, layout in `format`): the header once, then each variant's frames.
+
+`start_record` is called by the render-sim job after the scene is prepared; each variant's frame sink owns a
+`FrameRecorder` and hands it every frame it draws, with the colours and visibility the video used. Everything is
+appended and flushed frame by frame, so Ctrl-C or a crash keeps every frame drawn so far viewable.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import Optional
+
+import numpy as np
+
+from .. import __version__
+from . import format as fmt
+
+FOLDER = "view"
+
+
+def _numpy(t) -> np.ndarray:
+    """A torch tensor (any device) or array as a numpy array."""
+    if hasattr(t, "detach"):
+        t = t.detach().cpu().numpy()
+    return np.asarray(t)
+
+
+def dc_rgb(sh) -> np.ndarray:  # [N,K,3] -> [N,3]
+    """Colours from the SH DC coefficient: 0.5 + C0·dc, clipped to [0, 1] (SH degree 0)."""
+    from ..sh import SH_C0
+
+    return np.clip(_numpy(sh)[:, 0, :].astype(np.float64) * SH_C0 + 0.5, 0.0, 1.0)
+
+
+def start_record(out_dir, cfg, gaussians, background, variants) -> Path:
+    """Write RUN_DIR/view/ index.json and static.npz for a run of `variants` over `gaussians` (the simulated
+    set, a `GaussianSet`) with `background` (a capture's static Gaussians, or None), and remove frames a previous
+    run left there. Returns the folder each variant's `FrameRecorder` writes into."""
+    folder = Path(out_dir) / FOLDER
+    folder.mkdir(parents=True, exist_ok=True)
+    for old in list(folder.glob("*" + fmt.FRAMES_SUFFIX)) + list(folder.glob("*" + fmt.EPOCHS_SUFFIX)):
+        old.unlink()
+    index = folder / fmt.INDEX
+    if index.exists():
+        index.unlink()  # the folder holds no header until the new one is whole
+    cov0 = _numpy(gaussians.covariances()).astype(np.float64)  # [N,3,3]
+    variance = np.trace(cov0, axis1=1, axis2=2) / 3  # [N]
+    variance = variance[np.isfinite(variance) & (variance > 0)]
+    cov_unit = float(np.median(variance)) if len(variance) else 1e-6
+    static = {
+        "opacity": np.rint(np.clip(_numpy(gaussians.opacities), 0, 1) * 255).astype(np.uint8),
+        "interior": _numpy(gaussians.interior).astype(bool),
+    }
+    if background is not None and len(background):
+        static["background_means"] = _numpy(background.means).astype(np.float32)
+        bcov = fmt.covariance_triu(_numpy(background.covariances()).astype(np.float64)) / cov_unit
+        static["background_cov"] = np.clip(bcov, -65000, 65000).astype(np.float16)
+        static["background_rgb"] = np.rint(dc_rgb(background.sh) * 255).astype(np.uint8)
+        static["background_opacity"] = np.rint(np.clip(_numpy(background.opacities), 0, 1) * 255).astype(np.uint8)
+    np.savez(folder / fmt.STATIC, **static)
+    cam = cfg.render.camera
+    header = {
+        "format": fmt.FORMAT,
+        "version": fmt.VERSION,
+        "writer": f"fracture-gs {__version__}",
+        "name": cfg.name,
+        "scene": cfg.scene,
+        "variants": list(variants),
+        "gaussians": len(gaussians),
+        "background": int(len(background)) if background is not None else 0,
+        "frames": int(cfg.frames),
+        "frame_dt": float(cfg.frame_dt),
+        "fps": int(cfg.render.fps),
+        "cov_unit": cov_unit,
+        "interface_radius": float(cfg.topology.pair_radius * cfg.sim.dx),
+        "background_rgb": [float(c) for c in cfg.render.background],
+        "camera": {
+            "eye": [float(v) for v in cam.eye],
+            "target": [float(v) for v in cam.target],
+            "up": [float(v) for v in cam.up],
+            "fov_deg": float(cam.fov_deg),
+            "orbit_degrees": float(cam.orbit_degrees),
+            "width": int(cfg.render.width),
+            "height": int(cfg.render.height),
+        },
+    }
+    tmp = folder / (fmt.INDEX + ".tmp")
+    tmp.write_text(json.dumps(header, indent=1))
+    os.replace(tmp, index)
+    return folder
+
+
+def interface_flags(means: np.ndarray, fragment: np.ndarray, band: np.ndarray, radius: float) -> np.ndarray:
+    """[N] bool: band Gaussians that have a band Gaussian of another fragment within `radius` [m] (the two
+    faces of a crack)."""
+    out = np.zeros(len(means), bool)
+    pick = np.nonzero(band & (fragment >= 0))[0]
+    if len(pick) < 2 or radius <= 0:
+        return out
+    from scipy.spatial import cKDTree
+
+    tree = cKDTree(means[pick])
+    k = min(9, len(pick))
+    _, idx = tree.query(means[pick], k=k, distance_upper_bound=radius)  # [M,k]; len(pick) where none
+    found = idx < len(pick)
+    other = np.where(found, fragment[pick][np.minimum(idx, len(pick) - 1)], fragment[pick][:, None])
+    out[pick] = (other != fragment[pick][:, None]).any(1)
+    return out
+
+
+class FrameRecorder:
+    """Appends one variant's frames to RUN_DIR/view/<variant>.frames (and a new epoch record to .epochs whenever
+    the colours, visibility, band or fragments change). Used from one thread, the variant's frame sink."""
+
+    def __init__(self, folder: Path, variant: str):
+        folder = Path(folder)
+        header = json.loads((folder / fmt.INDEX).read_text())
+        with np.load(folder / fmt.STATIC) as static:
+            self.interior = static["interior"]
+        self.n, self.cov_unit = int(header["gaussians"]), float(header["cov_unit"])
+        self.radius = float(header["interface_radius"])
+        self.frames = open(folder / f"{variant}{fmt.FRAMES_SUFFIX}", "ab")
+        self.epochs = open(folder / f"{variant}{fmt.EPOCHS_SUFFIX}", "ab")
+        self.epoch = -1
+        self._last_topology: Optional[tuple[bytes, bytes]] = None
+        self._interface = np.zeros(self.n, bool)
+        self._last_epoch: Optional[bytes] = None
+
+    def write(self, out, rgb, drawn) -> None:
+        """Record frame `out` (a `pipeline.FrameOutput`): its centres and covariances, and (when they changed) its
+        colours `rgb` [N,3] in [0,1], `drawn` [N] bool, band and fragment ids."""
+        means = _numpy(out.means).astype(np.float32)  # [N,3]
+        fragment = _numpy(out.fragment).astype(np.int64)  # [N]
+        band = _numpy(out.band) != 0  # [N]
+        topology = (fragment.tobytes(), band.tobytes())
+        if topology != self._last_topology:
+            self._interface = interface_flags(means, fragment, band, self.radius)
+            self._last_topology = topology
+        flags = (
+            _numpy(drawn).astype(np.uint8) * fmt.DRAWN
+            + band.astype(np.uint8) * fmt.BAND
+            + self._interface.astype(np.uint8) * fmt.INTERFACE
+            + self.interior.astype(np.uint8) * fmt.INTERIOR
+        )
+        record = fmt.encode_epoch(self.epoch + 1, int(out.frame), _numpy(rgb), flags, fragment)
+        body = record[fmt.EPOCH_HEADER :]
+        if body != self._last_epoch:
+            self.epoch += 1
+            self.epochs.write(record)
+            self.epochs.flush()
+            self._last_epoch = body
+        cov6 = fmt.covariance_triu(_numpy(out.covars).astype(np.float64))
+        self.frames.write(fmt.encode_frame(int(out.frame), self.epoch, float(out.time), means, cov6, self.cov_unit))
+        self.frames.flush()
+
+    def close(self) -> None:
+        self.frames.close()
+        self.epochs.close()
