@@ -138,3 +138,17 @@ def foreign_mass(sim, mass):
         foreign += float((read[reach] - own[k][reach]).sum())
         shared += float(np.delete(own, k, axis=0)[:, reach].sum())
     return foreign, shared, float(m.sum())
+
+
+def zero_padded_gradient(m, inv_dx):
+    """Central differences (m[i+1] − m[i−1]) · ½/Δx of a box's node masses m [X, Y, Z], with zero mass beyond every
+    face: the mass gradient a box's kernel must give. Returns [X·Y·Z, 3] in the box's flat node order."""
+    pad = torch.nn.functional.pad(m, (1, 1, 1, 1, 1, 1))
+    return torch.stack(
+        [
+            pad[2:, 1:-1, 1:-1] - pad[:-2, 1:-1, 1:-1],
+            pad[1:-1, 2:, 1:-1] - pad[1:-1, :-2, 1:-1],
+            pad[1:-1, 1:-1, 2:] - pad[1:-1, 1:-1, :-2],
+        ],
+        -1,
+    ).reshape(-1, 3) * (0.5 * inv_dx)

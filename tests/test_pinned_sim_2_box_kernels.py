@@ -5,6 +5,7 @@ faces. Small scenes (2,000 particles on a 24³ grid)."""
 
 import torch
 import warp as wp
+from simutil import zero_padded_gradient
 
 from fracture_gs.runtime import ensure_warp
 from fracture_gs.sim.boxes.fragment_boxes import FragmentBoxes
@@ -76,15 +77,7 @@ def test_box_mass_gradient_is_the_central_difference_with_zero_beyond_the_box():
     for k in range(2):
         d = [int(v) for v in boxes.dims[k]]
         a = int(boxes.offset[k])
-        m = torch.nn.functional.pad(boxes.mp[a : a + d[0] * d[1] * d[2], 3].double().reshape(d), (1, 1, 1, 1, 1, 1))
-        want = torch.stack(
-            [
-                m[2:, 1:-1, 1:-1] - m[:-2, 1:-1, 1:-1],
-                m[1:-1, 2:, 1:-1] - m[1:-1, :-2, 1:-1],
-                m[1:-1, 1:-1, 2:] - m[1:-1, 1:-1, :-2],
-            ],
-            -1,
-        ).reshape(-1, 3) * (0.5 * n)
+        want = zero_padded_gradient(boxes.mp[a : a + d[0] * d[1] * d[2], 3].double().reshape(d), n)
         out = wp.zeros(d[0] * d[1] * d[2], dtype=wp.vec3, device="cpu")
         wp.launch(_gradients, dim=out.shape[0], inputs=[boxes.view, k, out], device="cpu")
         got = wp.to_torch(out).double()

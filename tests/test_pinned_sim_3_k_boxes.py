@@ -12,6 +12,7 @@ Closed forms and torch's own central differences, 12³ and 16³ grids on the CPU
 
 import torch
 import warp as wp
+from simutil import zero_padded_gradient
 
 from fracture_gs.runtime import ensure_warp
 from fracture_gs.sim.boxes.fragment_boxes import FragmentBoxes
@@ -146,15 +147,7 @@ def test_mass_gradient_of_a_tight_box_reads_zero_beyond_every_face():
         m = boxes.mp[a : a + d[0] * d[1] * d[2], 3].double().reshape(d)
         for face in (m[0], m[-1], m[:, 0], m[:, -1], m[:, :, 0], m[:, :, -1]):
             assert float(face.sum()) > 1e-3 * float(m.sum()), "every face of a tight box holds mass"
-        pad = torch.nn.functional.pad(m, (1, 1, 1, 1, 1, 1))
-        want = torch.stack(
-            [
-                pad[2:, 1:-1, 1:-1] - pad[:-2, 1:-1, 1:-1],
-                pad[1:-1, 2:, 1:-1] - pad[1:-1, :-2, 1:-1],
-                pad[1:-1, 1:-1, 2:] - pad[1:-1, 1:-1, :-2],
-            ],
-            -1,
-        ).reshape(-1, 3) * (0.5 * n)
+        want = zero_padded_gradient(m, n)
         out = wp.zeros(d[0] * d[1] * d[2], dtype=wp.vec3, device="cpu")
         wp.launch(_gradients, dim=out.shape[0], inputs=[boxes.view, k, out], device="cpu")
         got = wp.to_torch(out).double()
