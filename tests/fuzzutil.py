@@ -65,3 +65,11 @@ def run_cli(main, argv: list, capsys, tally: Tally, category: str) -> tuple[int,
         assert len(lines) == 1 and lines[0].startswith("fracture-gs: error: "), err
         line = lines[0]
     return code, err, line
+
+
+def ok_summary(cfg, variants, device):
+    """What a stand-in for `render_sim.run_render_sim` returns: every variant `ok`, nothing simulated."""
+    from fracture_gs.render_sim import RunSummary
+
+    rows = [{"variant": v, "status": "ok"} for v in variants]
+    return RunSummary(cfg.name, cfg.scene, cfg.preset, device, 1, [], 1, 0.01, rows)

@@ -1,9 +1,11 @@
 """Small particle scenes for solver tests (a few thousand particles, coarse grids)."""
 
 import torch
+import warp as wp
 
 from fracture_gs import sim as S
 from fracture_gs.io.gaussian_set import quat_to_matrix
+from fracture_gs.sim.boxes.kernels import BoxView, box_mass_gradient
 
 
 def block(lo, hi, spacing, jitter=0.0, generator=None):
@@ -152,3 +154,20 @@ def zero_padded_gradient(m, inv_dx):
         ],
         -1,
     ).reshape(-1, 3) * (0.5 * inv_dx)
+
+
+@wp.kernel
+def _box_gradients(b: BoxView, k: int, out: wp.array(dtype=wp.vec3)):
+    t = wp.tid()
+    d = b.dims[k]
+    node = b.lo[k] + wp.vec3i(t // (d[1] * d[2]), (t // d[2]) % d[1], t % d[2])
+    out[t] = box_mass_gradient(b, k, b.offset[k] + t, node)
+
+
+def box_gradient(boxes, k):
+    """`box_mass_gradient` at every node of box k of `boxes` (a FragmentBoxes on the CPU): [nodes, 3] float64 in
+    the box's flat node order, to hold against `zero_padded_gradient`."""
+    d = [int(v) for v in boxes.dims[k]]
+    out = wp.zeros(d[0] * d[1] * d[2], dtype=wp.vec3, device="cpu")
+    wp.launch(_box_gradients, dim=out.shape[0], inputs=[boxes.view, k, out], device="cpu")
+    return wp.to_torch(out).double()

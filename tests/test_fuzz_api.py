@@ -19,7 +19,7 @@ import math
 import numpy as np
 import pytest
 import torch
-from fuzzutil import Tally, fuzz_settings, run_cli
+from fuzzutil import Tally, fuzz_settings, ok_summary, run_cli
 from hypothesis import given
 from hypothesis import strategies as st
 
@@ -28,7 +28,6 @@ from fracture_gs import render_sim as runner
 from fracture_gs.errors import ArgumentError
 from fracture_gs.io import GaussianSet
 from fracture_gs.module import FORWARD, _material_argument, _velocity_argument, gaussians_from_tensors
-from fracture_gs.render_sim import RunSummary
 
 FIELDS = ("means", "quats", "scales", "opacities", "sh", "interior", "labels")
 WIDTH = {"means": (3,), "quats": (4,), "scales": (3,), "opacities": (), "sh": (1, 3), "interior": (), "labels": ()}
@@ -391,20 +390,7 @@ def recorders(monkeypatch, tmp_path):
     monkeypatch.setattr(
         runner,
         "run_render_sim",
-        lambda cfg, variants, device, out_dir, **kw: (
-            calls.append("render-sim")
-            or RunSummary(
-                cfg.name,
-                cfg.scene,
-                cfg.preset,
-                device,
-                1,
-                [],
-                1,
-                0.01,
-                [{"variant": v, "status": "ok"} for v in variants],
-            )
-        ),
+        lambda cfg, variants, device, out_dir, **kw: calls.append("render-sim") or ok_summary(cfg, variants, device),
     )
     monkeypatch.setattr(bench, "run_bench", lambda **kw: calls.append("bench") or {"ok": True})
     monkeypatch.setattr(accuracy, "run_accuracy", accuracy_run)

@@ -12,11 +12,10 @@ Closed forms and torch's own central differences, 12³ and 16³ grids on the CPU
 
 import torch
 import warp as wp
-from simutil import zero_padded_gradient
+from simutil import box_gradient, zero_padded_gradient
 
 from fracture_gs.runtime import ensure_warp
 from fracture_gs.sim.boxes.fragment_boxes import FragmentBoxes
-from fracture_gs.sim.boxes.kernels import BoxView, box_mass_gradient
 from fracture_gs.sim.clock import FrameClock
 from fracture_gs.sim.storage import N_COUNTS
 
@@ -106,14 +105,6 @@ def test_tight_box_g2p_reproduces_each_fragments_affine_field_at_every_particle(
         assert torch.equal(state[key][N:], before[N:]), f"a stencil outside its box changed {key}"
 
 
-@wp.kernel
-def _gradients(b: BoxView, k: int, out: wp.array(dtype=wp.vec3)):
-    t = wp.tid()
-    d = b.dims[k]
-    node = b.lo[k] + wp.vec3i(t // (d[1] * d[2]), (t // d[2]) % d[1], t % d[2])
-    out[t] = box_mass_gradient(b, k, b.offset[k] + t, node)
-
-
 def test_mass_gradient_of_a_tight_box_reads_zero_beyond_every_face():
     """Boxes fitted tight (no empty layer) to two fragments of random particles deposited by P2G hold mass on all
     six faces; ∇m^k at every node of each box is still (m[i+1] − m[i−1]) / 2Δx per axis with a node beyond the
@@ -148,7 +139,5 @@ def test_mass_gradient_of_a_tight_box_reads_zero_beyond_every_face():
         for face in (m[0], m[-1], m[:, 0], m[:, -1], m[:, :, 0], m[:, :, -1]):
             assert float(face.sum()) > 1e-3 * float(m.sum()), "every face of a tight box holds mass"
         want = zero_padded_gradient(m, n)
-        out = wp.zeros(d[0] * d[1] * d[2], dtype=wp.vec3, device="cpu")
-        wp.launch(_gradients, dim=out.shape[0], inputs=[boxes.view, k, out], device="cpu")
-        got = wp.to_torch(out).double()
+        got = box_gradient(boxes, k)
         assert float((got - want).abs().max()) < 1e-5 * float(want.abs().max()), f"box {k}"
