@@ -33,6 +33,7 @@ class _Parser(argparse.ArgumentParser):
 _MAIN_EPILOG = """\
 examples:
   fracture-gs info                                  versions, GPU, renderer backend
+  fracture-gs info --warm-up                        compile Warp kernels and gsplat once, ahead of use
   fracture-gs validate bread                        check a built-in or your own config
   fracture-gs render-sim bread                      simulate + render the default variants
   fracture-gs render-sim my_capture.ply             your own 3DGS scene, every setting automatic
@@ -113,9 +114,15 @@ values with a comment on every key. Edit the file and run it with `fracture-gs r
 _INFO_EPILOG = """\
 examples:
   fracture-gs info
+  fracture-gs info --warm-up                        compile everything once, e.g. on a fresh GPU machine
+  fracture-gs info --warm-up --device cuda:1
 
 Reports Python, torch, Warp and gsplat versions, CUDA devices, which renderer `--device auto`
-picks and why, and Warp's kernel cache directory. Nothing is compiled.
+picks and why, and Warp's kernel cache directory. Nothing is compiled, unless --warm-up: then
+every Warp kernel module of the simulator and its diagnostics is loaded on the device (compiled
+where the kernel cache lacks it), one frame of a tiny scene checks that nothing else is needed,
+and on CUDA gsplat's CUDA code is built (about a minute the first time); each step prints its
+time and whether it came from the cache. Later runs then start without compiling.
 """
 
 _VALIDATE_EPILOG = """\
@@ -297,13 +304,19 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--readme-only", action="store_true", help="only rewrite OUT/README.md from what OUT holds")
     _add_common_run_flags(p, "output folder (default: figures/out)")
 
-    sub.add_parser(
+    p = sub.add_parser(
         "info",
-        help="versions, GPU and renderer backend",
+        help="versions, GPU and renderer backend; --warm-up compiles everything once",
         formatter_class=fmt,
         description="Show the software and hardware fracture-gs sees.",
         epilog=_INFO_EPILOG,
     )
+    p.add_argument(
+        "--warm-up",
+        action="store_true",
+        help="also compile every Warp kernel module and, on CUDA, gsplat's CUDA code once (each step timed)",
+    )
+    p.add_argument("--device", metavar="DEVICE", help="with --warm-up: auto (default), cpu, cuda or cuda:N")
 
     p = sub.add_parser(
         "validate",

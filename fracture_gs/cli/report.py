@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 from typing import Any, Sequence
 
-from . import hardware
+from . import CliError, hardware
 
 
 def _info_lines() -> list[tuple[str, str]]:
@@ -54,10 +54,22 @@ def _video_encoder() -> str:
 
 
 def cmd_info(args: argparse.Namespace) -> int:
-    """info: versions, CUDA devices, renderer choice, warp kernel cache."""
+    """info: versions, CUDA devices, renderer choice, warp kernel cache; with --warm-up, then every kernel
+    compiled once on --device (`warm_up`, which imports torch and Warp: plain `info` imports neither)."""
+    device = None
+    if getattr(args, "warm_up", False):
+        from .devices import resolve_device
+
+        device = resolve_device(args.device)  # a bad device is one line before anything is printed
+    elif getattr(args, "device", None) is not None:
+        raise CliError(f"--device {args.device} only says where `info --warm-up` compiles; add --warm-up or drop it.")
     for key, value in _info_lines():
         print(f"{key:<16}{value}")
-    return 0
+    if device is None:
+        return 0
+    from .warm_up import cmd_warm_up
+
+    return cmd_warm_up(device)
 
 
 def _describe_boundary(b: Any) -> str:

@@ -34,6 +34,7 @@ from torch import Tensor
 
 from ..errors import RenderError
 from .camera import Camera
+from .warm_up import wait_for_gsplat
 
 ALPHA_THRESHOLD = 1.0 / 255.0
 T_THRESHOLD = 1e-4
@@ -292,6 +293,7 @@ def rasterize_tiles(
 
 
 def _render_gsplat(means, covars, colors, opacities, camera, background, mode, eps2d, near, far):
+    wait_for_gsplat()  # the one-time build a run started in the background (`warm_up`) ends first
     import gsplat  # lazy: only reached with CUDA tensors on a machine with a GPU
 
     render_colors, render_alphas, _ = gsplat.rasterization(

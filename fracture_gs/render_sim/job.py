@@ -20,7 +20,7 @@ from ..io.outputs import output_dir
 from ..io.video import ffmpeg
 from ..pipeline import prepare_scene
 from ..profiling import phases
-from ..render.splat import gsplat_needs_compile
+from ..render.warm_up import start_gsplat_compile
 from ..viewer.record import start_record
 from .comparison import compose_comparison
 from .context import Export, RunContext, ScheduleResult
@@ -66,8 +66,10 @@ def run_render_sim(
     ffmpeg()  # a missing video encoder is one sentence now, not after the scene is prepared and simulated
     if profile:
         phases.enable(sync_device=device if device.startswith("cuda") else None)
-    if device.startswith("cuda") and cfg.render.backend != "torch" and gsplat_needs_compile():
-        tqdm.write("compiling gsplat's CUDA kernels once, about a minute (cached for later runs) ...")
+    if cfg.render.backend != "torch" and not (devices and len(devices) > 1):  # (several devices: each worker builds)
+        # gsplat's one-time CUDA build (about a minute on a fresh machine) runs beside the set-up and the first
+        # frames; the first render waits for it (`render.warm_up`). Nothing starts on the CPU or once it is built.
+        start_gsplat_compile(device, cancel=stop, show=progress, position=len(variants) if schedule == "threads" else 1)
     with phases.section("setup"):
         scene = prepare_scene(cfg, device)
         cfg, gs = scene.cfg, scene.gaussians

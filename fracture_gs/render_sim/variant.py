@@ -24,6 +24,7 @@ from tqdm import tqdm
 from ..io.video import VideoWriter
 from ..pipeline import FrameOutput, make_simulator, simulate
 from ..profiling import phases
+from ..render.warm_up import HeldEta
 from ..runtime import current_lane, side_stream, stream_lane
 from ..sim import SimulationDiverged
 from ..sim.diagnostics.metrics import piece_gap
@@ -123,6 +124,7 @@ def run_variant(
     sim = make_simulator(cfg, gs, variant, ctx.device, topology=topology, provider=provider)
     rows, status, t0 = [], "ok", time.perf_counter()
     bar = progress_bar(cfg.frames, f"{variant:>20s}", position)
+    eta = HeldEta(bar)  # no ETA while gsplat's one-time build holds the frames up, and its wait left out after
     recorder = FrameRecorder(ctx.view, variant) if ctx.view is not None else None
     sink = FrameSink(painter.for_variant(), ctx.out_dir / f"{variant}.mp4", cfg.render.fps, frames_store, recorder)
     interrupted = False
@@ -147,7 +149,8 @@ def run_variant(
                     _export(out, painter, ctx.export, ctx.out_dir / "ply" / variant, f"frame_{out.frame:04d}")
             sink.put(out)
             if out.frame > 0:
-                elapsed = time.perf_counter() - t0
+                eta.check()
+                elapsed = time.perf_counter() - t0 - eta.held
                 bar.set_postfix(
                     substeps_per_s=f"{sim.substeps / elapsed:.0f}",
                     fragments=sim.n_fragments,
