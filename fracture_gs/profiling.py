@@ -114,6 +114,13 @@ class PhaseTimer:
                 self.seconds[name] = self.seconds.get(name, 0.0) + dt - frame[1]
                 self.calls[name] = self.calls.get(name, 0) + 1
 
+    def merge(self, seconds: dict, calls: dict) -> None:
+        """Add another process's busy seconds and calls per phase (a worker of `render-sim`'s processes)."""
+        with self._lock:
+            for name, value in seconds.items():
+                self.seconds[name] = self.seconds.get(name, 0.0) + value
+                self.calls[name] = self.calls.get(name, 0) + calls.get(name, 0)
+
     def report(self) -> str:
         """A Markdown table: phase, busy seconds, share of the wall time, calls; the start-up rows first (those
         before the run have no share of its wall time). The start-up rows are forgotten once reported."""
@@ -123,7 +130,7 @@ class PhaseTimer:
             startup, self.startup = self.startup, {}
         before = sum(startup[p][0] for p in STARTUP[:2] if p in startup)
         lines = [
-            f"wall time {wall:.2f} s (phases overlap: rendering runs beside the solver)"
+            f"wall time {wall:.2f} s (phases overlap: rendering runs beside the solver, workers beside this process)"
             + (f", after {before:.2f} s of start-up" if before else ""),
             "",
             "| phase | busy s | % of wall | calls |",

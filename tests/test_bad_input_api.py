@@ -152,7 +152,7 @@ def test_flags_that_act_still_reach_the_run(argv, scenes, no_run, two_gpus, tmp_
     if "--devices" in given:
         assert kw["devices"] == ["cpu", "cuda:0"] and device == "cpu" and "schedule" not in kw
     if "--resolution" in given:
-        assert (cfg.render.width, cfg.render.height) == (64, 48) and "schedule" not in kw
+        assert (cfg.render.width, cfg.render.height) == (64, 48) and kw["schedule"] == "in_turn"
 
 
 def test_bench_applies_its_defaults_to_the_flags_not_typed(no_run, tmp_path, capsys):

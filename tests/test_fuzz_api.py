@@ -266,7 +266,7 @@ RENDER_FLAGS = {
     "--export-ply": ["1", "3", "6"],
     "--devices": ["cpu", "cuda:1", "cpu,cuda:0", "cpu,cuda:0,cuda:1", "cpu,cpu", "cuda,cuda:0", "cpu,", "auto,cuda:0"],
     "--device": ["cpu", "cuda:1", "auto"],
-    "--schedule": ["in-turn", "threads"],
+    "--schedule": ["auto", "in-turn", "threads", "processes"],
     "--variants": ["full", "baseline,full", "baseline,stress_zero,full"],
     "--resolution": ["64x48", "32X32", "-64x48", "0x10", "-1x-1"],
 }
@@ -314,7 +314,7 @@ def render_violations(scene: str, flags: dict) -> set[str]:
             bad.add("--schedule")
         if len(devices) > variants:
             bad.add("--devices")
-    elif flags.get("--schedule") == "threads" and variants == 1:
+    elif flags.get("--schedule") in ("threads", "processes") and variants == 1:
         bad.add("--schedule")
     return bad
 

@@ -165,10 +165,11 @@ def _null_video():
 
 
 def test_the_schedule_is_in_turn_unless_threads_are_asked_for():
-    """In turn is the default (threads were 4 % faster on 2 CPU cores and not faster on an H200, and interleave
-    metrics.jsonl's rows); a wrong name is one sentence."""
+    """In turn is the Python API's default (threads were 4 % faster on 2 CPU cores and not faster on an H200, and
+    interleave metrics.jsonl's rows; the CLI asks for `auto`); a wrong name is one sentence."""
     import inspect
 
     assert inspect.signature(runner.run_render_sim).parameters["schedule"].default == "in_turn"
-    with pytest.raises(ValueError, match="schedule must be 'in_turn' or 'threads', got 'sideways'"):
+    expected = "schedule must be 'auto', 'in_turn', 'threads' or 'processes', got 'sideways'"
+    with pytest.raises(ValueError, match=expected):
         runner.run_render_sim(tiny_bread(1), ["full"], "cpu", "unused", schedule="sideways")

@@ -85,9 +85,10 @@ def refuse_render_sim(cfg, args: argparse.Namespace, devices: Optional[list[str]
                 f"({', '.join(variants)}), so {len(devices) - len(variants)} would sit idle; list at most "
                 f"{len(variants)} device(s) or more --variants."
             )
-    elif getattr(args, "schedule", None) == "threads" and len(variants) < 2:
+    elif getattr(args, "schedule", None) in ("threads", "processes") and len(variants) < 2:
+        each = "a thread" if args.schedule == "threads" else "a process"
         raise CliError(
-            f"--schedule threads runs the variants at once, a thread each, but this run has one variant "
+            f"--schedule {args.schedule} runs the variants at once, {each} each, but this run has one variant "
             f"({variants[0]}); drop --schedule or list more --variants."
         )
 

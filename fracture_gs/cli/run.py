@@ -118,8 +118,8 @@ def cmd_render_sim(args: argparse.Namespace) -> int:
         extra["export_format"] = export_format
     if devices and len(devices) > 1:
         extra["devices"] = devices
-    if getattr(args, "schedule", None) and args.schedule != "in-turn":
-        extra["schedule"] = args.schedule.replace("-", "_")
+    else:
+        extra["schedule"] = (getattr(args, "schedule", None) or "auto").replace("-", "_")
     if getattr(args, "no_view_record", False):
         extra["record_view"] = False
     with sigint_event() as stop:

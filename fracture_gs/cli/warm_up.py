@@ -132,8 +132,7 @@ def gsplat_step(device: str, say: Callable[[str], None]) -> Step:
     import importlib.util
 
     from ..errors import RenderError
-    from ..render.splat import gsplat_needs_compile
-    from ..render.warm_up import compile_gsplat
+    from ..render.warm_up import compile_gsplat, gsplat_needs_compile
     from .hardware import version
 
     if version("gsplat") == "not installed":

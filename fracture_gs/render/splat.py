@@ -410,21 +410,3 @@ def render_reference(
         T = torch.where(use, next_T, T)
     img = C + T[..., None] * torch.as_tensor(background, **f64)
     return RenderOutput(img.clamp(0.0, 1.0), 1.0 - T, "reference")
-
-
-def gsplat_needs_compile() -> bool:
-    """True when gsplat has neither a prebuilt `gsplat.csrc` nor a cached JIT build of its CUDA
-    code, so its first rasterization will compile (about a minute). Imports nothing of gsplat's."""
-    import glob
-    import importlib.util
-    import os
-
-    try:
-        if importlib.util.find_spec("gsplat.csrc") is not None:
-            return False
-        from torch.utils.cpp_extension import _get_build_directory
-
-        build = _get_build_directory("gsplat_cuda", verbose=False)
-    except Exception:  # noqa: BLE001 - unknown layout: say nothing rather than mislead
-        return False
-    return not glob.glob(os.path.join(build, "*.so"))

@@ -156,7 +156,7 @@ def start_gsplat_compile(
     file=None,
 ) -> Optional[BackgroundCompile]:
     """Start gsplat's one-time build for `device` in the background, if it needs one (`needs_compile`, default
-    `splat.gsplat_needs_compile`); returns it, or None when nothing was started (the CPU, or a build already
+    `gsplat_needs_compile`); returns it, or None when nothing was started (the CPU, or a build already
     there). One per process: a build still running is reused (with this run's `cancel`), a failed one retried.
     `show`: draw it as its own step (`CompileStep` at line `position`, on `file`, default stderr). `compile`
     replaces `compile_gsplat` (tests)."""
@@ -164,7 +164,7 @@ def start_gsplat_compile(
     if not str(device).startswith("cuda"):
         return None
     if needs_compile is None:
-        from .splat import gsplat_needs_compile as needs_compile
+        needs_compile = gsplat_needs_compile
     with _pending_lock:
         if _pending is not None and not _pending.done:
             _pending.cancel = cancel
@@ -266,3 +266,21 @@ def compile_gsplat(device: str, spinner: bool = True) -> None:
             covars=covars,
         )
         torch.cuda.current_stream(dev).synchronize()
+
+
+def gsplat_needs_compile() -> bool:
+    """True when gsplat has neither a prebuilt `gsplat.csrc` nor a cached JIT build of its CUDA
+    code, so its first rasterization will compile (about a minute). Imports nothing of gsplat's."""
+    import glob
+    import importlib.util
+    import os
+
+    try:
+        if importlib.util.find_spec("gsplat.csrc") is not None:
+            return False
+        from torch.utils.cpp_extension import _get_build_directory
+
+        build = _get_build_directory("gsplat_cuda", verbose=False)
+    except Exception:  # noqa: BLE001 - unknown layout: say nothing rather than mislead
+        return False
+    return not glob.glob(os.path.join(build, "*.so"))

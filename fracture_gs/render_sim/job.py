@@ -9,6 +9,7 @@ Ctrl-C or a divergence keeps every frame and metric already written.
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 from typing import Literal, Optional
 
@@ -30,7 +31,30 @@ from .painter import Painter
 from .summary import RunSummary, summary_markdown
 from .variant import json_default
 
-SCHEDULES = ("in_turn", "threads")
+SCHEDULES = ("in_turn", "threads", "processes")
+Schedule = Literal["auto", "in_turn", "threads", "processes"]
+WORKER_START_WORK = 1_000_000
+"""Particle-frames a worker process must simulate to pay for its start: importing torch, Warp and the package,
+loading the kernels (about 3 s on a 2-core CPU, while the solver simulates about 5 µs of host time per
+particle-frame with its diagnostics and rendering). `auto` runs the variants in processes above it."""
+
+
+def usable_cores() -> int:
+    """CPU cores this process may run on (its affinity mask, not the machine's count)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not Linux
+        return os.cpu_count() or 1
+
+
+def auto_schedule(device: str, variants: int, particles: int, frames: int, cores: int) -> str:
+    """How `schedule="auto"` shares one device: on the CPU, with more than one core and more than one variant,
+    the variants run in worker processes (`processes`: Warp runs a kernel on one core, so one process simulates
+    on one core) once each variant simulates long enough to pay for a worker's start (`WORKER_START_WORK`);
+    else one after another (`in_turn`). A GPU's frames are host-bound and its variants share one card: in turn."""
+    if device != "cpu" or variants < 2 or cores < 2 or particles * frames < WORKER_START_WORK:
+        return "in_turn"
+    return "processes"
 
 
 def run_render_sim(
@@ -44,7 +68,7 @@ def run_render_sim(
     export_format: str = "ply",
     devices: Optional[list] = None,
     stop=None,
-    schedule: Literal["in_turn", "threads"] = "in_turn",
+    schedule: Schedule = "in_turn",
     record_view: bool = True,
 ) -> RunSummary:
     """The main job. Returns the run's summary (also written to summary.json / summary.md); with `profile`, the
@@ -54,14 +78,16 @@ def run_render_sim(
     A captured scene is resolved first (`capture.resolve`): config.toml is the resolved config. With `devices`
     (several), the variants run side by side, one per device (`multi_device`). On one device `schedule` says
     how: "in_turn", one after the other (`in_turn`); "threads", at once, a thread each (`threads`: the same
-    outputs, metrics.jsonl's rows interleaved).
+    outputs, metrics.jsonl's rows interleaved); "processes", at once in worker processes, one per usable core
+    at most (`multi_device` with the device repeated: the same outputs, byte for byte); "auto", processes on a
+    CPU with cores to spare when the run is long enough to pay for their start (`auto_schedule`), else in turn.
     `stop`: a threading Event that interrupts the run at the next frame, like Ctrl-C (the CLI sets it from its
     SIGINT handler, so an interrupt Python drops inside a finalizer still stops the run; with `devices` the
     worker processes stop on Ctrl-C themselves and the event only marks the summary).
     `record_view`: also record every drawn frame for `fracture-gs view` in view/ (`viewer.record`, 18 bytes per
     Gaussian per frame and variant)."""
-    if schedule not in SCHEDULES:
-        raise ValueError(f"schedule must be 'in_turn' or 'threads', got {schedule!r}")
+    if schedule not in SCHEDULES + ("auto",):
+        raise ValueError(f"schedule must be 'auto', 'in_turn', 'threads' or 'processes', got {schedule!r}")
     out_dir = output_dir(out_dir)
     ffmpeg()  # a missing video encoder is one sentence now, not after the scene is prepared and simulated
     if profile:
@@ -76,6 +102,8 @@ def run_render_sim(
         for note in scene.notes:
             tqdm.write(f"{cfg.name}: {note}")
         painter = Painter(gs, cfg, device, background=scene.background)
+    if schedule == "auto":
+        schedule = auto_schedule(device, len(variants), len(gs), cfg.frames, usable_cores())
     (out_dir / "config.toml").write_text(dump_config(cfg))
     ctx = RunContext(
         cfg=cfg,
@@ -125,6 +153,10 @@ def _schedule(ctx: RunContext, painter: Painter, metrics_file, devices, schedule
         from .multi_device import run_on_devices
 
         return run_on_devices(ctx, list(devices), metrics_file)
+    if schedule == "processes" and len(ctx.order) > 1:
+        from .multi_device import run_on_devices
+
+        return run_on_devices(ctx, [ctx.device] * min(len(ctx.order), usable_cores()), metrics_file)
     if schedule == "threads" and len(ctx.order) > 1:
         from .threads import run_in_threads
 

@@ -8,6 +8,10 @@ worker process pays its start (torch, Warp, gsplat, the kernels: seconds), so th
 variants run in the caller at once and a second device pays off when a variant simulates for longer
 than that.
 
+The same scheduler shares one CPU among its cores (`render-sim --schedule processes`, `auto`'s choice for
+long CPU runs): the device repeated, one worker process per usable core. Warp runs each kernel on one
+core, so one process simulates on one core however many it has; two processes simulate on two.
+
 The first variant that runs an event provider leads, on the first device. What it latches is handed
 to the others as it happens through a folder of per-frame files (`FileChannel`: written atomically,
 polled by the followers), so every variant uses the one topology the leader found — the contract of
@@ -27,6 +31,7 @@ from dataclasses import replace
 import numpy as np
 import torch
 
+from ..profiling import phases
 from ..sim.providers import make_provider
 from ..sim.providers.broadcast import BroadcastProvider, FileChannel, LeaderProvider
 from ..sim.topology import save_history
@@ -35,11 +40,16 @@ from .painter import Painter
 from .variant import run_variant
 
 
-def _worker(slot: int, ctx: RunContext, variants, leader, channel_dir, stop, results, threads: int, run) -> None:
+def _worker(
+    slot: int, ctx: RunContext, variants, leader, channel_dir, stop, results, threads: int, run, profile=False
+) -> None:
     """One device's variants (`ctx.device`), in order (in a spawned process, or in the caller for the first
-    device: then `results` is a plain queue.Queue and the frames travel in the message instead of a .npy file)."""
+    device: then `results` is a plain queue.Queue and the frames travel in the message instead of a .npy file).
+    `profile`: a spawned worker times its phases too and sends them back last (the parent adds them up)."""
     local = isinstance(results, queue.Queue)
     torch.set_num_threads(threads)  # as the parent: the CPU reductions then sum in the same order
+    if profile and not local:
+        phases.enable()
     cfg, device, out_dir = ctx.cfg, ctx.device, ctx.out_dir
     try:
         if device.startswith("cuda"):
@@ -79,6 +89,9 @@ def _worker(slot: int, ctx: RunContext, variants, leader, channel_dir, stop, res
     except BaseException as exc:  # noqa: BLE001 - reported to the parent, which raises it
         stop.set()
         results.put(("error", device, f"{type(exc).__name__}: {exc}", traceback.format_exc()))
+    finally:
+        if profile and not local:
+            results.put(("phases", device, dict(phases.seconds), dict(phases.calls)))
 
 
 class WorkerFailed(RuntimeError):
@@ -100,11 +113,12 @@ def run_on_devices(ctx: RunContext, devices: list[str], metrics, run=run_variant
         queues[i % len(devices)].append(v)
     bg = ctx.background
     on_cpu = replace(ctx, gaussians=ctx.gaussians.to("cpu"), background=bg.to("cpu") if bg is not None else None)
-    threads = torch.get_num_threads()
+    threads, profile = torch.get_num_threads(), phases.enabled
     procs = [  # the first device's variants run here, the others' in spawned processes
         mp.Process(
             target=_worker,
-            args=(i, replace(on_cpu, device=devices[i]), vs, order[0], channel_dir, stop, results, threads, run),
+            args=(i, replace(on_cpu, device=devices[i]), vs, order[0], channel_dir, stop, results, threads, run)
+            + (profile,),
             name=f"fgs-{devices[i]}-{i}",
             daemon=True,
         )
@@ -133,6 +147,9 @@ def run_on_devices(ctx: RunContext, devices: list[str], metrics, run=run_variant
             interrupted = True
             stop.set()
     summaries = {m[1]: m[2] for m in messages if m[0] == "done"}
+    for m in messages:
+        if m[0] == "phases":
+            phases.merge(m[2], m[3])
     errors = [m for m in messages if m[0] == "error"]
     for p in procs:
         p.join()
