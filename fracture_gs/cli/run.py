@@ -122,14 +122,21 @@ def cmd_render_sim(args: argparse.Namespace) -> int:
         extra["schedule"] = (getattr(args, "schedule", None) or "auto").replace("-", "_")
     if getattr(args, "no_view_record", False):
         extra["record_view"] = False
+    if getattr(args, "frames_png", None) is not None:
+        extra["frames_png"] = args.frames_png
     with sigint_event() as stop:
         summary = run(cfg, list(cfg.variants), device, out_dir, profile=args.profile, stop=stop, **extra)
     table = out_dir / "summary.md"
     print(table.read_text() if table.exists() else json.dumps(summary.as_dict(), indent=2, default=str))
+    from ..render_sim.comparison import frames_png_default
+
+    pngs = extra.get("frames_png", frames_png_default(device))
     print(
-        f"outputs in {out_dir}: comparison.mp4, one <variant>.mp4 each, frames/, metrics.jsonl, summary.json, "
-        "topology.npz, config.toml"
+        f"outputs in {out_dir}: comparison.mp4, one <variant>.mp4 each, "
+        + ("frames/, " if pngs else "")
+        + "metrics.jsonl, summary.json, topology.npz, config.toml"
         + ("" if extra.get("record_view") is False else f", view/ (fracture-gs view {out_dir})")
+        + ("" if pngs else "; no frames/ PNGs (--frames-png writes them)")
     )
     if summary.profile:
         print(summary.profile, end="")

@@ -6,6 +6,7 @@ function returns an image with even height and width (H.264 yuv420p needs it).
 
 from __future__ import annotations
 
+import functools
 import math
 from typing import Optional, Sequence
 
@@ -20,6 +21,7 @@ BAR_BG = (40, 40, 40)
 BAR_FG = (255, 255, 255)
 CANVAS = (255, 255, 255)
 INSET_COLOR = (255, 140, 0)
+SHIFT = 4  # cv2 sub-pixel shift of the inset strokes: coordinates in 1/16 px
 
 
 def _even(n: int) -> int:
@@ -49,6 +51,17 @@ def _put_text_centered(
     cv2.putText(img, text, org, FONT, scale, color, th, cv2.LINE_AA)
 
 
+@functools.lru_cache(maxsize=64)
+def caption_bar(text: str, width: int, bar_height: int, scale: Optional[float] = None) -> np.ndarray:
+    """The label bar of `caption` alone ([bar_height, width, 3] uint8, read only): drawn once per distinct
+    (text, width, height, scale) and reused, e.g. the held last frame of a variant that stopped early."""
+    bar = np.empty((bar_height, width, 3), np.uint8)
+    bar[:] = BAR_BG
+    _put_text_centered(bar, text, 0, 0, width, bar_height, BAR_FG, scale)
+    bar.setflags(write=False)
+    return bar
+
+
 def caption(
     img, text: str, bar_height: Optional[int] = None, position: str = "top", scale: Optional[float] = None
 ) -> np.ndarray:
@@ -56,12 +69,15 @@ def caption(
     is the largest that fits (capped by `scale`, so panels can share one size)."""
     img = as_uint8_rgb(img)
     h, w = img.shape[:2]
-    bh = bar_height or _bar_height(w)
-    bar = np.empty((bh, w, 3), np.uint8)
-    bar[:] = BAR_BG
-    _put_text_centered(bar, text, 0, 0, w, bh, BAR_FG, scale)
+    bar = caption_bar(text, w, bar_height or _bar_height(w), scale)
     out = np.concatenate([bar, img] if position == "top" else [img, bar], axis=0)
     return pad_even(out)
+
+
+def caption_layout(widths: Sequence[int], captions: Sequence[str]) -> tuple[int, float]:
+    """(bar height, font scale) shared by the captions of panels `widths` px wide, as `side_by_side` draws them."""
+    bh = _bar_height(min(widths))
+    return bh, min(_text_scale(c, w - 6, bh)[0] for w, c in zip(widths, captions))
 
 
 def side_by_side(images: Sequence, captions: Optional[Sequence[str]] = None, gap: int = 4) -> np.ndarray:
@@ -72,8 +88,7 @@ def side_by_side(images: Sequence, captions: Optional[Sequence[str]] = None, gap
     if captions is not None:
         if len(captions) != len(imgs):
             raise ValueError(f"side_by_side: {len(imgs)} images but {len(captions)} captions")
-        bh = _bar_height(min(i.shape[1] for i in imgs))
-        scale = min(_text_scale(c, i.shape[1] - 6, bh)[0] for i, c in zip(imgs, captions))
+        bh, scale = caption_layout([i.shape[1] for i in imgs], captions)
         imgs = [caption(i, c, bh, scale=scale) for i, c in zip(imgs, captions)]
     h = max(i.shape[0] for i in imgs)
     out = np.empty((h, sum(i.shape[1] for i in imgs) + gap * (len(imgs) - 1), 3), np.uint8)
@@ -208,22 +223,60 @@ def _bilinear(img: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:  # [
     return top + (bottom - top) * fy
 
 
-def magnify(img, center_xy, zoom: float, inset_xy, inset_r: float) -> tuple[np.ndarray, np.ndarray]:
-    """Pixels of the inset disc and their values: inset pixel centre p maps to the source point
-    center + (p − inset_centre)/zoom, sampled bilinearly. Returns (mask [H,W] bool, values [n,3])."""
-    h, w = img.shape[:2]
-    # only the disc's bounding box (pixel centres k + 0.5 within inset_r of the centre), row-major as before
+def disc_box(shape, inset_xy, inset_r: float) -> tuple[int, int, int, int, np.ndarray]:
+    """(y0, y1, x0, x1, disc): the bounding box, clipped to the image, of the pixels whose centres (k + 0.5) lie
+    within `inset_r` of `inset_xy`, and those pixels in it ([y1 − y0, x1 − x0] bool)."""
+    h, w = shape[:2]
     x0 = min(w, max(0, math.floor(inset_xy[0] - inset_r - 1)))
     x1 = min(w, max(x0, math.ceil(inset_xy[0] + inset_r + 1)))
     y0 = min(h, max(0, math.floor(inset_xy[1] - inset_r - 1)))
     y1 = min(h, max(y0, math.ceil(inset_xy[1] + inset_r + 1)))
     ys, xs = np.mgrid[y0:y1, x0:x1] + 0.5
-    disc = (xs - inset_xy[0]) ** 2 + (ys - inset_xy[1]) ** 2 <= inset_r**2
+    return y0, y1, x0, x1, (xs - inset_xy[0]) ** 2 + (ys - inset_xy[1]) ** 2 <= inset_r**2
+
+
+def magnify(img, center_xy, zoom: float, inset_xy, inset_r: float) -> tuple[np.ndarray, np.ndarray]:
+    """Pixels of the inset disc and their values: inset pixel centre p maps to the source point
+    center + (p − inset_centre)/zoom, sampled bilinearly. Returns (mask [H,W] bool, values [n,3])."""
+    h, w = img.shape[:2]
+    y0, y1, x0, x1, disc = disc_box(img.shape, inset_xy, inset_r)  # only the disc's box, row-major as before
+    ys, xs = np.mgrid[y0:y1, x0:x1] + 0.5
     mask = np.zeros((h, w), bool)
     mask[y0:y1, x0:x1] = disc
     sx = center_xy[0] + (xs[disc] - inset_xy[0]) / zoom
     sy = center_xy[1] + (ys[disc] - inset_xy[1]) / zoom
     return mask, np.clip(np.rint(_bilinear(img, sx, sy)), 0, 255).astype(np.uint8)
+
+
+def inset_geometry(
+    shape, center_xy, radius: float, zoom: float, inset_center_xy=None, thickness: Optional[int] = None
+) -> tuple[float, float, float, float, int]:
+    """(ix, iy, R, z, t) of `add_inset`: the inset disc's centre and radius, the zoom it shows (R/radius) and
+    the stroke thickness."""
+    if inset_center_xy is None:
+        ix, iy, R = inset_placement(shape, center_xy, radius, zoom)
+    else:
+        ix, iy = map(float, inset_center_xy)
+        R = radius * zoom
+    return ix, iy, R, R / max(radius, 1e-6), thickness or max(1, round(min(shape[:2]) / 200))
+
+
+def _subpixel(p) -> tuple[int, int]:
+    """A point in cv2's sub-pixel units (SHIFT bits; pixel k's centre is at k + 0.5)."""
+    one = 1 << SHIFT
+    return int(round(p[0] * one - 0.5 * one)), int(round(p[1] * one - 0.5 * one))
+
+
+def draw_connectors(out: np.ndarray, center_xy, radius: float, inset_xy, R: float, color, t: int) -> None:
+    """The two external tangents joining the source circle and the inset disc, drawn in place (anti-aliased)."""
+    for a, b in _outer_tangents(center_xy, radius, inset_xy, R):
+        cv2.line(out, _subpixel(a), _subpixel(b), color, t, cv2.LINE_AA, SHIFT)
+
+
+def draw_rings(out: np.ndarray, center_xy, radius: float, inset_xy, R: float, color, t: int) -> None:
+    """The source circle and the inset's outline, drawn in place (anti-aliased)."""
+    for c, r in ((center_xy, radius), (inset_xy, R)):
+        cv2.circle(out, _subpixel(c), int(round(r * (1 << SHIFT))), color, t, cv2.LINE_AA, SHIFT)
 
 
 def add_inset(
@@ -234,24 +287,15 @@ def add_inset(
     The inset (radius R = radius·zoom, reduced — and the zoom with it, R/radius — when a corner
     cannot hold it) goes in the image corner where it does not cover the source region
     (`inset_placement`), unless `inset_center_xy` is given. Draws the source circle, the inset
-    outline and the two external tangents joining them as connectors."""
+    outline and the two external tangents joining them as connectors (in that order: tangents, the
+    magnified disc over them, the circles over both)."""
     src = as_uint8_rgb(img)
     out = src.copy()
-    if inset_center_xy is None:
-        ix, iy, R = inset_placement(src.shape, center_xy, radius, zoom)
-    else:
-        ix, iy = map(float, inset_center_xy)
-        R = radius * zoom
-    z = R / max(radius, 1e-6)
-    t = thickness or max(1, round(min(src.shape[:2]) / 200))
-    S = 4  # cv2 sub-pixel shift: coordinates in 1/16 px
-    P = lambda p: (int(round(p[0] * (1 << S) - 0.5 * (1 << S))), int(round(p[1] * (1 << S) - 0.5 * (1 << S))))
-    for a, b in _outer_tangents(center_xy, radius, (ix, iy), R):
-        cv2.line(out, P(a), P(b), color, t, cv2.LINE_AA, S)
+    ix, iy, R, z, t = inset_geometry(src.shape, center_xy, radius, zoom, inset_center_xy, thickness)
+    draw_connectors(out, center_xy, radius, (ix, iy), R, color, t)
     mask, vals = magnify(src, center_xy, z, (ix, iy), R)
     out[mask] = vals
-    for c, r in ((center_xy, radius), ((ix, iy), R)):
-        cv2.circle(out, P(c), int(round(r * (1 << S))), color, t, cv2.LINE_AA, S)
+    draw_rings(out, center_xy, radius, (ix, iy), R, color, t)
     return pad_even(out)
 
 

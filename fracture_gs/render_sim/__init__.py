@@ -1,8 +1,8 @@
 """`fracture-gs render-sim`, the main job: simulate each variant, render it, write videos, metrics and a summary.
 
 Outputs in the run's folder: <variant>.mp4, comparison.mp4 (side by side, captions, circular fracture insets),
-frames/compare_NNNN.png, metrics.jsonl, summary.json, summary.md, topology.npz, config.toml. Ctrl-C or a
-divergence keeps every frame and metric already written.
+frames/compare_NNNN.png (`--frames-png`; by default on the CPU only), metrics.jsonl, summary.json, summary.md,
+topology.npz, config.toml. Ctrl-C or a divergence keeps every frame and metric already written.
 
 The path of a run, top to bottom: `job.run_render_sim` prepares the scene (`pipeline.prepare_scene`) and
 makes one frozen `context.RunContext`; a scheduler (`in_turn`, `threads` or `multi_device`) runs each variant

@@ -57,6 +57,8 @@ class RunContext:
     view: Optional[Path] = None
     """The run's view record folder (`viewer.record`: what `fracture-gs view` shows), which each variant's frames
     are appended to, or None (not recorded)."""
+    frames_png: bool = True
+    """Write each comparison frame as frames/compare_NNNN.png too (`render-sim --frames-png`)."""
 
 
 @dataclass

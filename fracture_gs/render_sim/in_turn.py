@@ -30,7 +30,7 @@ def run_in_turn(ctx: RunContext, painter: Painter, metrics_file, stop=None) -> S
             if k > 0 and k == len(order) - 1 and topology is not None and all(frames[v] for v in order[:k]):
                 statuses = [summaries[v].status if v in summaries else "ok" for v in ctx.variants]
                 panels = [frames[v] for v in ctx.variants]
-                live = ComparisonVideo(ctx.cfg, ctx.variants, panels, topology, ctx.out_dir, statuses)
+                live = ComparisonVideo(ctx.cfg, ctx.variants, panels, topology, ctx.out_dir, statuses, ctx.frames_png)
                 live.start_live(frames[variant])
             summaries[variant], topology = run_variant(
                 ctx, variant, painter, metrics_file, frames[variant], topology, stop=stop

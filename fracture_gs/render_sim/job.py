@@ -1,8 +1,8 @@
 """`fracture-gs render-sim`: simulate each variant, render it, and write videos, metrics and a summary.
 
 Outputs in DIR: <variant>.mp4, comparison.mp4 (side by side, captions, circular fracture insets),
-frames/compare_NNNN.png, metrics.jsonl, summary.json, summary.md, topology.npz, config.toml, and view/ (the
-frames as `fracture-gs view` shows them).
+frames/compare_NNNN.png (by default on the CPU only), metrics.jsonl, summary.json, summary.md, topology.npz,
+config.toml, and view/ (the frames as `fracture-gs view` shows them).
 Ctrl-C or a divergence keeps every frame and metric already written.
 """
 
@@ -23,7 +23,7 @@ from ..pipeline import prepare_scene
 from ..profiling import phases
 from ..render.warm_up import start_gsplat_compile
 from ..viewer.record import start_record
-from .comparison import compose_comparison
+from .comparison import compose_comparison, frames_png_default
 from .context import Export, RunContext, ScheduleResult
 from .energy_report import energy_markdown
 from .in_turn import run_in_turn
@@ -47,7 +47,7 @@ def usable_cores() -> int:
         return os.cpu_count() or 1
 
 
-def auto_schedule(device: str, variants: int, particles: int, frames: int, cores: int) -> str:
+def auto_schedule(device: str, variants: int, particles: int, frames: int, cores: int) -> Schedule:
     """How `schedule="auto"` shares one device: on the CPU, with more than one core and more than one variant,
     the variants run in worker processes (`processes`: Warp runs a kernel on one core, so one process simulates
     on one core) once each variant simulates long enough to pay for a worker's start (`WORKER_START_WORK`);
@@ -70,6 +70,7 @@ def run_render_sim(
     stop=None,
     schedule: Schedule = "in_turn",
     record_view: bool = True,
+    frames_png: Optional[bool] = None,
 ) -> RunSummary:
     """The main job. Returns the run's summary (also written to summary.json / summary.md); with `profile`, the
     time per phase is in its `profile` and profile.md; with `export_ply` = N, every N-th frame of every variant
@@ -85,7 +86,8 @@ def run_render_sim(
     SIGINT handler, so an interrupt Python drops inside a finalizer still stops the run; with `devices` the
     worker processes stop on Ctrl-C themselves and the event only marks the summary).
     `record_view`: also record every drawn frame for `fracture-gs view` in view/ (`viewer.record`, 18 bytes per
-    Gaussian per frame and variant)."""
+    Gaussian per frame and variant). `frames_png`: also write each comparison frame as frames/compare_NNNN.png
+    (None: on the CPU only, `comparison.frames_png_default`)."""
     if schedule not in SCHEDULES + ("auto",):
         raise ValueError(f"schedule must be 'auto', 'in_turn', 'threads' or 'processes', got {schedule!r}")
     out_dir = output_dir(out_dir)
@@ -115,6 +117,7 @@ def run_render_sim(
         order=tuple(sorted(variants, key=lambda v: v == "baseline")),  # a variant with a provider leads
         export=Export(int(export_ply), scene, export_format) if export_ply else None,
         view=start_record(out_dir, cfg, gs, scene.background, variants) if record_view else None,
+        frames_png=frames_png_default(device) if frames_png is None else bool(frames_png),
     )
     with open(out_dir / "metrics.jsonl", "w") as metrics_file:
         result = _schedule(ctx, painter, metrics_file, devices, schedule, stop)
@@ -176,7 +179,8 @@ def _finish_comparison(ctx: RunContext, result: ScheduleResult) -> None:
     if live is not None:
         live.abort()
     if done:
-        compose_comparison(ctx.cfg, done, [result.frames[v] for v in done], result.topology, ctx.out_dir, statuses)
+        frames = [result.frames[v] for v in done]
+        compose_comparison(ctx.cfg, done, frames, result.topology, ctx.out_dir, statuses, ctx.frames_png)
 
 
 def _write_summary(summary: RunSummary, out_dir: Path) -> None:

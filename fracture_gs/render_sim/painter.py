@@ -3,7 +3,8 @@
 The interior Gaussians that fill a solid stay hidden until a fracture exposes them; then they take the
 nearest surface's colour (or the material's, `render.interior_color`). With `render.color_by = "fragment"`
 each piece is drawn in its own hue. One `Painter` per scene; `for_variant` gives each variant its own
-exposed-interior state over the shared tensors.
+exposed-interior state over the shared tensors. On CUDA a variant's frames also stay on the device
+(`DrawnFrame.device_image`) for the comparison composer (`render.compose_torch`), within `DEVICE_FRAMES_BYTES`.
 """
 
 from __future__ import annotations
@@ -20,6 +21,28 @@ from ..render.camera import frame_camera
 from ..render.gaussians import exposed_interior_colors, sh_colors
 from ..render.splat import render
 from ..sh import SH_C0
+
+DEVICE_FRAMES_BYTES = 1 << 30
+"""A CUDA run keeps its drawn frames on the device too (every variant's, for the comparison composer) when they
+take at most this many bytes (frames + 1 × variants × width × height × 3: the bread paper preset at 320 × 240,
+3 variants and 91 frames, 63 MB); a larger run keeps them on the host only and the composer uploads its panels."""
+
+
+class DrawnFrame(np.ndarray):
+    """A drawn frame on the host ([H, W, 3] uint8: what the variant's video, `np.stack` and every numpy reader
+    get) that also holds the same image on the renderer's device, `device_image`, so the comparison composer
+    reads it there instead of uploading it. A view or slice of it is not the whole image: its `device_image` is
+    None."""
+
+    device_image: Optional[torch.Tensor] = None
+
+    @classmethod
+    def of(cls, image: torch.Tensor) -> DrawnFrame:
+        """The host copy of `image` ([H, W, 3] uint8 on a device), holding `image`. The copy waits for the
+        stream that drew it, so `image` is complete once this returns (other streams may read it)."""
+        frame = image.cpu().numpy().view(cls)
+        frame.device_image = image
+        return frame
 
 
 class Painter:
@@ -40,6 +63,7 @@ class Painter:
         self.exposed_count = 0
         self._visible_version: Optional[int] = None  # the topology version `_keep` was made for
         self._keep: Optional[torch.Tensor] = None
+        self.keep_on_device = False  # a variant's painter on CUDA: frames as `DrawnFrame`s (`for_variant`)
 
     def for_variant(self) -> Painter:
         """A painter for one variant's frames: the scene's tensors shared (read only), the exposed-interior
@@ -47,7 +71,16 @@ class Painter:
         painter = copy.copy(self)
         painter.exposed_rgb, painter.exposed_count = None, 0
         painter._visible_version, painter._keep = None, None
+        painter.keep_on_device = self._frames_fit_device()
         return painter
+
+    def _frames_fit_device(self) -> bool:
+        """Whether this run's drawn frames, every variant's, fit `DEVICE_FRAMES_BYTES` on a CUDA device."""
+        if self.cov0.device.type != "cuda":
+            return False
+        cfg = self.scene_cfg
+        frames = (cfg.frames + 1) * max(1, len(cfg.variants)) * cfg.render.width * cfg.render.height * 3
+        return frames <= DEVICE_FRAMES_BYTES
 
     def camera(self, frame: int):
         return frame_camera(self.scene_cfg, frame)
@@ -102,7 +135,14 @@ class Painter:
         drawn[self._visible(out)] = True
         return rgb, drawn
 
-    def __call__(self, out: FrameOutput) -> np.ndarray:
+    def __call__(self, out: FrameOutput) -> np.ndarray:  # -> [H, W, 3] uint8
+        """The frame drawn, on the host; for a variant's painter on CUDA (`for_variant`) a `DrawnFrame`, which also
+        keeps the image on the device for the comparison composer."""
+        image = self.draw(out)
+        return DrawnFrame.of(image) if self.keep_on_device else image.cpu().numpy()
+
+    def draw(self, out: FrameOutput) -> torch.Tensor:  # -> [H, W, 3] uint8 on the frame's device
+        """The frame drawn, on the device it was drawn on."""
         cam = self.camera(out.frame)
         keep = self._visible(out)  # [M] indices
         colors = sh_colors(self.sh, out.means, cam.campos.to(out.means), out.rotations)
@@ -128,4 +168,4 @@ class Painter:
             backend=self.cfg.backend,
             mode=self.cfg.mode,
         ).image
-        return (img.clamp(0, 1) * 255).round().to(torch.uint8).cpu().numpy()
+        return (img.clamp(0, 1) * 255).round().to(torch.uint8)

@@ -115,7 +115,9 @@ def run_in_threads(
                 if first is not None:  # the insets need the interface: compose from the first latch on
                     told = True
                     panels = [frames[v] for v in ctx.variants]
-                    live = ComparisonVideo(cfg, ctx.variants, panels, first, ctx.out_dir, ["ok"] * len(panels))
+                    live = ComparisonVideo(
+                        cfg, ctx.variants, panels, first, ctx.out_dir, ["ok"] * len(panels), ctx.frames_png
+                    )
                     live.start_live(*panels)
             except KeyboardInterrupt:  # the variants stop at their next frame and return what they have
                 interrupted = True
