@@ -157,6 +157,7 @@ NEAR = 1.2  # spacings: particles with one of another fragment this close are ev
 CHUNK = 4096  # candidates per chunk: ≈ 2,000 particles gathered each, so ≈ 8 M pairs at a time
 DENSE_LIMIT = 1 << 22  # (candidate, fragment) sums kept dense up to this many entries, else sorted keys
 _BITS = 21  # bits per axis of a cell key
+DENSE_CELLS = 1 << 22  # `_Cells.near_foreign` pools a dense grid up to this many cells (16 MiB a float32 copy)
 NN_PER_SPACING = 0.65  # median nearest-neighbour distance over h of a jittered grid (one point anywhere per cell h)
 SAMPLES = 256  # particles per fragment whose own kernel sums calibrate its filled density
 CENTRED = 0.01  # a sample whose neighbours' kernel-weighted centroid lies within this × R sees a full ball
@@ -201,12 +202,29 @@ class _Cells:
         return i, self.keys[i] == keys
 
     def near_foreign(self) -> torch.Tensor:  # [N] bool
-        """Particles whose cell or one of its 26 neighbours holds a particle of another fragment."""
+        """Particles whose cell or one of its 26 neighbours holds a particle of another fragment: the smallest and
+        largest fragment id over the 27 cells differ. Over the occupied cells' bounding box, when it has at most
+        DENSE_CELLS cells, as two 3×3×3 max-pools of a dense grid (exact: ids are small integers, empty cells
+        hold −∞/+∞ and change neither extreme); else by 27 binary searches per occupied cell."""
         mask = (1 << _BITS) - 1
         c = torch.stack([self.keys >> (2 * _BITS), self.keys >> _BITS, self.keys], 1) & mask  # [V, 3]
-        i, hit = self.find(_keys(c[:, None, :] + _cube(1, c.device)[None]))  # [V, 27]
-        lo = torch.where(hit, self.fmin[i], torch.full_like(i, 1 << 40)).amin(1)
-        hi = torch.where(hit, self.fmax[i], torch.full_like(i, -1)).amax(1)
+        c0 = c.min(0).values
+        dims = c.max(0).values - c0 + 1  # [3]
+        small_ids = int(self.fmax.max()) < (1 << 24) and int(self.fmin.min()) > -(1 << 24)  # exact in float32
+        if int(dims.prod()) <= DENSE_CELLS and small_ids:
+            d = [int(v) for v in dims]
+            idx = c - c0
+            flat = (idx[:, 0] * d[1] + idx[:, 1]) * d[2] + idx[:, 2]  # [V] each occupied cell once
+            hi = torch.full((d[0] * d[1] * d[2],), -math.inf, dtype=torch.float32, device=c.device)
+            neg_lo = hi.clone()
+            hi[flat], neg_lo[flat] = self.fmax.float(), -self.fmin.float()
+            pool = torch.nn.functional.max_pool3d
+            hi = pool(hi.view(1, 1, *d), 3, stride=1, padding=1).view(-1)[flat]
+            lo = -pool(neg_lo.view(1, 1, *d), 3, stride=1, padding=1).view(-1)[flat]
+        else:
+            i, hit = self.find(_keys(c[:, None, :] + _cube(1, c.device)[None]))  # [V, 27]
+            lo = torch.where(hit, self.fmin[i], torch.full_like(i, 1 << 40)).amin(1)
+            hi = torch.where(hit, self.fmax[i], torch.full_like(i, -1)).amax(1)
         out = torch.zeros(self.order.numel(), dtype=torch.bool, device=self.order.device)
         out[self.order] = (lo != hi)[self.inverse]
         return out
