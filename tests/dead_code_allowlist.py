@@ -25,6 +25,8 @@ write_video  # io.video: write frames to an mp4
 read_video  # io.video: read an mp4 back as frames
 polar_rotation_reference  # linalg: the float64 twin of the polar rotation kernel
 singular_values_reference  # linalg: the float64 twin of the singular values kernel
+encode_frame  # viewer.format: the numpy reference of the recorder's on-device frame encoder (tests hold them equal)
+encode_epoch  # viewer.format: the numpy reference of the recorder's on-device epoch encoder
 box_volume  # sim.grid.layout: node count of a box
 fragment_overlap  # sim.diagnostics.penetration: the voxel measure of Panel A's overlap
 collider_crossing  # sim.diagnostics.penetration: particles behind a collider plane

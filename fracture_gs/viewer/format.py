@@ -53,9 +53,21 @@ def covariance_triu(cov: np.ndarray) -> np.ndarray:  # [N,3,3] -> [N,6]
     return cov.reshape(-1, 9)[:, [0, 1, 2, 4, 5, 8]]
 
 
+def frame_header(frame: int, epoch: int, time: float, box: bytes) -> bytes:
+    """A frame record's 48-byte header: magic, frame and epoch (int32), time (float32), the centres' bounding box
+    `box` (lo, hi: six float32, 24 bytes), zero padding."""
+    head = np.zeros(FRAME_HEADER, np.uint8)
+    head[:4] = np.frombuffer(FRAME_MAGIC, np.uint8)
+    head[4:12] = np.array([frame, epoch], "<i4").view(np.uint8)
+    head[12:16] = np.array([time], "<f4").view(np.uint8)
+    head[16:40] = np.frombuffer(box, np.uint8)
+    return head.tobytes()
+
+
 def encode_frame(frame: int, epoch: int, time: float, means: np.ndarray, cov6: np.ndarray, cov_unit: float) -> bytes:
     """One frame record: centres [N,3] quantised to uint16 in their bounding box, covariances [N,6] / cov_unit as
-    float16 (clipped to float16's range; a non-finite value becomes 0)."""
+    float16 (clipped to float16's range; a non-finite value becomes 0). The numpy reference of what the recorder
+    writes (`encode_torch.frame_body`, on the frame's device)."""
     means = np.nan_to_num(np.asarray(means, np.float64), nan=0.0, posinf=0.0, neginf=0.0)
     lo = means.min(0) if len(means) else np.zeros(3)
     hi = means.max(0) if len(means) else np.zeros(3)
@@ -63,12 +75,8 @@ def encode_frame(frame: int, epoch: int, time: float, means: np.ndarray, cov6: n
     q = np.rint((means - lo) / span * _Q).clip(0, _Q).astype("<u2")  # [N,3]
     c = np.nan_to_num(np.asarray(cov6, np.float64) / cov_unit, nan=0.0, posinf=0.0, neginf=0.0)
     c16 = c.clip(-65000.0, 65000.0).astype("<f2")  # [N,6]
-    head = np.zeros(FRAME_HEADER, np.uint8)
-    head[:4] = np.frombuffer(FRAME_MAGIC, np.uint8)
-    head[4:12] = np.array([frame, epoch], "<i4").view(np.uint8)
-    head[12:16] = np.array([time], "<f4").view(np.uint8)
-    head[16:40] = np.concatenate([lo, hi]).astype("<f4").view(np.uint8)
-    return head.tobytes() + q.tobytes() + c16.tobytes()
+    box = np.concatenate([lo, hi]).astype("<f4").tobytes()
+    return frame_header(frame, epoch, time, box) + q.tobytes() + c16.tobytes()
 
 
 def decode_frame(buf: bytes, n: int) -> dict:
@@ -86,14 +94,20 @@ def decode_frame(buf: bytes, n: int) -> dict:
     return {"frame": int(frame), "epoch": int(epoch), "time": time, "means": means, "cov": cov, "box": (lo, hi)}
 
 
-def encode_epoch(epoch: int, first_frame: int, rgb: np.ndarray, flags: np.ndarray, fragment: np.ndarray) -> bytes:
-    """One epoch record: colours [N,3] in [0,1] to uint8, flags [N] uint8, fragment ids [N] to int16 (clipped)."""
+def epoch_header(epoch: int, first_frame: int) -> bytes:
+    """An epoch record's 16-byte header: magic, epoch and its first frame (int32), zero padding."""
     head = np.zeros(EPOCH_HEADER, np.uint8)
     head[:4] = np.frombuffer(EPOCH_MAGIC, np.uint8)
     head[4:12] = np.array([epoch, first_frame], "<i4").view(np.uint8)
+    return head.tobytes()
+
+
+def encode_epoch(epoch: int, first_frame: int, rgb: np.ndarray, flags: np.ndarray, fragment: np.ndarray) -> bytes:
+    """One epoch record: colours [N,3] in [0,1] to uint8, flags [N] uint8, fragment ids [N] to int16 (clipped). The
+    numpy reference of `encode_torch.epoch_body`."""
     rgb8 = np.rint(np.clip(np.nan_to_num(np.asarray(rgb, np.float64)), 0.0, 1.0) * 255).astype(np.uint8)
     frag = np.clip(np.asarray(fragment), -1, 32767).astype("<i2")
-    return head.tobytes() + rgb8.tobytes() + np.asarray(flags, np.uint8).tobytes() + frag.tobytes()
+    return epoch_header(epoch, first_frame) + rgb8.tobytes() + np.asarray(flags, np.uint8).tobytes() + frag.tobytes()
 
 
 def decode_epoch(buf: bytes, n: int) -> dict:

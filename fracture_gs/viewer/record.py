@@ -124,35 +124,44 @@ class FrameRecorder:
         self.frames = open(folder / f"{variant}{fmt.FRAMES_SUFFIX}", "ab")
         self.epochs = open(folder / f"{variant}{fmt.EPOCHS_SUFFIX}", "ab")
         self.epoch = -1
-        self._last_topology: Optional[tuple[bytes, bytes]] = None
+        self._last_topology: Optional[tuple] = None  # (fragment, band) tensors of the last frame
         self._interface = np.zeros(self.n, bool)
-        self._last_epoch: Optional[bytes] = None
+        self._interface_dev = None
+        self._interior_dev = None
+        self._last_epoch = None  # the last epoch body, a uint8 tensor on the frames' device
 
     def write(self, out, rgb, drawn) -> None:
         """Record frame `out` (a `pipeline.FrameOutput`): its centres and covariances, and (when they changed) its
-        colours `rgb` [N,3] in [0,1], `drawn` [N] bool, band and fragment ids."""
-        means = _numpy(out.means).astype(np.float32)  # [N,3]
-        fragment = _numpy(out.fragment).astype(np.int64)  # [N]
-        band = _numpy(out.band) != 0  # [N]
-        topology = (fragment.tobytes(), band.tobytes())
-        if topology != self._last_topology:
-            self._interface = interface_flags(means, fragment, band, self.radius)
-            self._last_topology = topology
+        colours `rgb` [N,3] in [0,1], `drawn` [N] bool, band and fragment ids. Encoded on the frame's device
+        (`encode_torch`); the host gets the record's bytes, and the centres only when the fragments change."""
+        import torch
+
+        from .encode_torch import epoch_body, frame_body
+
+        fragment, band = out.fragment, out.band != 0  # [N] on the frame's device
+        if self._last_topology is None or not (
+            torch.equal(fragment, self._last_topology[0]) and torch.equal(band, self._last_topology[1])
+        ):
+            frag_host, band_host = _numpy(fragment).astype(np.int64), _numpy(band)
+            self._interface = interface_flags(_numpy(out.means).astype(np.float32), frag_host, band_host, self.radius)
+            self._interface_dev = torch.from_numpy(self._interface).to(fragment.device)
+            self._last_topology = (fragment.clone(), band.clone())
+        if self._interior_dev is None or self._interior_dev.device != fragment.device:
+            self._interior_dev = torch.from_numpy(self.interior.astype(bool)).to(fragment.device)
         flags = (
-            _numpy(drawn).astype(np.uint8) * fmt.DRAWN
-            + band.astype(np.uint8) * fmt.BAND
-            + self._interface.astype(np.uint8) * fmt.INTERFACE
-            + self.interior.astype(np.uint8) * fmt.INTERIOR
+            drawn.to(torch.uint8) * fmt.DRAWN
+            + band.to(torch.uint8) * fmt.BAND
+            + self._interface_dev.to(torch.uint8) * fmt.INTERFACE
+            + self._interior_dev.to(torch.uint8) * fmt.INTERIOR
         )
-        record = fmt.encode_epoch(self.epoch + 1, int(out.frame), _numpy(rgb), flags, fragment)
-        body = record[fmt.EPOCH_HEADER :]
-        if body != self._last_epoch:
+        body = epoch_body(rgb, flags, fragment)
+        if self._last_epoch is None or not torch.equal(body, self._last_epoch):
             self.epoch += 1
-            self.epochs.write(record)
+            self.epochs.write(fmt.epoch_header(self.epoch, int(out.frame)) + body.cpu().numpy().tobytes())
             self.epochs.flush()
             self._last_epoch = body
-        cov6 = fmt.covariance_triu(_numpy(out.covars).astype(np.float64))
-        self.frames.write(fmt.encode_frame(int(out.frame), self.epoch, float(out.time), means, cov6, self.cov_unit))
+        box, data = frame_body(out.means, out.covars, self.cov_unit)
+        self.frames.write(fmt.frame_header(int(out.frame), self.epoch, float(out.time), box) + data)
         self.frames.flush()
 
     def close(self) -> None:

@@ -1,0 +1,69 @@
+"""The view record encoded on the frame's device (`viewer.encode_torch`) writes the bytes the numpy reference of the
+format writes (`viewer.format.encode_frame` / `encode_epoch`): the quantised centres, the float16 covariances
+rounded once to nearest-even (torch's own cast goes through float32 and can round twice), the colours, flags and
+clipped fragment ids. So a record made on a GPU reads back exactly like one made on the CPU."""
+
+import numpy as np
+import pytest
+import torch
+
+from fracture_gs.viewer import format as fmt
+from fracture_gs.viewer.encode_torch import epoch_body, frame_body, half_exact
+
+DEVICES = ["cpu"] + (["cuda"] if torch.cuda.is_available() else [])
+
+
+@pytest.mark.parametrize("device", DEVICES)
+def test_half_exact_rounds_once_like_numpy(device):
+    """float64 → float16 with one rounding: exact halfway cases between float16 neighbours (ties to even), values
+    one float64 ulp beside them (where a float32 step would round twice and land on the wrong neighbour), float16
+    subnormals and the format's clip limit all give numpy's float16."""
+    ulp = np.float64(2.0**-10)  # float16 spacing in [1, 2)
+    ties = 1.0 + ulp * (np.arange(64) + 0.5)  # exactly between two float16 values
+    beside = np.concatenate([np.nextafter(ties, 2.0), np.nextafter(ties, 0.0)])
+    sub = np.array([2.0**-24, 1.5 * 2.0**-24, 2.5 * 2.0**-24, 3e-6, 6.1e-5, 2.0**-14 * (1 - 2.0**-12)])
+    g = np.random.default_rng(0)
+    rand = np.concatenate([g.normal(size=4000) * 10.0 ** g.uniform(-8, 4, 4000), [0.0, -0.0, 65000.0, -65000.0]])
+    x = np.concatenate([ties, beside, sub, -sub, rand, -ties])
+    got = half_exact(torch.from_numpy(x).to(device)).cpu().numpy()
+    np.testing.assert_array_equal(got.view(np.uint16), x.astype(np.float16).view(np.uint16))
+    # and torch's plain cast really does differ somewhere here (the reason half_exact exists)
+    plain = torch.from_numpy(beside).to(device).to(torch.float16).cpu().numpy()
+    assert (plain.view(np.uint16) != beside.astype(np.float16).view(np.uint16)).any()
+
+
+@pytest.mark.parametrize("device", DEVICES)
+@pytest.mark.parametrize("n", [0, 1, 7, 3000])
+def test_a_frame_body_is_the_numpy_records_bytes(device, n):
+    """Random centres (with NaN and ±inf, which the format writes as 0, and a flat axis whose span is 0) and
+    covariances (tiny, huge past the clip, non-finite): header box and body equal `format.encode_frame`'s."""
+    g = np.random.default_rng(n)
+    means = g.normal(size=(n, 3)).astype(np.float32) * 3
+    if n:
+        means[:, 2] = 0.25  # a flat axis
+    if n > 4:
+        means[0, 0], means[1, 1], means[2, 0] = np.nan, np.inf, -np.inf
+    cov = (g.normal(size=(n, 3, 3)) * 10.0 ** g.uniform(-9, 2, (n, 1, 1))).astype(np.float32)
+    cov = cov @ cov.transpose(0, 2, 1)
+    if n > 4:
+        cov[3, 0, 0], cov[4, 1, 1] = np.nan, 1e12
+    unit = 1e-5
+    box, body = frame_body(torch.from_numpy(means).to(device), torch.from_numpy(cov).to(device), unit)
+    ref = fmt.encode_frame(5, 2, 0.25, means, fmt.covariance_triu(cov.astype(np.float64)), unit)
+    assert fmt.frame_header(5, 2, 0.25, box) + body == ref
+
+
+@pytest.mark.parametrize("device", DEVICES)
+def test_an_epoch_body_is_the_numpy_records_bytes(device):
+    """Colours outside [0, 1] and NaN clip as numpy clips them; fragment ids past int16 clip to 32767; flags pass
+    through: the body after the 16-byte header equals `format.encode_epoch`'s."""
+    g = np.random.default_rng(3)
+    n = 500
+    rgb = g.uniform(-0.2, 1.2, (n, 3)).astype(np.float32)
+    rgb[0, 0], rgb[1, 1] = np.nan, np.inf
+    rgb[2] = [0.5 / 255, 1.5 / 255, 2.5 / 255]  # halfway cases round to even
+    flags = g.integers(0, 16, n).astype(np.uint8)
+    fragment = g.integers(-1, 70000, n).astype(np.int64)
+    body = epoch_body(*(torch.from_numpy(a).to(device) for a in (rgb, flags, fragment)))
+    ref = fmt.encode_epoch(4, 9, rgb, flags, fragment)
+    assert fmt.epoch_header(4, 9) + body.cpu().numpy().tobytes() == ref
