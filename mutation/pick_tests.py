@@ -80,9 +80,12 @@ def select_tests(module: str, lines: list[int], source: str, cover: dict, fallba
     called = function_lines(source)
     picked: dict[str, None] = {}
     for line in lines:
-        if line not in called and line not in kern and by_line:  # an import-time line: the module's users
+        if line not in called and line not in kern:  # an import-time line: the module's users
             users = {t for n, ts in by_line.items() if int(n) in called and int(n) not in kern for t in ts}
-            for test in sorted(users) + importers(module):  # and the test files that read its data by name
+            # and the test files that read its data by name; a module no test calls into (an interface whose
+            # methods are abstract, a table of constants) has no map, so those and the listed tests are all it gets
+            listed = [] if by_line else fallback.get(module, [])
+            for test in sorted(users) + importers(module) + listed:
                 picked[test] = None
             continue
         if line in kern or not by_line:

@@ -10,7 +10,6 @@ import torch
 from ...linalg import singular_values
 from ...runtime import device_constant
 
-EPS = 1e-30
 SEPARATION = 0.1  # Δx: an interface whose opening exceeds this has separated (docs/DESIGN.md)
 
 

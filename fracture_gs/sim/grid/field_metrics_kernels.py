@@ -25,7 +25,6 @@ wp.set_module_options({"enable_backward": False})
 
 OUT_TOTAL, OUT_MIXING, OUT_ACTIVE, OUT_SHARED = range(4)  # then OUT_MASS + k for fragment k < K
 OUT_MASS = 4
-EPS = 1e-30
 
 vec_sd = wp.types.vector(length=MAX_SLOTS, dtype=wp.float64)
 
@@ -83,13 +82,14 @@ def pool_sums(g: GridView, eps_m: wp.float64, K: int, out: wp.array2d(dtype=wp.f
         wp.atomic_add(out, b, OUT_ACTIVE, wp.float64(1.0))  # slot 0 inactive: `dense_sums` did not count it
     if active >= 2:
         wp.atomic_add(out, b, OUT_SHARED, wp.float64(1.0))
-    vbar = P / wp.max(M, wp.float64(EPS))
     mixing = wp.float64(0.0)
-    for s in range(S):
-        if m[s] > eps_m:
-            q = q0
-            if s > 0:
-                q = g.mp[g.n_nodes + r * (S - 1) + s - 1]
-            v = wp.vec3d(wp.float64(q[0]), wp.float64(q[1]), wp.float64(q[2])) / m[s]
-            mixing = mixing + m[s] * wp.length_sq(vbar - v)
+    if M > wp.float64(0.0):  # an active field has m > ε_m ≥ 0: v̄ = P / M exactly, however light the node
+        vbar = P / M
+        for s in range(S):
+            if m[s] > eps_m:
+                q = q0
+                if s > 0:
+                    q = g.mp[g.n_nodes + r * (S - 1) + s - 1]
+                v = wp.vec3d(wp.float64(q[0]), wp.float64(q[1]), wp.float64(q[2])) / m[s]
+                mixing = mixing + m[s] * wp.length_sq(vbar - v)
     wp.atomic_add(out, b, OUT_MIXING, mixing)

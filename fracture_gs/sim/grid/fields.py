@@ -22,7 +22,6 @@ from .domain import BYTES_PER_NODE, check_device_memory
 from .field_metrics_kernels import OUT_ACTIVE, OUT_MASS, OUT_MIXING, OUT_SHARED, OUT_TOTAL, dense_sums, pool_sums
 from .layout import EMPTY_KEY, OWNER_MASK, GridView, pool_capacity
 
-EPS = 1e-30
 SUM_ROWS = 256  # rows of `field_sums`' partial sums on a GPU
 
 
@@ -210,7 +209,7 @@ class Grid:
         launch(dense_sums, self.shape, [self.view, float(eps_m), K, o], self.device)
         launch(pool_sums, self.capacity, [self.view, float(eps_m), K, o], self.device)
         out = out.sum(0)
-        cf = out[OUT_MIXING] / (out[OUT_TOTAL] + EPS)
+        cf = _per_mass(out[OUT_MIXING], out[OUT_TOTAL])
         shared = 100.0 * out[OUT_SHARED] / out[OUT_ACTIVE].clamp_min(1.0)
         return cf, shared, out[OUT_MASS:]
 
@@ -223,7 +222,7 @@ class Grid:
         if not self.multi:
             return zero, zero
         p = self._mp[:, :3].double()
-        total = m.sum() + EPS
+        total = m.sum()
         frag, index, used = self._pool_all()
         nodes = self.key.long().clamp_min(0)
         on_pool = used[:, None] & (frag >= 0)
@@ -231,10 +230,11 @@ class Grid:
         pp = torch.cat(
             [torch.where(used[:, None], p[nodes], 0.0)[:, None], torch.where(on_pool[..., None], p[index], 0.0)], 1
         )  # [C, S, 3]
-        on = mm > eps_m
-        vbar = pp.sum(1) / mm.sum(1).clamp_min(EPS)[:, None]
-        v = torch.where(on[..., None], pp / mm.clamp_min(EPS)[..., None], torch.zeros_like(pp))
-        cf = (mm * on * ((vbar[:, None] - v) ** 2).sum(-1)).sum() / total
+        on = mm > eps_m  # an active field has m > ε_m ≥ 0, so its row's M > 0: v̄ and v^k are exact at any mass
+        M = mm.sum(1)  # [C]
+        vbar = pp.sum(1) / torch.where(M > 0, M, 1.0)[:, None]
+        v = torch.where(on[..., None], pp / torch.where(on, mm, 1.0)[..., None], torch.zeros_like(pp))
+        cf = _per_mass((mm * on * ((vbar[:, None] - v) ** 2).sum(-1)).sum(), total)
         count = (m[: self.n_nodes] > eps_m).long()
         count.index_add_(0, nodes, torch.where(used, on[:, 1:].sum(1), 0))
         shared = 100.0 * (count >= 2).sum().double() / (count >= 1).sum().clamp_min(1).double()
@@ -247,3 +247,9 @@ class Grid:
         owner = self._owner.numel() * 4 if self.multi else 0
         pool = sum(t.numel() * t.element_size() for t in ts[2:]) if self.multi else 0
         return sum(t.numel() * t.element_size() for t in ts[:2]) + owner + pool
+
+
+def _per_mass(energy: torch.Tensor, total: torch.Tensor) -> torch.Tensor:
+    """E_mix over the grid's total mass Σ m, 0 for an empty grid (no guard value that would bend a light grid's
+    ratio: float32 masses are ≥ 1.4e-45 kg where they are not 0)."""
+    return torch.where(total > 0, energy / torch.where(total > 0, total, 1.0), 0.0)

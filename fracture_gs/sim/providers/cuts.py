@@ -57,15 +57,19 @@ def plane_cut(
 
 def voronoi_labels(x: torch.Tensor, seeds: torch.Tensor, band_width: float) -> tuple[torch.Tensor, torch.Tensor]:
     """Cell of the nearest seed for every particle, and the band: particles closer than `band_width`
-    [m] to the bisector with their second-nearest seed (distance (|x−s₂|² − |x−s₁|²) / 2|s₂−s₁|)."""
+    [m] to the bisector with their second-nearest seed (distance (|x−s₂|² − |x−s₁|²) / 2|s₂−s₁|). A tie (a
+    particle exactly as far from two seeds, as on a lattice) goes to the seed listed first, for s₁ and for s₂ alike,
+    whatever the torch version or device (`topk` leaves the order of ties unspecified)."""
     xd, sd = x.double(), seeds.to(x.device, torch.float64)
     d2 = torch.cdist(xd, sd) ** 2  # [N, M]
-    two = torch.topk(d2, k=min(2, sd.shape[0]), dim=1, largest=False)
-    cell = two.indices[:, 0]
+    cell = torch.argmin(d2, dim=1)  # [N] the first of the nearest seeds
     if sd.shape[0] < 2:
         return cell.to(torch.int32), torch.zeros_like(cell, dtype=torch.int32)
-    s1, s2 = sd[two.indices[:, 0]], sd[two.indices[:, 1]]
-    gap = (two.values[:, 1] - two.values[:, 0]) / (2 * (s2 - s1).norm(dim=1).clamp_min(1e-30))
+    first = d2.gather(1, cell[:, None])[:, 0]  # [N] |x − s₁|²
+    d2.scatter_(1, cell[:, None], float("inf"))  # s₁ out of the running: the first of the rest is s₂
+    second = torch.argmin(d2, dim=1)  # [N]
+    s1, s2 = sd[cell], sd[second]
+    gap = (d2.gather(1, second[:, None])[:, 0] - first) / (2 * (s2 - s1).norm(dim=1).clamp_min(1e-30))
     return cell.to(torch.int32), (gap < band_width).to(torch.int32)
 
 
