@@ -153,8 +153,9 @@ def test_resolve_device(monkeypatch):
 def test_render_sim_dispatches_to_runner(monkeypatch, tmp_path, capsys):
     calls = {}
 
-    def fake_run(cfg, variants, device, out_dir, profile=False, stop=None):
+    def fake_run(cfg, variants, device, out_dir, profile=False, stop=None, schedule="in_turn"):
         calls.update(cfg=cfg, variants=variants, device=device, out_dir=out_dir, profile=profile, stop=stop)
+        calls.update(schedule=schedule)
         return RunSummary("bread", "bread", "paper", device, 10, [], 3, 0.01, out_dir=str(out_dir / "compare.mp4"))
 
     monkeypatch.setattr(runner, "run_render_sim", fake_run)
@@ -180,11 +181,12 @@ def test_render_sim_dispatches_to_runner(monkeypatch, tmp_path, capsys):
     assert calls["variants"] == ["baseline", "full"] and calls["device"] == "cpu" and calls["out_dir"] == tmp_path
     assert calls["cfg"].frames == 3 and calls["cfg"].sim.grid_shape == (128, 128, 128)
     assert isinstance(calls["stop"], threading.Event) and not calls["stop"].is_set()  # Ctrl-C would set it
+    assert calls["schedule"] == "auto"  # the CLI lets the job choose in turn or processes once the scene is known
     assert "compare.mp4" in capsys.readouterr().out
 
 
 def test_keyboard_interrupt_reports_partial_outputs(monkeypatch, tmp_path, capsys):
-    def interrupted(cfg, variants, device, out_dir, profile=False, stop=None):
+    def interrupted(cfg, variants, device, out_dir, profile=False, stop=None, schedule="in_turn"):
         raise KeyboardInterrupt
 
     monkeypatch.setattr(runner, "run_render_sim", interrupted)
@@ -193,7 +195,7 @@ def test_keyboard_interrupt_reports_partial_outputs(monkeypatch, tmp_path, capsy
 
 
 def test_bugs_keep_their_traceback(monkeypatch):
-    def broken(cfg, variants, device, out_dir, profile=False, stop=None):
+    def broken(cfg, variants, device, out_dir, profile=False, stop=None, schedule="in_turn"):
         raise RuntimeError("bug")
 
     monkeypatch.setattr(runner, "run_render_sim", broken)
