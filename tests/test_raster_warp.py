@@ -259,3 +259,13 @@ def test_auto_picks_warp_on_the_cpu_unless_a_gradient_is_needed():
     assert apply_overrides(cfg, keys={"render.backend": "warp"}).render.backend == "warp"
     with pytest.raises(ConfigError, match="auto, gsplat, torch, warp"):
         apply_overrides(cfg, keys={"render.backend": "vulkan"})
+
+
+def test_info_warm_up_loads_the_rasterizer_on_the_cpu_only():
+    """`fracture-gs info --warm-up` puts every module a run launches into the kernel cache: on the CPU that includes
+    the Warp rasterizer's (else a fresh machine's first CPU run compiles it), on CUDA it does not (gsplat draws
+    there, so compiling it would be wasted)."""
+    from fracture_gs.cli.warm_up import kernel_modules
+
+    assert "fracture_gs.render.raster_kernels" in [m.name for m in kernel_modules("cpu")]
+    assert "fracture_gs.render.raster_kernels" not in [m.name for m in kernel_modules("cuda:0")]
