@@ -269,3 +269,27 @@ def test_info_warm_up_loads_the_rasterizer_on_the_cpu_only():
 
     assert "fracture_gs.render.raster_kernels" in [m.name for m in kernel_modules("cpu")]
     assert "fracture_gs.render.raster_kernels" not in [m.name for m in kernel_modules("cuda:0")]
+
+
+@pytest.mark.slow
+def test_raster_cpu_benchmark_runs_and_compares_the_backends(tmp_path):
+    """benchmarks/raster_cpu.py, as a user runs it (small): a row per set, backend and Warp part with positive
+    times, and the two backends' images within 1/255 of each other on both sets."""
+    import os
+    import re
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parent.parent
+    args = [sys.executable, str(root / "benchmarks" / "raster_cpu.py"), "--repeats", "2", "--particles", "2000"]
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(root), os.environ.get("PYTHONPATH", "")])}  # this checkout
+    proc = subprocess.run(
+        args + ["--resolution", "96x64"], capture_output=True, text=True, timeout=600, cwd=tmp_path, env=env
+    )
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    rows = [line.split("|")[1:-1] for line in proc.stdout.splitlines() if re.match(r"\| (drawn|all) \|", line)]
+    assert [r[2].strip() for r in rows[:2]] == ["torch", "warp"] and len(rows) == 10, proc.stdout
+    assert all(float(r[3]) > 0 and float(r[5]) >= 0 for r in rows), proc.stdout
+    diffs = [float(m) for m in re.findall(r"torch − warp\| over pixels and channels: ([0-9.e+-]+)", proc.stdout)]
+    assert len(diffs) == 2 and max(diffs) <= 1 / 255, proc.stdout
