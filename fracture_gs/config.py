@@ -360,8 +360,8 @@ class RenderConfig:
     """gsplat rasterization mode: `classic` or `antialiased`."""
     backend: RenderBackend = "auto"
     """`auto` (gsplat on CUDA; on the CPU the Warp kernel, or torch where a gradient is needed), `gsplat` (CUDA),
-    `torch` (the pure-torch tile rasterizer, any device, differentiable) or `warp` (CPU only, no gradient); all
-    draw the same pixels within 1/255 (DESIGN.md "Rendering")."""
+    `torch` (the pure-torch tile rasterizer, any device, differentiable) or `warp` (CPU only, no gradient; its
+    pixels are torch's within 1/255); DESIGN.md "Rendering"."""
     color_by: ColorBy = "appearance"
     """`appearance` (the Gaussians' own colours) or `fragment` (each fragment in its own colour, shaded by
     the Gaussian's brightness, once the object has broken)."""
