@@ -24,7 +24,7 @@ GridStorage = Literal["auto", "slots", "boxes"]
 ParticleOrder = Literal["scene", "cell"]
 ProviderName = Literal["none", "oracle", "stress", "voronoi"]
 RenderMode = Literal["classic", "antialiased"]
-RenderBackend = Literal["auto", "gsplat", "torch"]
+RenderBackend = Literal["auto", "gsplat", "torch", "warp"]
 ColorBy = Literal["appearance", "fragment"]
 BandRelease = Literal["first", "all", "none"]
 Preset = Literal["small", "paper"]
@@ -359,7 +359,9 @@ class RenderConfig:
     mode: RenderMode = "classic"
     """gsplat rasterization mode: `classic` or `antialiased`."""
     backend: RenderBackend = "auto"
-    """`auto` (gsplat on CUDA, torch on CPU), `gsplat` or `torch`."""
+    """`auto` (gsplat on CUDA; on the CPU the Warp kernel, or torch where a gradient is needed), `gsplat` (CUDA),
+    `torch` (the pure-torch tile rasterizer, any device, differentiable) or `warp` (CPU only, no gradient; its
+    pixels are torch's within 1/255); DESIGN.md "Rendering"."""
     color_by: ColorBy = "appearance"
     """`appearance` (the Gaussians' own colours) or `fragment` (each fragment in its own colour, shaded by
     the Gaussian's brightness, once the object has broken)."""

@@ -364,7 +364,7 @@ def test_empty_and_offscreen_scenes_render_background():
 def test_backend_choice_by_device_never_imports_gsplat_on_cpu():
     cam = look_at((0, -2, 0), (0, 0, 0), (0, 0, 1), 40, 16, 16)
     args = (torch.zeros(1, 3), 0.01 * torch.eye(3)[None], torch.ones(1, 3), torch.ones(1), cam)
-    assert render(*args).backend == "torch"
+    assert render(*args).backend == "warp"  # CPU tensors, no gradient: the Warp kernels (test_raster_warp.py)
     with pytest.raises(ValueError, match="CUDA"):
         render(*args, backend="gsplat")
     with pytest.raises(ValueError, match="backend"):
@@ -373,7 +373,7 @@ def test_backend_choice_by_device_never_imports_gsplat_on_cpu():
         "import sys, torch\nfrom fracture_gs.render import render, look_at\n"
         "cam = look_at((0, -2, 0), (0, 0, 0), (0, 0, 1), 40, 16, 16)\n"
         "out = render(torch.zeros(1, 3), 0.01 * torch.eye(3)[None], torch.ones(1, 3), torch.ones(1), cam)\n"
-        "assert out.backend == 'torch'\n"
+        "assert out.backend == 'warp'\n"
         "assert not any(m.startswith('gsplat') for m in sys.modules), 'gsplat imported on CPU'\n"
     )
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
@@ -399,7 +399,7 @@ def test_cpu_render_20k_256_draws_the_shell_where_it_projects():
     cam = look_at((0, -2.2, 0.6), (0, 0, 0), (0, 0, 1), 40, 256, 256)
     bg = (0.1, 0.2, 0.9)
     t0 = time.perf_counter()
-    out = render(means, cov, cols, opac, cam, bg)
+    out = render(means, cov, cols, opac, cam, bg, backend="torch")  # (auto is Warp on the CPU: test_raster_warp.py)
     seconds = time.perf_counter() - t0
     sigma = torch.linalg.eigvalsh(cov.double())[:, -1].sqrt()  # [N] largest axis
     check_object_where_projected(out.image.numpy(), cam, means, sigma, bg, near_frac=0.99)

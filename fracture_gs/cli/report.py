@@ -33,7 +33,7 @@ def _info_lines() -> list[tuple[str, str]]:
         rows.append(
             (
                 "renderer",
-                f"auto -> torch reference rasterizer on cpu ({reason}; gsplat's CUDA code is never compiled here)",
+                f"auto -> Warp rasterizer on cpu ({reason}; gsplat's CUDA code is never compiled here)",
             )
         )
     rows.append(("device", f"--device auto -> {'cuda:0' if available else 'cpu'}"))

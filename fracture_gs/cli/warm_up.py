@@ -12,7 +12,8 @@ step printed with its time and whether it came from the cache:
 3. One frame of a tiny built-in scene on the device: its launches load what they need, so a load here is a
    module step 2 missed (the summary names how many).
 4. On CUDA, gsplat's CUDA code (`render.warm_up.compile_gsplat`, the build a run starts in the background);
-   on the CPU nothing: the torch rasterizer draws there and gsplat is never built.
+   on the CPU nothing: the Warp rasterizer (`render.raster_kernels`, a step-2 module there) draws, gsplat is never
+   built.
 
 Cache hits are read from Warp's own load lines ("(cached)", "(compiled)") through a logger set for the duration
 (`wp.set_logger`, the hook the CLI's quiet logger uses); a module this process had loaded already says so.
@@ -30,6 +31,8 @@ from .devices import MODULE_LOAD_RE
 
 KERNEL_PACKAGES = ("fracture_gs.linalg", "fracture_gs.sim")
 """Where the package's Warp kernels live (modules, or packages walked for their modules)."""
+CPU_KERNEL_PACKAGES = ("fracture_gs.render.raster_kernels",)
+"""Kernels only a CPU run launches (the Warp rasterizer; gsplat draws on CUDA)."""
 TINY_SCENE = "bread"
 TINY_PARTICLES = 300  # particles of the tiny scene's one frame
 
@@ -66,13 +69,14 @@ class _LoadLines:
         self.inner.error(message)
 
 
-def kernel_modules() -> list:
-    """The Warp modules (`warp.Module`) of the package's kernels, by name: every module of `KERNEL_PACKAGES`
-    imported, and the module of each kernel found in it (directly, or in a dict, list or tuple it holds)."""
+def kernel_modules(device: str = "cpu") -> list:
+    """The Warp modules (`warp.Module`) of the package's kernels that `device` launches, by name: every module of
+    `KERNEL_PACKAGES` (and on the CPU of `CPU_KERNEL_PACKAGES`) imported, and the module of each kernel found in it
+    (directly, or in a dict, list or tuple it holds)."""
     import warp as wp
 
     names = []
-    for name in KERNEL_PACKAGES:
+    for name in KERNEL_PACKAGES + (CPU_KERNEL_PACKAGES if device == "cpu" else ()):
         module = importlib.import_module(name)
         names.append(name)
         if hasattr(module, "__path__"):
@@ -160,7 +164,7 @@ def warm_up(device: str, report: Callable[[Step], None], say: Callable[[str], No
     log = _LoadLines(wp.get_logger())
     wp.set_logger(log)
     try:
-        steps += load_modules(kernel_modules(), device, log, report)
+        steps += load_modules(kernel_modules(device), device, log, report)
         start, before = time.perf_counter(), len(log.loads)
         tiny_frame(device)
         extra = log.loads[before:]
@@ -178,7 +182,7 @@ def warm_up(device: str, report: Callable[[Step], None], say: Callable[[str], No
     if device.startswith("cuda"):
         steps.append(gsplat_step(device, say))
     else:
-        steps.append(Step("gsplat CUDA code", 0.0, "not needed on the CPU (the torch rasterizer draws there)"))
+        steps.append(Step("gsplat CUDA code", 0.0, "not needed on the CPU (the Warp rasterizer draws there)"))
     report(steps[-1])
     return steps
 

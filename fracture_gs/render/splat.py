@@ -1,9 +1,11 @@
-"""Splatting 3D Gaussians: one entry point (`render`), two backends, one float64 reference.
+"""Splatting 3D Gaussians: one entry point (`render`), three backends, one float64 reference.
 
 Backends (DESIGN.md "Rendering"): gsplat's CUDA `rasterization` when the tensors live on a CUDA
-device, else a pure-torch tile rasterizer with the same math. The choice is made from the
-tensors' device, never by trying to import gsplat: without a GPU, importing gsplat's CUDA code
-may start a slow, failing JIT compile. gsplat is imported lazily, inside the CUDA branch only.
+device; on the CPU a Warp kernel (`raster_kernels`, one thread per pixel) when no gradient is
+needed, else a pure-torch tile rasterizer (differentiable, any device and dtype). All three share
+the math below and the torch projection. The choice is made from the tensors' device, never by
+trying to import gsplat: without a GPU, importing gsplat's CUDA code may start a slow, failing JIT
+compile. gsplat and the Warp kernels are imported lazily, in their own branches only.
 
 The math, identical to gsplat 1.5.3 (`ProjectionEWA3DGSFused.cu`, `RasterizeToPixels3DGSFwd.cu`):
 
@@ -43,16 +45,18 @@ EXTEND_MAX = 3.33
 TILE = 16  # gsplat's tile edge [px]; the torch backend uses it on CUDA
 TILE_CPU = 8  # on the CPU: a Gaussian is evaluated at every pixel of the tiles its footprint touches,
 # so 8-px tiles evaluate ~3x fewer (Gaussian, pixel) pairs (bread at 320x240 renders about 3x faster);
-# pixels only differ where a 16-px tile let a Gaussian reach past its footprint (≤ 1/255 there)
+# pixels only differ where a 16-px tile let a Gaussian reach past its footprint (≤ 1/255 there).
+# The Warp backend uses it too (4 and 16 px were slower on bread at 320x240: more list entries, more pairs)
 MODES = ("classic", "antialiased")
-BACKENDS = ("auto", "gsplat", "torch")
+BACKENDS = ("auto", "gsplat", "torch", "warp")
+WARP_DTYPES = (torch.float32, torch.float64)  # the Warp kernels' overloads
 
 
 @dataclass
 class RenderOutput:
     image: Tensor  # [H, W, 3] float in [0, 1]
     alpha: Tensor  # [H, W] accumulated opacity 1 − T
-    backend: str  # "gsplat", "torch" or "reference"
+    backend: str  # "gsplat", "torch", "warp" or "reference"
 
 
 @dataclass
@@ -135,12 +139,17 @@ def project_gaussians(
     return Projection(means2d, conics, mc[:, 2], radii, opacities, comp, cov2d)
 
 
+def _depth_order(proj: Projection) -> Tensor:  # [V] int64
+    """The visible Gaussians, nearest first (stable: ties by index)."""
+    ids = torch.nonzero(proj.visible).squeeze(1)
+    return ids[torch.sort(proj.depths[ids], stable=True).indices]
+
+
 def _tile_intersections(proj: Projection, width: int, height: int, tile: int):
     """Depth-sorted (tile, Gaussian) pairs: returns gaussian ids sorted by (tile, depth) and the
     per-tile [start, count) ranges, like gsplat's `isect_tiles` + `isect_offset_encode`."""
     tw, th = (width + tile - 1) // tile, (height + tile - 1) // tile
-    ids = torch.nonzero(proj.visible).squeeze(1)
-    ids = ids[torch.sort(proj.depths[ids], stable=True).indices]  # depth order, ties by index
+    ids = _depth_order(proj)
     m, r = proj.means2d[ids] / tile, proj.radii[ids].to(proj.means2d.dtype) / tile
     x0 = torch.floor(m[:, 0] - r[:, 0]).clamp(0, tw).long()
     x1 = torch.ceil(m[:, 0] + r[:, 0]).clamp(0, tw).long()
@@ -317,6 +326,28 @@ def _render_gsplat(means, covars, colors, opacities, camera, background, mode, e
     return render_colors[0], render_alphas[0, ..., 0]
 
 
+def _needs_grad(*tensors: Tensor) -> bool:
+    return torch.is_grad_enabled() and any(t.requires_grad for t in tensors)
+
+
+def rasterize_warp(
+    proj: Projection,
+    colors: Tensor,  # [N, 3]
+    width: int,
+    height: int,
+    background: Tensor,  # [3]
+    tile: int = TILE_CPU,  # tile edge [px]: which Gaussians a pixel visits, not how it composites them
+) -> tuple[Tensor, Tensor]:  # [H, W, 3], [H, W]
+    """`rasterize_tiles`' image on the CPU with Warp kernels (`raster_kernels`: the tile lists, then one thread per
+    pixel): forward only, float32 or float64."""
+    from .raster_kernels import composite, tile_lists  # lazy: Warp loads with the first CPU render, not on import
+
+    flat, starts, counts = tile_lists(_depth_order(proj), proj.means2d, proj.radii, width, height, tile)
+    return composite(
+        flat, starts, counts, proj.means2d, proj.conics, proj.opacities, colors, background, width, height, tile
+    )
+
+
 def render(
     means: Tensor,  # [N, 3] world positions
     covars: Tensor,  # [N, 3, 3] world covariances Σ = F Σ⁰ Fᵀ
@@ -324,7 +355,7 @@ def render(
     opacities: Tensor,  # [N] in [0, 1]
     camera: Camera,
     background=(1.0, 1.0, 1.0),  # RGB in [0, 1]
-    backend: str = "auto",  # "auto" | "gsplat" | "torch"
+    backend: str = "auto",  # "auto" | "gsplat" | "torch" | "warp"
     mode: str = "classic",  # "classic" | "antialiased"
     eps2d: float = 0.3,
     near: float = 0.01,
@@ -332,19 +363,29 @@ def render(
 ) -> RenderOutput:
     """Render N Gaussians into camera.height × camera.width; see the module docstring for the math.
 
-    `auto` picks gsplat iff the tensors are on CUDA and CUDA is available, else the torch backend
-    (which runs on any device and dtype)."""
+    `auto` picks gsplat iff the tensors are on CUDA and CUDA is available; on the CPU the Warp kernel
+    for float32/float64 tensors when no gradient is needed; else the torch backend (which runs on any
+    device and dtype, with autograd). `torch` forces the torch backend everywhere."""
     _check_mode(mode)
     if backend not in BACKENDS:
         raise RenderError(f"render: backend must be one of {BACKENDS}, got {backend!r}")
     on_cuda = means.is_cuda and torch.cuda.is_available()
+    grad = _needs_grad(means, covars, colors, opacities, camera.viewmat, camera.K)
     if backend == "auto":
-        backend = "gsplat" if on_cuda else "torch"
+        warp_ok = means.device.type == "cpu" and means.dtype in WARP_DTYPES and not grad
+        backend = "gsplat" if on_cuda else "warp" if warp_ok else "torch"
     if backend == "gsplat" and not on_cuda:
         raise RenderError(
             "render: backend='gsplat' needs CUDA tensors on a machine with a GPU; "
             "use backend='torch' (or 'auto') for CPU tensors"
         )
+    if backend == "warp" and (means.device.type != "cpu" or means.dtype not in WARP_DTYPES):
+        raise RenderError(
+            f"render: backend='warp' draws float32 or float64 CPU tensors, got {means.dtype} on {means.device}; "
+            "use backend='auto' (or 'torch')"
+        )
+    if backend == "warp" and grad:
+        raise RenderError("render: backend='warp' has no gradient; use backend='torch' (or 'auto') to differentiate")
     bg = torch.as_tensor(background, dtype=means.dtype, device=means.device).reshape(3)
     if backend == "gsplat":
         img, alpha = _render_gsplat(means, covars, colors, opacities, camera, bg, mode, eps2d, near, far)
@@ -352,7 +393,8 @@ def render(
         proj = project_gaussians(
             means, covars, camera.viewmat, camera.K, camera.width, camera.height, eps2d, near, far, mode, opacities
         )
-        img, alpha = rasterize_tiles(proj, colors, camera.width, camera.height, bg)
+        raster = rasterize_warp if backend == "warp" else rasterize_tiles
+        img, alpha = raster(proj, colors, camera.width, camera.height, bg)
     return RenderOutput(img.clamp(0.0, 1.0), alpha, backend)
 
 
