@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import contextlib
 import threading
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Optional
 
 import warp as wp
 
@@ -134,15 +134,36 @@ def device_constant(values, dtype, device):
 
 
 _pool = None
+_cpu_share: Optional[int] = None  # cores this process's kernels may split over (None: every core)
+
+
+def usable_cores() -> int:
+    """CPU cores this process may run on (its affinity mask, not the machine's count)."""
+    import os
+
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not Linux
+        return os.cpu_count() or 1
+
+
+def share_cpu(cores: Optional[int]) -> Optional[int]:
+    """Let `cpu_ranges` split a kernel over at most `cores` threads (None: the machine's cores), for a process
+    that shares the machine with other workers of one run; returns the previous share. The ranges are bitwise
+    the same result however many there are."""
+    global _cpu_share
+    before, _cpu_share = _cpu_share, cores
+    return before
 
 
 def cpu_ranges(n: int, min_chunk: int = 8192) -> list[tuple[int, int]]:
-    """Ranges that split n particles over this machine's cores for a per-particle CPU kernel (Warp runs
-    CPU kernels on one thread; a kernel with no atomics and no cross-particle reads can run as one
-    launch per range, from several threads, with bitwise the same result)."""
+    """Ranges that split n particles over this process's cores (`share_cpu`; default every core) for a
+    per-particle CPU kernel (Warp runs CPU kernels on one thread; a kernel with no atomics and no
+    cross-particle reads can run as one launch per range, from several threads, with bitwise the same result)."""
     import os
 
-    parts = max(1, min(os.cpu_count() or 1, 8, n // min_chunk))
+    cores = _cpu_share if _cpu_share is not None else (os.cpu_count() or 1)
+    parts = max(1, min(cores, 8, n // min_chunk))
     step = -(-n // parts)
     return [(a, min(n, a + step)) for a in range(0, n, step)]
 

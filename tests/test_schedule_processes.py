@@ -69,3 +69,22 @@ def test_processes_refuse_a_single_variant(capsys):
     assert cli.main(["render-sim", "bread", "--variants", "full", "--schedule", "processes"]) == 2
     err = capsys.readouterr().err
     assert "--schedule processes" in err and "one variant" in err and err.count("\n") == 1
+
+
+def test_workers_sharing_a_cpu_split_kernels_over_their_share_only(monkeypatch):
+    """Per-particle kernels split into ranges over this process's cores (`runtime.cpu_ranges`); a worker that
+    shares the CPU with others gets its share (`share_cpu`), so two workers on two cores run one range each
+    instead of four threads fighting for two cores; the share is restored afterwards."""
+    from fracture_gs import runtime
+
+    monkeypatch.setattr("os.cpu_count", lambda: 4)
+    assert len(runtime.cpu_ranges(100_000)) == 4  # every core by default
+    before = runtime.share_cpu(2)
+    try:
+        ranges = runtime.cpu_ranges(100_000)
+        assert len(ranges) == 2 and ranges[0][0] == 0 and ranges[-1][1] == 100_000
+        runtime.share_cpu(1)
+        assert runtime.cpu_ranges(100_000) == [(0, 100_000)]
+    finally:
+        assert runtime.share_cpu(before) == 1
+    assert len(runtime.cpu_ranges(100_000)) == 4

@@ -9,7 +9,6 @@ Ctrl-C or a divergence keeps every frame and metric already written.
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 from typing import Literal, Optional
 
@@ -22,6 +21,7 @@ from ..io.video import ffmpeg
 from ..pipeline import prepare_scene
 from ..profiling import phases
 from ..render.warm_up import start_gsplat_compile
+from ..runtime import usable_cores
 from ..viewer.record import start_record
 from .comparison import compose_comparison, frames_png_default
 from .context import Export, RunContext, ScheduleResult
@@ -37,14 +37,6 @@ WORKER_START_WORK = 1_000_000
 """Particle-frames a worker process must simulate to pay for its start: importing torch, Warp and the package,
 loading the kernels (about 3 s on a 2-core CPU, while the solver simulates about 5 µs of host time per
 particle-frame with its diagnostics and rendering). `auto` runs the variants in processes above it."""
-
-
-def usable_cores() -> int:
-    """CPU cores this process may run on (its affinity mask, not the machine's count)."""
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # not Linux
-        return os.cpu_count() or 1
 
 
 def auto_schedule(device: str, variants: int, particles: int, frames: int, cores: int) -> Schedule:

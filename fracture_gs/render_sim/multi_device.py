@@ -27,11 +27,13 @@ import queue
 import shutil
 import traceback
 from dataclasses import replace
+from typing import Optional
 
 import numpy as np
 import torch
 
 from ..profiling import phases
+from ..runtime import share_cpu, usable_cores
 from ..sim.providers import make_provider
 from ..sim.providers.broadcast import BroadcastProvider, FileChannel, LeaderProvider
 from ..sim.topology import save_history
@@ -41,13 +43,25 @@ from .variant import run_variant
 
 
 def _worker(
-    slot: int, ctx: RunContext, variants, leader, channel_dir, stop, results, threads: int, run, profile=False
+    slot: int,
+    ctx: RunContext,
+    variants,
+    leader,
+    channel_dir,
+    stop,
+    results,
+    threads: int,
+    run,
+    profile=False,
+    cores: Optional[int] = None,
 ) -> None:
     """One device's variants (`ctx.device`), in order (in a spawned process, or in the caller for the first
     device: then `results` is a plain queue.Queue and the frames travel in the message instead of a .npy file).
-    `profile`: a spawned worker times its phases too and sends them back last (the parent adds them up)."""
+    `profile`: a spawned worker times its phases too and sends them back last (the parent adds them up).
+    `cores`: this worker's share of a CPU that several workers split (`runtime.share_cpu`), or None."""
     local = isinstance(results, queue.Queue)
     torch.set_num_threads(threads)  # as the parent: the CPU reductions then sum in the same order
+    before = share_cpu(cores) if cores is not None else None
     if profile and not local:
         phases.enable()
     cfg, device, out_dir = ctx.cfg, ctx.device, ctx.out_dir
@@ -92,6 +106,8 @@ def _worker(
     finally:
         if profile and not local:
             results.put(("phases", device, dict(phases.seconds), dict(phases.calls)))
+        if cores is not None:
+            share_cpu(before)
 
 
 class WorkerFailed(RuntimeError):
@@ -114,11 +130,13 @@ def run_on_devices(ctx: RunContext, devices: list[str], metrics, run=run_variant
     bg = ctx.background
     on_cpu = replace(ctx, gaussians=ctx.gaussians.to("cpu"), background=bg.to("cpu") if bg is not None else None)
     threads, profile = torch.get_num_threads(), phases.enabled
+    # workers sharing one CPU split its cores: each kernel's ranges stay on its own share (bitwise the same)
+    cores = max(1, usable_cores() // len(devices)) if all(d == "cpu" for d in devices) else None
     procs = [  # the first device's variants run here, the others' in spawned processes
         mp.Process(
             target=_worker,
             args=(i, replace(on_cpu, device=devices[i]), vs, order[0], channel_dir, stop, results, threads, run)
-            + (profile,),
+            + (profile, cores),
             name=f"fgs-{devices[i]}-{i}",
             daemon=True,
         )
@@ -130,7 +148,19 @@ def run_on_devices(ctx: RunContext, devices: list[str], metrics, run=run_variant
     local: queue.Queue = queue.Queue()
     interrupted = False
     try:
-        _worker(0, replace(ctx, device=devices[0]), queues[0], order[0], channel_dir, stop, local, threads, run)
+        _worker(
+            0,
+            replace(ctx, device=devices[0]),
+            queues[0],
+            order[0],
+            channel_dir,
+            stop,
+            local,
+            threads,
+            run,
+            False,
+            cores,
+        )
     except KeyboardInterrupt:
         interrupted = True
         stop.set()
