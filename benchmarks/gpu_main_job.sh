@@ -7,6 +7,11 @@
 # Writes OUT/gpu_main_job.md (OUT defaults to runs/) and the logs beside it.
 set -uo pipefail
 dev=${1:-cuda:0}; out=${OUT:-runs}; mkdir -p "$out"
+if ! python -c "import imageio_ffmpeg" 2>/dev/null; then  # a lent machine may lack the video encoder: carry its wheel
+  whl=$(ls .whl/imageio_ffmpeg-*.whl 2>/dev/null | head -1)
+  [[ -n $whl ]] || { echo "imageio-ffmpeg is missing: pip install imageio-ffmpeg (or carry its wheel in .whl/)"; exit 2; }
+  pip install -q --no-deps --target /tmp/fgs_iio "$whl" && export PYTHONPATH=/tmp/fgs_iio${PYTHONPATH:+:$PYTHONPATH}
+fi
 report=$out/gpu_main_job.md
 now() { date +%s.%N; }
 secs() { python -c "print(f'{$2 - $1:.1f}')"; }
