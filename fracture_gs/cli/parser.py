@@ -307,7 +307,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--reuse", action="store_true", help="load runs cached in OUT/data instead of rerunning them")
     p.add_argument(
-        "--backend", choices=("auto", "gsplat", "torch"), help="renderer of the scene panels (default: the configs')"
+        "--backend",
+        choices=("auto", "gsplat", "torch", "warp"),
+        help="renderer of the scene panels (default: the configs')",
     )
     p.add_argument("--readme-only", action="store_true", help="only rewrite OUT/README.md from what OUT holds")
     _add_common_run_flags(p, "output folder (default: figures/out)")

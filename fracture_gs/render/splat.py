@@ -348,6 +348,22 @@ def rasterize_warp(
     )
 
 
+def check_backend(backend: str, device: str) -> None:
+    """Refuse, before a run prepares anything, a `render.backend` that cannot draw on `device`: gsplat draws CUDA
+    tensors only, the Warp rasterizer CPU tensors only (`render` would fail at the first frame)."""
+    on_cuda = str(device).startswith("cuda")
+    if backend == "gsplat" and not on_cuda:
+        raise RenderError(
+            f"render.backend = 'gsplat' draws on a CUDA device, but this run draws on {device}; "
+            "use 'auto' (the Warp rasterizer on the CPU) or 'torch'"
+        )
+    if backend == "warp" and on_cuda:
+        raise RenderError(
+            f"render.backend = 'warp' draws on the CPU only, but this run draws on {device}; "
+            "use 'auto' (gsplat on CUDA) or 'torch'"
+        )
+
+
 def render(
     means: Tensor,  # [N, 3] world positions
     covars: Tensor,  # [N, 3, 3] world covariances Σ = F Σ⁰ Fᵀ

@@ -20,6 +20,7 @@ from ..io.outputs import output_dir
 from ..io.video import ffmpeg
 from ..pipeline import prepare_scene
 from ..profiling import phases
+from ..render.splat import check_backend
 from ..render.warm_up import start_gsplat_compile
 from ..runtime import usable_cores
 from ..viewer.record import start_record
@@ -82,6 +83,8 @@ def run_render_sim(
     (None: on the CPU only, `comparison.frames_png_default`)."""
     if schedule not in SCHEDULES + ("auto",):
         raise ValueError(f"schedule must be 'auto', 'in_turn', 'threads' or 'processes', got {schedule!r}")
+    for d in devices if devices and len(devices) > 1 else [device]:
+        check_backend(cfg.render.backend, d)  # now, not at the first frame
     out_dir = output_dir(out_dir)
     ffmpeg()  # a missing video encoder is one sentence now, not after the scene is prepared and simulated
     if profile:
