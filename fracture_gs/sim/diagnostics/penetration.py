@@ -210,9 +210,9 @@ class _Cells:
         c = torch.stack([self.keys >> (2 * _BITS), self.keys >> _BITS, self.keys], 1) & mask  # [V, 3]
         c0 = c.min(0).values
         dims = c.max(0).values - c0 + 1  # [3]
-        small_ids = int(self.fmax.max()) < (1 << 24) and int(self.fmin.min()) > -(1 << 24)  # exact in float32
-        if int(dims.prod()) <= DENSE_CELLS and small_ids:
-            d = [int(v) for v in dims]
+        *d, fmax, fmin = torch.cat([dims, self.fmax.max()[None], self.fmin.min()[None]]).tolist()  # one host read
+        small_ids = fmax < (1 << 24) and fmin > -(1 << 24)  # exact in float32
+        if d[0] * d[1] * d[2] <= DENSE_CELLS and small_ids:
             idx = c - c0
             flat = (idx[:, 0] * d[1] + idx[:, 1]) * d[2] + idx[:, 2]  # [V] each occupied cell once
             hi = torch.full((d[0] * d[1] * d[2],), -math.inf, dtype=torch.float32, device=c.device)
