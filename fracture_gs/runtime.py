@@ -160,9 +160,7 @@ def cpu_ranges(n: int, min_chunk: int = 8192) -> list[tuple[int, int]]:
     """Ranges that split n particles over this process's cores (`share_cpu`; default every core) for a
     per-particle CPU kernel (Warp runs CPU kernels on one thread; a kernel with no atomics and no
     cross-particle reads can run as one launch per range, from several threads, with bitwise the same result)."""
-    import os
-
-    cores = _cpu_share if _cpu_share is not None else (os.cpu_count() or 1)
+    cores = _cpu_share if _cpu_share is not None else usable_cores()
     parts = max(1, min(cores, 8, n // min_chunk))
     step = -(-n // parts)
     return [(a, min(n, a + step)) for a in range(0, n, step)]

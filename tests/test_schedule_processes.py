@@ -77,7 +77,7 @@ def test_workers_sharing_a_cpu_split_kernels_over_their_share_only(monkeypatch):
     instead of four threads fighting for two cores; the share is restored afterwards."""
     from fracture_gs import runtime
 
-    monkeypatch.setattr("os.cpu_count", lambda: 4)
+    monkeypatch.setattr(runtime, "usable_cores", lambda: 4)  # a 4-core machine
     assert len(runtime.cpu_ranges(100_000)) == 4  # every core by default
     before = runtime.share_cpu(2)
     try:

@@ -17,9 +17,9 @@ from __future__ import annotations
 
 import torch
 
-_Q = 65535.0
+from .format import F16_CLIP, QUANT_STEPS, covariance_triu
+
 F16_MIN_NORMAL = 2.0**-14
-F16_CLIP = 65000.0  # the format's clip before the cast (float16's largest finite value is 65504)
 
 
 def half_exact(x: torch.Tensor) -> torch.Tensor:  # float64 [...] -> float16 [...]
@@ -45,9 +45,9 @@ def frame_body(means: torch.Tensor, cov: torch.Tensor, cov_unit: float) -> tuple
     else:
         lo = hi = torch.zeros(3, dtype=torch.float64, device=m.device)
     span = torch.where(hi > lo, hi - lo, torch.ones_like(hi))
-    q = torch.round((m - lo) / span * _Q).clamp(0, _Q).to(torch.int32)  # [N,3] in 0 … 65535
+    q = torch.round((m - lo) / span * QUANT_STEPS).clamp(0, QUANT_STEPS).to(torch.int32)  # [N,3] in 0 … 65535
     q16 = _bytes(q).view(-1, 4)[:, :2]  # [3N, 2]: each value's two low bytes, little-endian
-    c = cov.detach().reshape(-1, 9)[:, [0, 1, 2, 4, 5, 8]].to(torch.float64) / cov_unit  # [N,6]
+    c = covariance_triu(cov.detach()).to(torch.float64) / cov_unit  # [N,6]
     c = torch.nan_to_num(c, nan=0.0, posinf=0.0, neginf=0.0).clamp(-F16_CLIP, F16_CLIP)
     packed = torch.cat([_bytes(torch.cat([lo, hi]).to(torch.float32)), q16.reshape(-1), _bytes(half_exact(c))])
     host = packed.cpu().numpy().tobytes()

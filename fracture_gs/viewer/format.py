@@ -35,7 +35,10 @@ FRAME_HEADER, EPOCH_HEADER = 48, 16
 DRAWN, BAND, INTERFACE, INTERIOR = 1, 2, 4, 8
 """Bits of an epoch's per-Gaussian flags."""
 
-_Q = 65535.0
+QUANT_STEPS = 65535.0
+"""A centre is stored as round(QUANT_STEPS · (x − lo) / (hi − lo)), a uint16."""
+F16_CLIP = 65000.0
+"""Covariances (in cov_unit) are clipped to ±F16_CLIP before the float16 cast (float16's largest is 65504)."""
 
 
 def frame_bytes(n: int) -> int:
@@ -48,8 +51,8 @@ def epoch_bytes(n: int) -> int:
     return EPOCH_HEADER + 6 * n
 
 
-def covariance_triu(cov: np.ndarray) -> np.ndarray:  # [N,3,3] -> [N,6]
-    """The upper triangle (xx, xy, xz, yy, yz, zz) of symmetric 3×3 matrices."""
+def covariance_triu(cov):  # [N,3,3] -> [N,6], numpy array or torch tensor
+    """The upper triangle (xx, xy, xz, yy, yz, zz) of symmetric 3×3 matrices (numpy or torch: the same indexing)."""
     return cov.reshape(-1, 9)[:, [0, 1, 2, 4, 5, 8]]
 
 
@@ -72,9 +75,9 @@ def encode_frame(frame: int, epoch: int, time: float, means: np.ndarray, cov6: n
     lo = means.min(0) if len(means) else np.zeros(3)
     hi = means.max(0) if len(means) else np.zeros(3)
     span = np.where(hi > lo, hi - lo, 1.0)
-    q = np.rint((means - lo) / span * _Q).clip(0, _Q).astype("<u2")  # [N,3]
+    q = np.rint((means - lo) / span * QUANT_STEPS).clip(0, QUANT_STEPS).astype("<u2")  # [N,3]
     c = np.nan_to_num(np.asarray(cov6, np.float64) / cov_unit, nan=0.0, posinf=0.0, neginf=0.0)
-    c16 = c.clip(-65000.0, 65000.0).astype("<f2")  # [N,6]
+    c16 = c.clip(-F16_CLIP, F16_CLIP).astype("<f2")  # [N,6]
     box = np.concatenate([lo, hi]).astype("<f4").tobytes()
     return frame_header(frame, epoch, time, box) + q.tobytes() + c16.tobytes()
 
@@ -90,7 +93,7 @@ def decode_frame(buf: bytes, n: int) -> dict:
     q = np.frombuffer(buf, "<u2", 3 * n, FRAME_HEADER).reshape(n, 3)
     cov = np.frombuffer(buf, "<f2", 6 * n, FRAME_HEADER + 6 * n).reshape(n, 6)
     span = np.where(hi > lo, hi - lo, 0.0)
-    means = (lo + q * (span / _Q)).astype(np.float32)
+    means = (lo + q * (span / QUANT_STEPS)).astype(np.float32)
     return {"frame": int(frame), "epoch": int(epoch), "time": time, "means": means, "cov": cov, "box": (lo, hi)}
 
 

@@ -78,7 +78,7 @@ def frame_buffer(
     idx = idx[::k]
     cov = frame.cov[idx]
     if k > 1:
-        cov = (cov.astype(np.float32) * k ** (2 / 3)).clip(-65000, 65000).astype(np.float16)
+        cov = (cov.astype(np.float32) * k ** (2 / 3)).clip(-fmt.F16_CLIP, fmt.F16_CLIP).astype(np.float16)
     rgb = colors(frame, mode, highlight)[idx]
     return pack(frame.means[idx] / np.float32(scale), cov, rgb, opacity[idx])
 

@@ -56,7 +56,7 @@ def start_record(out_dir, cfg, gaussians, background, variants) -> Path:
     if background is not None and len(background):
         static["background_means"] = _numpy(background.means).astype(np.float32)
         bcov = fmt.covariance_triu(_numpy(background.covariances()).astype(np.float64)) / cov_unit
-        static["background_cov"] = np.clip(bcov, -65000, 65000).astype(np.float16)
+        static["background_cov"] = np.clip(bcov, -fmt.F16_CLIP, fmt.F16_CLIP).astype(np.float16)
         static["background_rgb"] = np.rint(dc_rgb(background.sh) * 255).astype(np.uint8)
         static["background_opacity"] = np.rint(np.clip(_numpy(background.opacities), 0, 1) * 255).astype(np.uint8)
     np.savez(folder / fmt.STATIC, **static)
@@ -125,8 +125,7 @@ class FrameRecorder:
         self.epochs = open(folder / f"{variant}{fmt.EPOCHS_SUFFIX}", "ab")
         self.epoch = -1
         self._last_topology: Optional[tuple] = None  # (fragment, band) tensors of the last frame
-        self._interface = np.zeros(self.n, bool)
-        self._interface_dev = None
+        self._interface = None  # [N] bool on the frames' device: band Gaussians facing another fragment
         self._interior_dev = None
         self._last_epoch = None  # the last epoch body, a uint8 tensor on the frames' device
 
@@ -143,15 +142,15 @@ class FrameRecorder:
             torch.equal(fragment, self._last_topology[0]) and torch.equal(band, self._last_topology[1])
         ):
             frag_host, band_host = _numpy(fragment).astype(np.int64), _numpy(band)
-            self._interface = interface_flags(_numpy(out.means).astype(np.float32), frag_host, band_host, self.radius)
-            self._interface_dev = torch.from_numpy(self._interface).to(fragment.device)
+            faces = interface_flags(_numpy(out.means).astype(np.float32), frag_host, band_host, self.radius)
+            self._interface = torch.from_numpy(faces).to(fragment.device)
             self._last_topology = (fragment.clone(), band.clone())
         if self._interior_dev is None or self._interior_dev.device != fragment.device:
             self._interior_dev = torch.from_numpy(self.interior.astype(bool)).to(fragment.device)
         flags = (
             drawn.to(torch.uint8) * fmt.DRAWN
             + band.to(torch.uint8) * fmt.BAND
-            + self._interface_dev.to(torch.uint8) * fmt.INTERFACE
+            + self._interface.to(torch.uint8) * fmt.INTERFACE
             + self._interior_dev.to(torch.uint8) * fmt.INTERIOR
         )
         body = epoch_body(rgb, flags, fragment)
