@@ -26,8 +26,8 @@ from __future__ import annotations
 import queue
 import shutil
 import traceback
-from dataclasses import replace
-from typing import Optional
+from dataclasses import dataclass, replace
+from typing import Callable, Optional
 
 import numpy as np
 import torch
@@ -42,25 +42,25 @@ from .painter import Painter
 from .variant import run_variant
 
 
-def _worker(
-    slot: int,
-    ctx: RunContext,
-    variants,
-    leader,
-    channel_dir,
-    stop,
-    results,
-    threads: int,
-    run,
-    profile=False,
-    cores: Optional[int] = None,
-) -> None:
+@dataclass(frozen=True)
+class WorkerSetup:
+    """How every worker of one run is set up, as the parent is: `threads` torch threads (the CPU reductions then
+    sum in the same order), `run` the variant runner, `profile` whether a spawned worker times its phases (sent
+    back last, the parent adds them up), `cores` its share of a CPU that several workers split
+    (`runtime.share_cpu`), or None."""
+
+    threads: int
+    run: Callable
+    profile: bool = False
+    cores: Optional[int] = None
+
+
+def _worker(slot: int, ctx: RunContext, variants, leader, channel_dir, stop, results, setup: WorkerSetup) -> None:
     """One device's variants (`ctx.device`), in order (in a spawned process, or in the caller for the first
-    device: then `results` is a plain queue.Queue and the frames travel in the message instead of a .npy file).
-    `profile`: a spawned worker times its phases too and sends them back last (the parent adds them up).
-    `cores`: this worker's share of a CPU that several workers split (`runtime.share_cpu`), or None."""
+    device: then `results` is a plain queue.Queue and the frames travel in the message instead of a .npy file)."""
     local = isinstance(results, queue.Queue)
-    torch.set_num_threads(threads)  # as the parent: the CPU reductions then sum in the same order
+    run, profile, cores = setup.run, setup.profile, setup.cores
+    torch.set_num_threads(setup.threads)
     before = share_cpu(cores) if cores is not None else None
     if profile and not local:
         phases.enable()
@@ -129,14 +129,13 @@ def run_on_devices(ctx: RunContext, devices: list[str], metrics, run=run_variant
         queues[i % len(devices)].append(v)
     bg = ctx.background
     on_cpu = replace(ctx, gaussians=ctx.gaussians.to("cpu"), background=bg.to("cpu") if bg is not None else None)
-    threads, profile = torch.get_num_threads(), phases.enabled
     # workers sharing one CPU split its cores: each kernel's ranges stay on its own share (bitwise the same)
     cores = max(1, usable_cores() // len(devices)) if all(d == "cpu" for d in devices) else None
+    setup = WorkerSetup(torch.get_num_threads(), run, phases.enabled, cores)
     procs = [  # the first device's variants run here, the others' in spawned processes
         mp.Process(
             target=_worker,
-            args=(i, replace(on_cpu, device=devices[i]), vs, order[0], channel_dir, stop, results, threads, run)
-            + (profile, cores),
+            args=(i, replace(on_cpu, device=devices[i]), vs, order[0], channel_dir, stop, results, setup),
             name=f"fgs-{devices[i]}-{i}",
             daemon=True,
         )
@@ -148,19 +147,7 @@ def run_on_devices(ctx: RunContext, devices: list[str], metrics, run=run_variant
     local: queue.Queue = queue.Queue()
     interrupted = False
     try:
-        _worker(
-            0,
-            replace(ctx, device=devices[0]),
-            queues[0],
-            order[0],
-            channel_dir,
-            stop,
-            local,
-            threads,
-            run,
-            False,
-            cores,
-        )
+        _worker(0, replace(ctx, device=devices[0]), queues[0], order[0], channel_dir, stop, local, setup)
     except KeyboardInterrupt:
         interrupted = True
         stop.set()
