@@ -8,6 +8,7 @@ Ctrl-C or a divergence keeps every frame and metric already written.
 
 from __future__ import annotations
 
+import contextlib
 import json
 from pathlib import Path
 from typing import Literal, Optional
@@ -93,29 +94,32 @@ def run_render_sim(
         # gsplat's one-time CUDA build (about a minute on a fresh machine) runs beside the set-up and the first
         # frames; the first render waits for it (`render.warm_up`). Nothing starts on the CPU or once it is built.
         start_gsplat_compile(device, cancel=stop, show=progress, position=len(variants) if schedule == "threads" else 1)
-    with phases.section("setup"):
-        scene = prepare_scene(cfg, device)
-        cfg, gs = scene.cfg, scene.gaussians
-        for note in scene.notes:
-            tqdm.write(f"{cfg.name}: {note}")
-        painter = Painter(gs, cfg, device, background=scene.background)
-    if schedule == "auto":
-        schedule = auto_schedule(device, len(variants), len(gs), cfg.frames, usable_cores())
-    (out_dir / "config.toml").write_text(dump_config(cfg))
-    ctx = RunContext(
-        cfg=cfg,
-        gaussians=gs,
-        background=scene.background,
-        device=device,
-        out_dir=out_dir,
-        variants=tuple(variants),
-        order=tuple(sorted(variants, key=lambda v: v == "baseline")),  # a variant with a provider leads
-        export=Export(int(export_ply), scene, export_format) if export_ply else None,
-        view=start_record(out_dir, cfg, gs, scene.background, variants) if record_view else None,
-        frames_png=frames_png_default(device) if frames_png is None else bool(frames_png),
-    )
-    with open(out_dir / "metrics.jsonl", "w") as metrics_file:
-        result = _schedule(ctx, painter, metrics_file, devices, schedule, stop)
+    # worker processes for a CPU run are forked now, before the scene is prepared: later, with torch's OpenMP
+    # threads started, a forked child could hang (`forked`); a run that needs none ends them at once
+    with _forked_workers(device, devices, schedule, len(variants)) as workers:
+        with phases.section("setup"):
+            scene = prepare_scene(cfg, device)
+            cfg, gs = scene.cfg, scene.gaussians
+            for note in scene.notes:
+                tqdm.write(f"{cfg.name}: {note}")
+            painter = Painter(gs, cfg, device, background=scene.background)
+        if schedule == "auto":
+            schedule = auto_schedule(device, len(variants), len(gs), cfg.frames, usable_cores())
+        (out_dir / "config.toml").write_text(dump_config(cfg))
+        ctx = RunContext(
+            cfg=cfg,
+            gaussians=gs,
+            background=scene.background,
+            device=device,
+            out_dir=out_dir,
+            variants=tuple(variants),
+            order=tuple(sorted(variants, key=lambda v: v == "baseline")),  # a variant with a provider leads
+            export=Export(int(export_ply), scene, export_format) if export_ply else None,
+            view=start_record(out_dir, cfg, gs, scene.background, variants) if record_view else None,
+            frames_png=frames_png_default(device) if frames_png is None else bool(frames_png),
+        )
+        with open(out_dir / "metrics.jsonl", "w") as metrics_file:
+            result = _schedule(ctx, painter, metrics_file, devices, schedule, stop, workers)
     _finish_comparison(ctx, result)
     summary = RunSummary(
         name=cfg.name,
@@ -145,8 +149,39 @@ def run_render_sim(
     return summary
 
 
-def _schedule(ctx: RunContext, painter: Painter, metrics_file, devices, schedule: str, stop) -> ScheduleResult:
-    """The variants on several devices, in threads, or in turn."""
+def cpu_slots(variants: int, cores: int, forked: bool) -> int:
+    """Processes (this one included) that run the variants of one CPU run. Forked workers cost nothing to start,
+    so each variant gets its own, up to two per core: the system shares the cores among them, and three equal
+    variants on two cores all end at 1.5 variants' time instead of 2. A spawned worker imports torch and Warp
+    anew (seconds of a core): one per core."""
+    return max(1, min(variants, 2 * cores if forked else cores))
+
+
+@contextlib.contextmanager
+def _forked_workers(device: str, devices, schedule: str, variants: int):
+    """Worker processes forked now for a CPU run that may take the processes schedule (`forked.ForkedWorkers`), or
+    None; on the way out every one still running is stopped (the run failed, or was interrupted)."""
+    cores = usable_cores()
+    if device != "cpu" or (devices and len(devices) > 1) or schedule not in ("auto", "processes") or variants < 2:
+        yield None
+        return
+    from .forked import ForkedWorkers, can_fork
+
+    if cores < 2 or not can_fork():
+        yield None
+        return
+    workers = ForkedWorkers(cpu_slots(variants, cores, forked=True) - 1)
+    try:
+        yield workers
+    finally:
+        workers.terminate()
+
+
+def _schedule(
+    ctx: RunContext, painter: Painter, metrics_file, devices, schedule: str, stop, workers=None
+) -> ScheduleResult:
+    """The variants on several devices, in worker processes, in threads, or in turn. `workers`: processes forked
+    at the run's start for the processes schedule; any other schedule ends them first."""
     if devices and len(devices) > 1:
         from .multi_device import run_on_devices
 
@@ -154,7 +189,10 @@ def _schedule(ctx: RunContext, painter: Painter, metrics_file, devices, schedule
     if schedule == "processes" and len(ctx.order) > 1:
         from .multi_device import run_on_devices
 
-        return run_on_devices(ctx, [ctx.device] * min(len(ctx.order), usable_cores()), metrics_file)
+        slots = cpu_slots(len(ctx.order), usable_cores(), forked=workers is not None)
+        return run_on_devices(ctx, [ctx.device] * slots, metrics_file, workers=workers)
+    if workers is not None:
+        workers.close()
     if schedule == "threads" and len(ctx.order) > 1:
         from .threads import run_in_threads
 

@@ -31,6 +31,7 @@ from typing import Callable, Optional
 
 import numpy as np
 import torch
+from tqdm import tqdm
 
 from ..profiling import phases
 from ..runtime import share_cpu, usable_cores
@@ -38,6 +39,7 @@ from ..sim.providers import make_provider
 from ..sim.providers.broadcast import BroadcastProvider, FileChannel, LeaderProvider
 from ..sim.topology import save_history
 from .context import RunContext, ScheduleResult
+from .forked import READY_SECONDS, ForkedWorkers
 from .painter import Painter
 from .variant import run_variant
 
@@ -114,14 +116,15 @@ class WorkerFailed(RuntimeError):
     """A worker process of `render-sim --devices` failed; the message carries its error and traceback."""
 
 
-def run_on_devices(ctx: RunContext, devices: list[str], metrics, run=run_variant) -> ScheduleResult:
+def run_on_devices(
+    ctx: RunContext, devices: list[str], metrics, run=run_variant, workers: Optional[ForkedWorkers] = None
+) -> ScheduleResult:
     """Run `ctx.order` (leader first) over `devices` (one worker process per entry; an entry may repeat); the
     variants' metrics lines are appended to `metrics` in that order, and the leader's history to topology.npz.
     `run` runs one variant (`variant.run_variant`; a test passes a stand-in defined at module level, which the
-    spawned workers import)."""
+    spawned workers import). `workers`: processes forked at the run's start (`forked.ForkedWorkers`, the CPU's
+    processes schedule), used instead of spawning new ones."""
     order, out_dir = list(ctx.order), ctx.out_dir
-    mp = torch.multiprocessing.get_context("spawn")
-    stop, results = mp.Event(), mp.Queue()
     channel_dir = out_dir / ".topology_channel"
     shutil.rmtree(channel_dir, ignore_errors=True)
     queues: list[list[str]] = [[] for _ in devices]
@@ -132,18 +135,34 @@ def run_on_devices(ctx: RunContext, devices: list[str], metrics, run=run_variant
     # workers sharing one CPU split its cores: each kernel's ranges stay on its own share (bitwise the same)
     cores = max(1, usable_cores() // len(devices)) if all(d == "cpu" for d in devices) else None
     setup = WorkerSetup(torch.get_num_threads(), run, phases.enabled, cores)
-    procs = [  # the first device's variants run here, the others' in spawned processes
-        mp.Process(
-            target=_worker,
-            args=(i, replace(on_cpu, device=devices[i]), vs, order[0], channel_dir, stop, results, setup),
-            name=f"fgs-{devices[i]}-{i}",
-            daemon=True,
-        )
+    jobs = [  # the first device's variants run here, the others' in worker processes
+        (i, replace(on_cpu, device=devices[i]), vs, order[0], channel_dir, setup)
         for i, vs in enumerate(queues)
         if vs and i > 0
     ]
-    for p in procs:
-        p.start()
+    procs = workers.start(jobs) if workers is not None else None
+    if procs is not None:
+        stop, results = workers.stop, workers.results
+        tqdm.write(f"render-sim: {len(order)} variants in {len(procs) + 1} processes (forked at the start)")
+    else:
+        if workers is not None:
+            tqdm.write(
+                f"render-sim: the forked workers did not start within {READY_SECONDS:.0f} s (OpenMP in a forked "
+                "process); spawning fresh ones, which import torch and Warp again"
+            )
+        mp = torch.multiprocessing.get_context("spawn")
+        stop, results = mp.Event(), mp.Queue()
+        procs = [
+            mp.Process(
+                target=_worker,
+                args=(*job[:5], stop, results, job[5]),
+                name=f"fgs-{job[1].device}-{job[0]}",
+                daemon=True,
+            )
+            for job in jobs
+        ]
+        for p in procs:
+            p.start()
     local: queue.Queue = queue.Queue()
     interrupted = False
     try:

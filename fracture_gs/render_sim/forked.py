@@ -1,0 +1,112 @@
+"""Worker processes for `render-sim`'s processes schedule on a CPU, forked at the run's start.
+
+A spawned worker starts a new interpreter: it imports torch, Warp and the package again (about 3.5 s of one
+core on a 2-core machine, as long as the parent's own imports), which a CPU run of a few tens of seconds
+cannot spare. A forked worker has them already. Forking is safe only while the parent has not yet run a
+parallel torch op: GNU OpenMP's thread pool does not survive a fork, and a child that enters a parallel region
+the parent had used hangs there. So `ForkedWorkers` forks at the start of `run_render_sim`, before the scene is
+prepared, and each child waits for its job (the prepared `RunContext` and its variants, sent through a queue).
+
+Each child checks first that OpenMP works in it (one parallel reduction) and says so; the parent waits for every
+child's word (`READY_SECONDS`) before it runs its own variants. A child that does not answer is taken as a
+broken fork: the workers are stopped and the schedule spawns fresh ones instead (`multi_device`), so the run
+goes on, slower, and says why.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import queue
+import signal
+import sys
+from typing import Optional
+
+import torch
+
+READY_SECONDS = 10.0
+"""How long the parent waits for every forked child to prove OpenMP works in it before it gives up on them (a
+healthy child answers within milliseconds of its job: the job's tensors travel in shared memory)."""
+
+
+def can_fork() -> bool:
+    """Whether this platform forks (Linux does; macOS's default and Windows spawn)."""
+    return "fork" in multiprocessing.get_all_start_methods() and sys.platform.startswith("linux")
+
+
+def _child(jobs, ready, stop, results) -> None:
+    """A forked worker: wait for a job, prove OpenMP works here, then run `multi_device._worker` on it."""
+    signal.signal(signal.SIGINT, signal.default_int_handler)  # not the parent's handler, which sets its own event
+    try:
+        job = jobs.get()
+        if job is None:  # the run chose another schedule
+            return
+        slot, ctx, variants, leader, channel_dir, setup = job
+        torch.set_num_threads(setup.threads)
+        torch.ones(1 << 16, dtype=torch.float64).sum()  # a parallel region: hangs here if the fork broke OpenMP
+        ready.put(slot)
+    except KeyboardInterrupt:  # Ctrl-C before the run began: the parent reports it
+        return
+    from .multi_device import _worker
+
+    _worker(slot, ctx, variants, leader, channel_dir, stop, results, setup)
+
+
+class ForkedWorkers:
+    """`n` worker processes forked now, each waiting for one job (`start`); `close` ends the unused ones. The
+    `stop` event and `results` queue are the ones `multi_device.run_on_devices` reads."""
+
+    def __init__(self, n: int):
+        mp = torch.multiprocessing.get_context("fork")
+        self.stop, self.results, self.ready = mp.Event(), mp.Queue(), mp.Queue()
+        self.jobs = [mp.Queue() for _ in range(n)]
+        sys.stdout.flush()  # a child flushes its copy of unwritten output at exit: write it once, now
+        sys.stderr.flush()
+        self.procs = [
+            mp.Process(
+                target=_child, args=(q, self.ready, self.stop, self.results), name=f"fgs-cpu-{i + 1}", daemon=True
+            )
+            for i, q in enumerate(self.jobs)
+        ]
+        for p in self.procs:
+            p.start()
+        self.used: list = []
+
+    def __len__(self) -> int:
+        return len(self.procs)
+
+    def start(self, jobs: list[tuple]) -> Optional[list]:
+        """Hand each job (slot, ctx, variants, leader, channel_dir, setup) to a child; the others end. Returns the
+        children running them once each has proved OpenMP works in it, or None if one did not within
+        `READY_SECONDS` (then every child is stopped and the caller spawns workers instead)."""
+        if len(jobs) > len(self.procs):
+            raise ValueError(f"{len(jobs)} jobs for {len(self.procs)} forked workers")
+        for q, job in zip(self.jobs, jobs):
+            q.put(job)
+        self.used = self.procs[: len(jobs)]
+        self.close()
+        waiting = {job[0] for job in jobs}
+        try:
+            while waiting:
+                waiting.discard(self.ready.get(timeout=READY_SECONDS))
+        except queue.Empty:
+            self.terminate()
+            return None
+        return self.used
+
+    def close(self) -> None:
+        """End the children that got no job (they exit at once)."""
+        for q, p in zip(self.jobs, self.procs):
+            if p not in self.used:
+                q.put(None)
+        for p in self.procs:
+            if p not in self.used:
+                p.join(timeout=5)
+
+    def terminate(self) -> None:
+        """Stop every child now (a broken fork, or the run failed before it handed out its jobs)."""
+        for p in self.procs:
+            if p.is_alive():
+                p.terminate()
+        for p in self.procs:
+            p.join(timeout=5)
+        self.used = []

@@ -1,0 +1,111 @@
+"""Worker processes forked at a CPU run's start (`render_sim.forked`, the processes schedule).
+
+A forked worker skips the seconds a spawned one spends importing torch and Warp again, so on a CPU each variant
+gets its own process (`job.cpu_slots`). A fork is only safe before the parent's OpenMP threads exist: each child
+proves OpenMP works in it before the parent counts on it, and a child that does not answer in time makes the run
+spawn fresh workers instead of hanging.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import time
+
+import pytest
+import torch
+
+from fracture_gs.render_sim import forked
+from fracture_gs.render_sim.job import cpu_slots
+from fracture_gs.render_sim.multi_device import WorkerSetup
+
+from runutil import metrics_rows
+
+
+@pytest.mark.parametrize(
+    "variants, cores, forked_, expected",
+    [
+        (3, 2, True, 3),  # the README's main job: each variant its own process, 1.5 variants' time on 2 cores
+        (3, 2, False, 2),  # spawned workers import torch again: one per core
+        (5, 2, True, 4),  # at most two per core
+        (2, 16, True, 2),  # never more than the variants
+        (1, 4, True, 1),
+        (3, 1, False, 1),
+    ],
+)
+def test_cpu_slots_give_forked_workers_one_variant_each_up_to_two_per_core(variants, cores, forked_, expected):
+    """Processes for a CPU run's variants: forked ones (free to start) one per variant up to two per core; spawned
+    ones (an import each) one per core; never more than the variants and at least the caller."""
+    assert cpu_slots(variants, cores, forked_) == expected
+
+
+def _never_ready(jobs, ready, stop, results):  # a child whose fork broke OpenMP: it takes its job and hangs
+    jobs.get()
+    time.sleep(60)
+
+
+def test_a_child_that_does_not_prove_openmp_in_time_is_stopped(monkeypatch):
+    """A forked child that does not report within READY_SECONDS (a broken OpenMP after the fork hangs it) makes
+    `start` give up: it returns None, so the caller spawns workers, and no child is left running."""
+    monkeypatch.setattr(forked, "_child", _never_ready)
+    monkeypatch.setattr(forked, "READY_SECONDS", 0.5)
+    workers = forked.ForkedWorkers(2)
+    t0 = time.perf_counter()
+    setup = WorkerSetup(threads=1, run=None)
+    assert workers.start([(1, None, [], None, None, setup)]) is None
+    assert time.perf_counter() - t0 < 10
+    assert not any(p.is_alive() for p in workers.procs)
+
+
+def test_children_without_a_job_end_at_once():
+    """A run that does not take the processes schedule (`auto` chose in turn) ends its forked children: `close`
+    leaves none running."""
+    workers = forked.ForkedWorkers(2)
+    workers.close()
+    assert not any(p.is_alive() for p in workers.procs)
+    assert all(p.exitcode == 0 for p in workers.procs)
+
+
+def test_a_healthy_child_reports_ready_with_the_parents_thread_count():
+    """Forked before any parallel torch op (a fresh interpreter), a child runs a parallel reduction on the
+    parent's thread count and reports in time: `start` returns the child."""
+    code = (
+        "import torch\n"
+        "from fracture_gs.render_sim import forked\n"
+        "from fracture_gs.render_sim.multi_device import WorkerSetup\n"
+        "def probe(jobs, ready, stop, results):  # the real child's first steps, then its thread count\n"
+        "    slot, *_, setup = jobs.get()\n"
+        "    torch.set_num_threads(setup.threads)\n"
+        "    torch.ones(1 << 16, dtype=torch.float64).sum()\n"
+        "    ready.put(slot)\n"
+        "    results.put(('threads', torch.get_num_threads()))\n"
+        "forked._child = probe\n"
+        "w = forked.ForkedWorkers(1)\n"
+        "procs = w.start([(1, None, [], None, None, WorkerSetup(threads=2, run=None))])\n"
+        "print(procs is not None, w.results.get(timeout=10))\n"
+        "for p in procs or []: p.join(10)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split("\n")[-2] == "True ('threads', 2)"
+
+
+@pytest.mark.slow
+def test_the_cli_forks_its_workers_and_gives_the_in_turn_run(tmp_path):
+    """`fracture-gs render-sim` on a CPU with the processes schedule forks one worker per variant beyond the first
+    (it says so) and writes the same metrics, byte for byte, as the same run in turn."""
+    base = [sys.executable, "-m", "fracture_gs.cli", "render-sim", "bread", "--device", "cpu", "--frames", "12"]
+    base += ["--particles", "2500", "--resolution", "64x48", "--no-view-record"]
+    runs = {}
+    for schedule in ("processes", "in-turn"):
+        out = subprocess.run(
+            base + ["--schedule", schedule, "--out", str(tmp_path / schedule)], capture_output=True, text=True
+        )
+        assert out.returncode == 0, out.stderr[-2000:]
+        runs[schedule] = out.stdout + out.stderr
+    assert "3 variants in 3 processes (forked at the start)" in runs["processes"]
+    assert "spawning" not in runs["processes"]
+    assert metrics_rows(tmp_path / "processes") == metrics_rows(tmp_path / "in-turn")
+    latches = [json.loads((tmp_path / s / "summary.json").read_text())["variants"] for s in ("processes", "in-turn")]
+    assert [v["latch"] for v in latches[0]] == [v["latch"] for v in latches[1]]
