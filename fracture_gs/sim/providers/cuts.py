@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import numpy as np
 import torch
-from scipy import ndimage
 
 _STRUCTURE = np.ones((3, 3, 3), dtype=bool)  # 26-connectivity
 
@@ -82,6 +81,8 @@ def split_components(
     frag = fragment.cpu().numpy().astype(np.int64)
     out = frag.copy()
     next_id = int(frag.max()) + 1
+    from scipy import ndimage  # here, not at import: scipy.ndimage takes 0.15–0.4 s to load, an event runs once
+
     parents, children = [], []
     for f in np.unique(frag):
         idx = np.nonzero(frag == f)[0]
