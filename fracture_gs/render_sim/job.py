@@ -36,9 +36,11 @@ from .variant import json_default
 SCHEDULES = ("in_turn", "threads", "processes")
 Schedule = Literal["auto", "in_turn", "threads", "processes"]
 WORKER_START_WORK = 1_000_000
-"""Particle-frames a worker process must simulate to pay for its start: importing torch, Warp and the package,
-loading the kernels (about 3 s on a 2-core CPU, while the solver simulates about 5 µs of host time per
-particle-frame with its diagnostics and rendering). `auto` runs the variants in processes above it."""
+"""Particle-frames a worker process must simulate to pay for its start: a spawned one imports torch, Warp and the
+package and loads the kernels (about 3 s on a 2-core CPU, while the solver simulates about 5 µs of host time per
+particle-frame with its diagnostics and rendering). A forked one (`forked`, the CLI's) starts in milliseconds but
+may fall back to spawning; below this a run stays in one process, which also keeps short runs and tests simple.
+`auto` runs the variants in processes above it."""
 
 
 def auto_schedule(device: str, variants: int, particles: int, frames: int, cores: int) -> Schedule:
