@@ -400,6 +400,8 @@ def recorders(monkeypatch, tmp_path):
     monkeypatch.chdir(tmp_path)
     monkeypatch.delenv("FRACTURE_GS_DEBUG", raising=False)
     (tmp_path / "saved.json").write_text("{}")
+    (tmp_path / "figures" / "out").mkdir(parents=True)
+    (tmp_path / "figures" / "out" / "summary.json").write_text("{}")  # what --readme-only rewrites README.md from
     from test_bad_input_api import SPZ
 
     spz = SPZ.as_posix()

@@ -129,7 +129,7 @@ def resolve(cfg: SceneConfig, device: str = "cpu") -> Capture:
             plan.note = f"{plan.note} (capture.load = 'auto' chose {kind}: {why}; --load sets it)"
         apply_load(cfg, plan)
     notes.append(plan.note)
-    cap.load = "none"  # written out as boundaries: a rerun of this config must not add them again
+    cap.load, cap.load_speed = "none", 0.0  # written out as boundaries: a rerun must not add them again
     room_lo, room_hi = _room(cap.size, lo, hi, plan, duration)
     if cfg.sim.grid == "auto":
         _grid(cfg, room_lo, room_hi, dx)
@@ -187,6 +187,11 @@ def _above_ground(means: torch.Tensor, up: torch.Tensor, cap, notes: list) -> to
     if cap.ground_level is None:
         return torch.ones(len(means), dtype=torch.bool)
     above = means.to(torch.float64) @ (up.to(torch.float64) / up.norm()) > cap.ground_level
+    if not bool(above.any()):
+        raise SceneError(
+            f"capture.ground_level = {cap.ground_level:g} lies above all {len(means)} Gaussians (along the up axis), "
+            'so nothing is left to simulate; lower it, or remove it (capture.ground = "auto" finds the ground).'
+        )
     notes.append(
         f"ground: a flat layer under the object ({int((~above).sum())} Gaussians up to {cap.ground_level:.4g} along "
         'the up axis) is kept as a static background and the floor stands on it (capture.ground = "none" keeps it)'
