@@ -120,9 +120,6 @@ def view(**changes) -> str:
 
 CAMERA_PROBES = [
     (view().replace('"fx": 500.0', '"fx": 1' + "0" * 400), "fx"),  # an integer no float holds
-    (view(fy=1e-9), "fy"),  # a field of view of 180°
-    (view(fx=1e300), "fx"),  # a field of view of 0°
-    (view(width=1, height=100_000), "width"),  # a column of pixels
     (view(position=[1e300, 0.0, 0.0]), "position"),
     ("[" * 100_000 + "]" * 100_000, "nest"),
 ]
@@ -130,10 +127,9 @@ CAMERA_PROBES = [
 
 @pytest.mark.parametrize("text, key", CAMERA_PROBES, ids=[k for _, k in CAMERA_PROBES])
 def test_a_camera_value_no_trainer_writes_is_a_scene_error(tmp_path, text, key):
-    """Rule: a view whose numbers overflow a float (a 400-digit integer: OverflowError before), whose focal
-    length gives a field of view outside 0.1°–179° or whose image is over 10:1, a centre past 1e9 scene units,
-    or a file nested too deeply for the JSON parser (RecursionError before), is one SceneError naming the
-    file and the key."""
+    """Rule: a view whose numbers overflow a float (a 400-digit integer: OverflowError before), a centre past
+    1e9 scene units, or a file nested too deeply for the JSON parser (RecursionError before), is one SceneError
+    naming the file and the key."""
     path = cameras(tmp_path, text)
     with pytest.raises(SceneError) as info:
         read_cameras(path)
@@ -141,13 +137,43 @@ def test_a_camera_value_no_trainer_writes_is_a_scene_error(tmp_path, text, key):
     assert msg.startswith(f"{path}: ") and key in msg
 
 
-def test_a_cameras_json_with_a_bom_and_an_ordinary_lens_loads(tmp_path):
-    """Rule: a UTF-8 byte-order mark (Windows editors write one) is not an error, as for configs, and a
-    view at the edges of the new ranges (4:1 image, 150° field of view) loads with its values."""
-    wide = 320 / (2 * 3.7320508)  # tan(75°) ≈ 3.732: a 150° field of view across 320 px
-    path = cameras(tmp_path, b"\xef\xbb\xbf" + view(width=320, height=80, fx=wide, fy=40.0).encode())
-    (cam,) = read_cameras(path)
-    assert (cam.width, cam.height, cam.fx) == (320, 80, wide)
+def test_a_cameras_json_with_a_bom_loads(tmp_path):
+    """Rule: a UTF-8 byte-order mark (Windows editors write one) is not an error, as for configs."""
+    (cam,) = read_cameras(cameras(tmp_path, b"\xef\xbb\xbf" + view(fx=321.5).encode()))
+    assert (cam.width, cam.fx) == (640, 321.5)
+
+
+TRAINER_PROBES = [
+    ({"fy": 1e-9}, "fy"),  # a field of view of 180°: was "render.camera.fov_deg is outside", naming no file
+    ({"fx": 1e300}, "fx"),  # a field of view of 0°
+    ({"width": 1, "height": 100_000}, "width"),  # a column of pixels: was "render.height = 64000000"
+]
+
+
+@pytest.mark.parametrize("changes, key", TRAINER_PROBES, ids=[k for _, k in TRAINER_PROBES])
+def test_a_trainer_view_the_renderer_cannot_draw_names_the_view(tmp_path, small_ply, changes, key):
+    """Rule: capture.camera = "trainer" with a view whose focal length gives a field of view outside 0.1°–179°
+    or whose image is over 10:1 is a SceneError naming cameras.json, the view and the key, not a ConfigError on
+    a derived render.* key the user never wrote."""
+    path = cameras(tmp_path, json.dumps([GOOD, {**GOOD, **changes}]))
+    cfg = config_from_dict(capture_doc(str(small_ply), up="-y", camera="trainer", view=1, cameras_json=str(path)))
+    with pytest.raises(SceneError) as info:
+        resolve(cfg)
+    msg = one_line(info.value)
+    assert msg.startswith(f"{path}: camera 1") and key in msg and "capture.view" in msg
+
+
+def test_check_view_accepts_the_edges_of_its_ranges():
+    """Rule: the ranges are not too tight: a 10:1 image and a 179° field of view are drawable; 10.1:1 is not."""
+    from fracture_gs.capture.fit import TrainerCamera, check_view
+
+    def cam(w, h, f):
+        return TrainerCamera(torch.zeros(3, dtype=torch.float64), torch.eye(3, dtype=torch.float64), f, f, w, h)
+
+    edge = 1000 / (2 * 114.5886501)  # tan(89.5°): 179° across 1000 px
+    check_view("c.json", 0, cam(1000, 100, edge * 1.0000001))
+    with pytest.raises(SceneError):
+        check_view("c.json", 0, cam(1010, 100, 500.0))
 
 
 def test_write_cameras_views_still_load(tmp_path):

@@ -173,19 +173,6 @@ def _camera(path: Path, i: int, c) -> TrainerCamera:
         v = c[key]
         if not (_is_number(v) and float(v).is_integer() and 1 <= v <= MAX_IMAGE_SIDE):
             raise bad(key, f"must be a whole number of pixels from 1 to {MAX_IMAGE_SIDE:,}, not {_describe(v)}")
-    aspect = c["width"] / c["height"]
-    if not 1 / MAX_ASPECT <= aspect <= MAX_ASPECT:
-        raise bad(
-            "width", f"and height ({c['width']}×{c['height']}) are not a camera image (aspect over {MAX_ASPECT}:1)"
-        )
-    for key, side in (("fx", "width"), ("fy", "height")):
-        fov = math.degrees(2 * math.atan(c[side] / (2 * c[key])))
-        if not FOV_RANGE[0] <= fov <= FOV_RANGE[1]:
-            raise bad(
-                key,
-                f"= {c[key]:g} px gives a field of view of {fov:.3g}° across the {c[side]}-pixel {side}, outside "
-                f"{FOV_RANGE[0]:g}° to {FOV_RANGE[1]:g}°",
-            )
     return TrainerCamera(
         position=torch.tensor(pos, dtype=torch.float64),
         rotation=R,
@@ -195,6 +182,27 @@ def _camera(path: Path, i: int, c) -> TrainerCamera:
         height=int(c["height"]),
         name=str(name) if isinstance(name, (str, int)) and not isinstance(name, bool) else "",
     )
+
+
+def check_view(path, index: int, cam: TrainerCamera) -> None:
+    """The view `capture.camera = "trainer"` draws from: an image shape the panel can keep (at most MAX_ASPECT:1)
+    and focal lengths whose field of view the renderer can draw (FOV_RANGE), else SceneError naming the file, the
+    view and the key (the file itself may hold such views: only the chosen one is drawn)."""
+    where = f"{path}: camera {index}" + (f" ({cam.name})" if cam.name else "")
+    fix = 'pick another capture.view, or set capture.camera = "auto" to frame the object instead'
+    if not 1 / MAX_ASPECT <= cam.width / cam.height <= MAX_ASPECT:
+        raise SceneError(
+            f"{where}: width and height ({cam.width}×{cam.height}) are not a camera image (over {MAX_ASPECT:g}:1); "
+            f"{fix}."
+        )
+    for key, side in (("fx", "width"), ("fy", "height")):
+        f, pixels = getattr(cam, key), getattr(cam, side)
+        fov = math.degrees(2 * math.atan(pixels / (2 * f)))
+        if not FOV_RANGE[0] <= fov <= FOV_RANGE[1]:
+            raise SceneError(
+                f"{where}: {key} = {f:g} px gives a field of view of {fov:.3g}° across its {pixels}-pixel {side}, "
+                f"outside {FOV_RANGE[0]:g}° to {FOV_RANGE[1]:g}°; {fix}."
+            )
 
 
 def detect_up(cap: CaptureConfig, cameras: list[TrainerCamera]) -> tuple[torch.Tensor, str]:

@@ -270,7 +270,7 @@ def _value_rules(out: dict) -> list:
             (
                 "quats",
                 bad,
-                "zero, near-zero (norm < 1e-12) or non-finite quaternions",
+                "zero or non-finite quaternions (or a norm below 1e-12)",
                 "give rotations as unit wxyz quaternions",
             )
         )
