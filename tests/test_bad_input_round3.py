@@ -82,12 +82,14 @@ def test_a_ground_level_above_every_gaussian_is_a_scene_error(small_ply):
     assert "capture.ground_level" in one_line(info.value)
 
 
+@pytest.mark.slow
 def test_a_resolved_capture_with_a_load_speed_loads_again(small_ply):
     """Rule: resolve writes the load as boundaries and capture.load = "none"; the speed is in those boundaries,
     so capture.load_speed is written as 0 and the config a run writes (config.toml, `init`) loads back."""
     from fracture_gs.io.config.dump import config_to_dict
 
-    cap = resolve(config_from_dict(capture_doc(str(small_ply), cells_across=8, load="pull", load_speed=0.7)))
+    doc = capture_doc(str(small_ply), cells_across=8, max_particles=300, load="pull", load_speed=0.7)
+    cap = resolve(config_from_dict(doc))
     assert cap.cfg.capture.load == "none" and cap.cfg.capture.load_speed == 0.0
     grips = [b for b in cap.cfg.sim.boundaries if getattr(b, "velocity", None) is not None]
     assert sorted(abs(b.velocity[0]) for b in grips) == [0.7, 0.7], "the speed went into the grips"
@@ -143,24 +145,37 @@ def test_a_cameras_json_with_a_bom_loads(tmp_path):
     assert (cam.width, cam.fx) == (640, 321.5)
 
 
+def test_a_trainer_view_the_renderer_cannot_draw_names_the_view(tmp_path, small_ply):
+    """Rule: capture.camera = "trainer" with a view whose focal length gives a field of view of 180° is a
+    SceneError naming cameras.json, the view and the key (it was a ConfigError on render.camera.fov_deg, a key
+    the user never wrote, naming no file)."""
+    path = cameras(tmp_path, json.dumps([GOOD, {**GOOD, "fy": 1e-9}]))
+    doc = capture_doc(str(small_ply), up="-y", camera="trainer", view=1, cameras_json=str(path), cells_across=8)
+    with pytest.raises(SceneError) as info:
+        resolve(config_from_dict(doc))
+    msg = one_line(info.value)
+    assert msg.startswith(f"{path}: camera 1") and "fy" in msg and "capture.view" in msg
+
+
 TRAINER_PROBES = [
-    ({"fy": 1e-9}, "fy"),  # a field of view of 180°: was "render.camera.fov_deg is outside", naming no file
-    ({"fx": 1e300}, "fx"),  # a field of view of 0°
-    ({"width": 1, "height": 100_000}, "width"),  # a column of pixels: was "render.height = 64000000"
+    ((640, 480, 1e300, 500.0), "fx"),  # a field of view of 0°
+    ((640, 480, 500.0, 1e-9), "fy"),
+    ((1, 100_000, 500.0, 500.0), "width"),  # a column of pixels: was "render.height = 64000000"
 ]
 
 
-@pytest.mark.parametrize("changes, key", TRAINER_PROBES, ids=[k for _, k in TRAINER_PROBES])
-def test_a_trainer_view_the_renderer_cannot_draw_names_the_view(tmp_path, small_ply, changes, key):
-    """Rule: capture.camera = "trainer" with a view whose focal length gives a field of view outside 0.1°–179°
-    or whose image is over 10:1 is a SceneError naming cameras.json, the view and the key, not a ConfigError on
-    a derived render.* key the user never wrote."""
-    path = cameras(tmp_path, json.dumps([GOOD, {**GOOD, **changes}]))
-    cfg = config_from_dict(capture_doc(str(small_ply), up="-y", camera="trainer", view=1, cameras_json=str(path)))
+@pytest.mark.parametrize("numbers, key", TRAINER_PROBES, ids=[k for _, k in TRAINER_PROBES])
+def test_check_view_names_the_key_the_renderer_cannot_draw(numbers, key):
+    """Rule: check_view refuses a field of view outside 0.1°–179° on either axis and an image over 10:1, naming
+    the file, the view and the key."""
+    from fracture_gs.capture.fit import TrainerCamera, check_view
+
+    w, h, fx, fy = numbers
+    cam = TrainerCamera(torch.zeros(3, dtype=torch.float64), torch.eye(3, dtype=torch.float64), fx, fy, w, h, "v")
     with pytest.raises(SceneError) as info:
-        resolve(cfg)
+        check_view("c.json", 3, cam)
     msg = one_line(info.value)
-    assert msg.startswith(f"{path}: camera 1") and key in msg and "capture.view" in msg
+    assert msg.startswith("c.json: camera 3 (v): ") and key in msg
 
 
 def test_check_view_accepts_the_edges_of_its_ranges():
@@ -376,3 +391,35 @@ def test_api_arguments_of_the_wrong_kind_are_argument_errors(bread, tmp_path):
         with pytest.raises(FractureGSError) as info:
             fn()
         assert word in one_line(info.value)
+
+
+# ---------------------------------------------------------------- a flag typed twice
+
+REPEATED = [
+    ["render-sim", "bread", "--frames-png", "--no-frames-png"],  # ran with the last one, the first did nothing
+    ["render-sim", "bread", "--device", "cpu", "--device=cuda:0"],
+    ["render-sim", "bread", "--frames", "2", "--frames", "3"],
+    ["sweep", "accuracy", "--list", "--max-cells", "3", "--max-c", "4"],  # an abbreviation is the same flag
+    ["figures", "--only", "bread", "--only", "bench"],
+]
+
+
+@pytest.mark.parametrize("argv", REPEATED, ids=[" ".join(a[2:]) for a in REPEATED])
+def test_a_flag_typed_twice_with_different_values_is_refused(argv, capsys, monkeypatch):
+    """Rule: argparse keeps the last of a repeated flag, so a first one with another value (or the other half of
+    --frames-png/--no-frames-png) would do nothing: one line naming both, exit 2, before anything runs."""
+    import fracture_gs.cli as cli
+
+    monkeypatch.setattr(cli, "_commands", lambda: pytest.fail("a command ran"))
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "only the last one typed would count" in err, err
+
+
+def test_a_flag_typed_twice_with_the_same_value_passes(capsys, monkeypatch):
+    """Rule: the same flag with the same value twice changes nothing and is not refused (it reaches the command)."""
+    import fracture_gs.cli as cli
+
+    ran = []
+    monkeypatch.setattr(cli, "_commands", lambda: {"validate": lambda args: ran.append(args.config) or 0})
+    assert main(["validate", "--dump", "--dump", "bread"]) == 0 and ran == ["bread"]
