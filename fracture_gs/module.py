@@ -21,7 +21,7 @@ from .errors import ArgumentError, ConfigError, SimulationError
 from .io import GaussianSet
 from .io.gaussian_set import as_tensor, check_gaussians
 from .linalg import eigh_chunked
-from .pipeline import FrameOutput, make_simulator, simulate
+from .pipeline import FrameOutput, check_config, make_simulator, simulate
 from .variants import VARIANT_NAMES
 
 FORWARD = "FractureSim.forward"
@@ -181,6 +181,19 @@ def _velocity_argument(value, n: int) -> torch.Tensor:
     return t
 
 
+def _check_topology(topology) -> None:
+    """`topology`: None, a `sim.topology.Topology` or a non-empty list of them (a run's history)."""
+    from .sim.topology import Topology
+
+    items = topology if isinstance(topology, (list, tuple)) else [topology]
+    if topology is None or (items and all(isinstance(t, Topology) for t in items)):
+        return
+    raise ArgumentError(
+        f"FractureSim: topology must be a Topology or a list of them, got {type(topology).__name__}; pass "
+        "fracture_gs.sim.topology.load_history('topology.npz'), or None to find it by a plain run."
+    )
+
+
 class FractureSim(torch.nn.Module):
     """Gaussians in, per-frame deformed Gaussians and fragment ids out (one configured variant).
 
@@ -210,7 +223,9 @@ class FractureSim(torch.nn.Module):
                 "load_config) or the name or path of one, e.g. FractureSim('bread')."
             )
         self.cfg = copy.deepcopy(cfg)
-        self.variant = variant or (self.cfg.variants[-1] if self.cfg.variants else self.cfg.sim.variant)
+        if variant is None:
+            variant = self.cfg.variants[-1] if self.cfg.variants else self.cfg.sim.variant
+        self.variant = variant
         if self.variant not in VARIANT_NAMES:
             raise ArgumentError(
                 f"FractureSim: variant {self.variant!r} is unknown; use one of {', '.join(VARIANT_NAMES)}."
@@ -220,6 +235,7 @@ class FractureSim(torch.nn.Module):
 
             as_device("FractureSim", device)
         self.device_name = device
+        _check_topology(topology)
         self.topology = topology
         self.diagnostics = diagnostics
         self.differentiable = differentiable
@@ -233,10 +249,15 @@ class FractureSim(torch.nn.Module):
                 "(sim(means, opacities, sh, quats=..., scales=...)) or build a fracture_gs.io.GaussianSet."
             )
         device = self._device(gs)
+        self._check_cfg()
         sim = make_simulator(self.cfg, gs, self.variant, device, topology=self.topology)
         self.last_simulator = sim
         cov0 = gs.covariances().to(device, torch.float32)
         yield from simulate(sim, cov0, self.cfg.frames, self.cfg.frame_dt, diagnostics=self.diagnostics)
+
+    def _check_cfg(self) -> None:
+        """The config as it is now (a user may edit `self.cfg` after construction): the loader's checks."""
+        check_config(self.cfg, f"FractureSim cfg ({self.cfg.name})")
 
     def _device(self, gs: GaussianSet) -> str:
         return self.device_name or (str(gs.means.device) if gs.means.is_cuda else "cpu")
@@ -268,6 +289,7 @@ class FractureSim(torch.nn.Module):
                 for k, v in (("E", E), ("nu", nu), ("density", density))
             )
             velocity = None if velocity is None else _velocity_argument(velocity, n)
+            self._check_cfg()
             return differentiable_forward(self, gs, E, nu, density, velocity)
         given = [k for k, t in (("E", E), ("nu", nu), ("density", density), ("velocity", velocity)) if t is not None]
         if given:

@@ -15,6 +15,7 @@ import torch
 
 from . import assets
 from .config import SceneConfig
+from .errors import ArgumentError
 from .io import GaussianSet
 from .io.gaussian_set import Carrier
 from .profiling import phases
@@ -69,14 +70,31 @@ class FrameOutput:
         return polar_rotation(self.F)
 
 
+def check_config(cfg: SceneConfig, source: str) -> None:
+    """A config built or edited in Python, checked as the loader checks a file: types and shapes (a gravity of
+    two numbers, a frame count given as text) and then every value, through the same code (`config_from_dict`
+    of its plain form). Raises ConfigError naming `source` and the key."""
+    from .io.config import config_from_dict
+    from .io.config.dump import config_to_dict
+
+    if not isinstance(cfg, SceneConfig):
+        raise ArgumentError(
+            f"{source}: cfg must be a SceneConfig, got {type(cfg).__name__}; load one with load_config."
+        )
+    config_from_dict(config_to_dict(cfg), source)
+
+
 def prepare_scene(cfg: SceneConfig, device="cpu"):
     """The config's scene, ready to simulate: a `capture.scene.Capture` holding the (resolved) config,
     the simulated Gaussians on `device`, the static background and the capture fit. A built-in asset
     comes at the config's preset; a PLY goes through `capture.resolve` (clean-up, fit, fill, load,
     camera) and its material labels are read from `material_property`."""
     from .capture.scene import Capture, resolve
+    from .io.ply import as_device
 
+    device = str(as_device("prepare_scene", device))
     if cfg.scene in assets.names():
+        check_config(cfg, f"prepare_scene: {cfg.name}")  # a config built or edited in Python (resolve checks a PLY's)
         gs = assets.build(cfg.scene, size=cfg.preset, n=cfg.particles).to(device)
         return Capture(cfg, in_particle_order(gs, cfg), None, None, [])
     cap = resolve(cfg, device)

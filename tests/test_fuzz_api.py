@@ -400,6 +400,9 @@ def recorders(monkeypatch, tmp_path):
     monkeypatch.chdir(tmp_path)
     monkeypatch.delenv("FRACTURE_GS_DEBUG", raising=False)
     (tmp_path / "saved.json").write_text("{}")
+    for out in (tmp_path / "out", tmp_path / "figures" / "out"):  # what --readme-only rewrites README.md from
+        out.mkdir(parents=True)
+        (out / "summary.json").write_text("{}")
     from test_bad_input_api import SPZ
 
     spz = SPZ.as_posix()

@@ -127,6 +127,10 @@ def check_capture(cap: CaptureConfig) -> None:
     assert cap.view >= 0 and 0 <= cap.min_opacity <= 1 and cap.outlier_neighbours >= 0
     for r in cap.regions:
         assert all(lo < hi for lo, hi in zip(r.lower, r.upper)) and r.material != "config"
+    # keys the rest of the table would make do nothing (issue 34, round three)
+    assert cap.view == 0 or cap.camera != "auto", "a trainer view without the trainer camera"
+    assert cap.load_speed == 0 or cap.load != "none", "a load speed without a load"
+    assert cap.ground_level is None or cap.ground != "none", "a ground level with the ground turned off"
 
 
 def one_line(err: BaseException) -> None:
@@ -185,7 +189,9 @@ def camera(draw):
         elif key == "rotation" and draw(st.booleans()):
             cam[key] = draw(st.lists(st.lists(FLOATS, min_size=3, max_size=3), min_size=3, max_size=3))
         elif key in ("fx", "fy", "width", "height") and draw(st.booleans()):
-            cam[key] = draw(st.one_of(FLOATS, st.integers(-2, 10**6)))
+            cam[key] = draw(st.one_of(FLOATS, st.integers(-2, 10**6), st.sampled_from([10**400, 1e-300, 1e300, 1])))
+        elif key == "position" and draw(st.booleans()):
+            cam[key] = [draw(st.one_of(FLOATS, st.sampled_from([10**400, 1e300, -1e12]))), 0.0, 0.0]
         else:
             cam[key] = draw(VALUES)
     return cam
@@ -196,6 +202,7 @@ def check_camera(c) -> None:
     assert math.isfinite(c.fx) and c.fx > 0 and math.isfinite(c.fy) and c.fy > 0
     assert c.width >= 1 and c.height >= 1
     assert bool(c.position.isfinite().all()) and bool(c.rotation.isfinite().all())
+    assert float(c.position.abs().max()) <= 1e9, "a camera position the fit can still hold in float32"
     assert is_proper_rotation(c.rotation.tolist())
 
 
@@ -269,8 +276,23 @@ def cache_row(draw):
         if draw(st.integers(0, 4)) == 0:
             row.pop(key, None)
         else:
-            row[key] = draw(st.one_of(VALUES, st.sampled_from(["ok", "failed", "missing", None])))
+            row[key] = draw(st.one_of(VALUES, st.sampled_from(["ok", "failed", "missing", None, 10**400, -1, -0.5, 0])))
     return row if draw(st.integers(0, 9)) else draw(VALUES)
+
+
+def check_row_values(r: dict) -> None:
+    """What a run writes (issue 34, round three): counts and times are not negative, a step is positive, every
+    number is a float the tables can format, and a finished accuracy cell simulated something."""
+    for key, v in r.items():
+        if isinstance(v, (int, float)) and not isinstance(v, bool):
+            assert math.isfinite(float(v)), key
+    for key in ("particles", "substeps", "latch_frame", "fragments"):
+        assert r.get(key) is None or r[key] >= 0, key
+    for key in ("wall_s", "cell_s", "error"):
+        assert r.get(key) is None or r[key] >= 0, key
+    assert r.get("dt") is None or r["dt"] > 0
+    if r["status"] == "ok":
+        assert r["particles"] >= 1 and r["substeps"] >= 1
 
 
 SPEC = '[sweep]\nwarmup = false\n[[accuracy]]\ncase = ["bar"]\ncells = [16]\ncfl = 0.4\n'
@@ -302,6 +324,7 @@ def test_fuzz_sweep_cache_rows(tmp_path, capsys):
             tally.add("row", "traceback")
             raise
         for r in found.values():  # an accepted row goes through what rank 0 does with it: the tables
+            check_row_values(r)
             merged = {**r, **base_row(cell)}
             table = sweep_table("fuzz", [merged], "caption", "command")
             table.markdown(), table.latex(), csv_text([merged]), accuracy_results([merged])

@@ -8,6 +8,8 @@ surface-only reconstruction.
 
 from __future__ import annotations
 
+import numbers
+
 from ..errors import SceneError
 from ..io.gaussian_set import GaussianSet
 from .builder import SceneSpec, build_scene
@@ -34,6 +36,9 @@ def build(
         if size not in ("small", "paper"):
             raise SceneError(f"unknown size '{size}' for scene '{name}'; use 'small' or 'paper'")
         n = spec.paper_n if size == "paper" else SIZES[size]
+    for arg, value in (("n", n), ("seed", seed), ("sh_degree", sh_degree)):
+        if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+            raise SceneError(f"scene '{name}': {arg} = {value!r:.40} is not a whole number; pass an int, e.g. {arg}=1.")
     if int(n) < 1 or not 0 <= int(sh_degree) <= 3:
         raise SceneError(f"scene '{name}': n must be ≥ 1 and sh_degree in 0..3 (got n={n}, sh_degree={sh_degree})")
     return build_scene(spec, int(n), seed=seed, sh_degree=int(sh_degree), device=device)

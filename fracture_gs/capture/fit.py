@@ -67,6 +67,13 @@ def find_cameras_json(ply: Path, explicit: Optional[str]) -> Optional[Path]:
 
 MAX_IMAGE_SIDE = 100_000
 """Pixels: the largest image side a cameras.json view may claim."""
+MAX_CAMERA_DISTANCE = 1e9
+"""Scene units: the farthest a view's centre may be from the origin on any axis (a trainer's scenes span
+hundreds; beyond this the fitted camera is no longer a float32 position)."""
+MAX_ASPECT = 10.0
+"""The widest (or tallest) image a view may claim, width over height: the rendered panel keeps it."""
+FOV_RANGE = (0.1, 179.0)
+"""Degrees: the field of view a view's focal length may give across its image (the renderer takes up to 179)."""
 _CAMERA_FIX = (
     "fix that entry, point capture.cameras_json at the trainer's file, or set capture.up and "
     'capture.camera = "auto" so the file is not needed'
@@ -78,7 +85,12 @@ def read_cameras(path: Path) -> list[TrainerCamera]:
     of the wrong type, NaN or inf, a non-positive focal length or image size, or a rotation that is not a
     proper rotation raises SceneError naming the file, the view and the key."""
     try:
-        data = json.loads(Path(path).read_text())
+        data = json.loads(Path(path).read_text(encoding="utf-8-sig"))  # a BOM (Windows editors) is not an error
+    except RecursionError:
+        raise SceneError(
+            f"{path}: not a trainer cameras.json (its arrays nest too deeply); point capture.cameras_json at the "
+            f'trainer\'s file or set capture.up and capture.camera = "auto".'
+        ) from None
     except (OSError, ValueError) as exc:
         raise SceneError(
             f"{path}: not a trainer cameras.json ({' '.join(str(exc).split())}); point capture.cameras_json at the "
@@ -96,7 +108,7 @@ def _describe(v) -> str:
     if isinstance(v, bool):
         return f"the boolean {str(v).lower()}"
     if isinstance(v, (int, float)):
-        return f"the number {v!r}" if math.isfinite(v) else f"the non-finite number {v!r}"
+        return f"the number {v!r:.40}" if _is_number(v) else f"the non-finite number {v!r:.40}"
     if isinstance(v, str):
         return f"the string {v[:40]!r}"
     if isinstance(v, list):
@@ -107,7 +119,13 @@ def _describe(v) -> str:
 
 
 def _is_number(v) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+    """A finite JSON number that converts to a float (an integer of 400 digits does not)."""
+    if not isinstance(v, (int, float)) or isinstance(v, bool):
+        return False
+    try:
+        return math.isfinite(float(v))
+    except OverflowError:
+        return False
 
 
 def _camera(path: Path, i: int, c) -> TrainerCamera:
@@ -133,6 +151,8 @@ def _camera(path: Path, i: int, c) -> TrainerCamera:
         raise bad(
             "position", f"holds {_describe(next(v for v in pos if not _is_number(v)))}; it must be 3 finite numbers"
         )
+    if max(abs(float(v)) for v in pos) > MAX_CAMERA_DISTANCE:
+        raise bad("position", f"= {pos} is more than {MAX_CAMERA_DISTANCE:g} scene units from the origin")
     rot = c["rotation"]
     rows_ok = isinstance(rot, list) and len(rot) == 3 and all(isinstance(r, list) and len(r) == 3 for r in rot)
     if not rows_ok:
@@ -162,6 +182,27 @@ def _camera(path: Path, i: int, c) -> TrainerCamera:
         height=int(c["height"]),
         name=str(name) if isinstance(name, (str, int)) and not isinstance(name, bool) else "",
     )
+
+
+def check_view(path, index: int, cam: TrainerCamera) -> None:
+    """The view `capture.camera = "trainer"` draws from: an image shape the panel can keep (at most MAX_ASPECT:1)
+    and focal lengths whose field of view the renderer can draw (FOV_RANGE), else SceneError naming the file, the
+    view and the key (the file itself may hold such views: only the chosen one is drawn)."""
+    where = f"{path}: camera {index}" + (f" ({cam.name})" if cam.name else "")
+    fix = 'pick another capture.view, or set capture.camera = "auto" to frame the object instead'
+    if not 1 / MAX_ASPECT <= cam.width / cam.height <= MAX_ASPECT:
+        raise SceneError(
+            f"{where}: width and height ({cam.width}×{cam.height}) are not a camera image (over {MAX_ASPECT:g}:1); "
+            f"{fix}."
+        )
+    for key, side in (("fx", "width"), ("fy", "height")):
+        f, pixels = getattr(cam, key), getattr(cam, side)
+        fov = math.degrees(2 * math.atan(pixels / (2 * f)))
+        if not FOV_RANGE[0] <= fov <= FOV_RANGE[1]:
+            raise SceneError(
+                f"{where}: {key} = {f:g} px gives a field of view of {fov:.3g}° across its {pixels}-pixel {side}, "
+                f"outside {FOV_RANGE[0]:g}° to {FOV_RANGE[1]:g}°; {fix}."
+            )
 
 
 def detect_up(cap: CaptureConfig, cameras: list[TrainerCamera]) -> tuple[torch.Tensor, str]:

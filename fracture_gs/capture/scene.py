@@ -24,7 +24,16 @@ from ..errors import SceneError
 from ..io.gaussian_set import GaussianSet
 from .camera import frame_box, trainer_view
 from .clean import clean
-from .fit import auto_roi, config_rotation, detect_up, find_cameras_json, fit_transform, read_cameras, roi_mask
+from .fit import (
+    auto_roi,
+    check_view,
+    config_rotation,
+    detect_up,
+    find_cameras_json,
+    fit_transform,
+    read_cameras,
+    roi_mask,
+)
 from .ground import find_ground
 from .loads import apply_load, auto_load, plan_load
 from .materials import apply_material, apply_regions, substep_note
@@ -129,7 +138,7 @@ def resolve(cfg: SceneConfig, device: str = "cpu") -> Capture:
             plan.note = f"{plan.note} (capture.load = 'auto' chose {kind}: {why}; --load sets it)"
         apply_load(cfg, plan)
     notes.append(plan.note)
-    cap.load = "none"  # written out as boundaries: a rerun of this config must not add them again
+    cap.load, cap.load_speed = "none", 0.0  # written out as boundaries: a rerun must not add them again
     room_lo, room_hi = _room(cap.size, lo, hi, plan, duration)
     if cfg.sim.grid == "auto":
         _grid(cfg, room_lo, room_hi, dx)
@@ -139,7 +148,7 @@ def resolve(cfg: SceneConfig, device: str = "cpu") -> Capture:
         r = cfg.render
         r.width, r.height = (1280, 720) if str(device).startswith("cuda") else (640, 480)
         cap.panel = "config"
-    _camera(cfg, cameras, fit, lo, hi, room_lo, room_hi, notes)
+    _camera(cfg, cameras, fit, lo, hi, room_lo, room_hi, notes, cams_path)
     cfg.sim.max_fragments = max(cfg.sim.max_fragments, 2 * cfg.topology.max_events + 2)
     return Capture(validate(cfg, f"{path} (captured scene)"), obj, bg, fit, notes)
 
@@ -187,6 +196,11 @@ def _above_ground(means: torch.Tensor, up: torch.Tensor, cap, notes: list) -> to
     if cap.ground_level is None:
         return torch.ones(len(means), dtype=torch.bool)
     above = means.to(torch.float64) @ (up.to(torch.float64) / up.norm()) > cap.ground_level
+    if not bool(above.any()):
+        raise SceneError(
+            f"capture.ground_level = {cap.ground_level:g} lies above all {len(means)} Gaussians (along the up axis), "
+            'so nothing is left to simulate; lower it, or remove it (capture.ground = "auto" finds the ground).'
+        )
     notes.append(
         f"ground: a flat layer under the object ({int((~above).sum())} Gaussians up to {cap.ground_level:.4g} along "
         'the up axis) is kept as a static background and the floor stands on it (capture.ground = "none" keeps it)'
@@ -283,7 +297,7 @@ def _grid(cfg: SceneConfig, lo, hi, dx: float) -> None:
     cfg.sim.grid, cfg.sim.dx, cfg.sim.grid_origin, cfg.sim.grid_shape = "explicit", dx, tuple(origin), tuple(shape)
 
 
-def _camera(cfg, cameras, fit, lo, hi, room_lo, room_hi, notes) -> None:
+def _camera(cfg, cameras, fit, lo, hi, room_lo, room_hi, notes, cams_path=None) -> None:
     cap, r = cfg.capture, cfg.render
     if cap.camera == "trainer":
         if not cameras:
@@ -296,6 +310,7 @@ def _camera(cfg, cameras, fit, lo, hi, room_lo, room_hi, notes) -> None:
                 f"{cfg.scene}: capture.view = {cap.view} but cameras.json has views 0..{len(cameras) - 1}."
             )
         cam = cameras[cap.view]
+        check_view(cams_path, cap.view, cam)
         r.height = max(16, int(round(r.width * cam.height / cam.width / 2)) * 2)
         r.camera = trainer_view(cam, fit, 0.5 * (lo + hi))
         notes.append(f"camera: trainer view {cap.view} ({cam.name or 'unnamed'})")

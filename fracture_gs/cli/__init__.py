@@ -167,6 +167,9 @@ def main(argv: "Optional[Sequence[str]]" = None) -> int:
         parser = build_parser()
         argv = list(argv) if argv is not None else sys.argv[1:]
         args = parser.parse_args(argv)
+        from .ignored import refuse_repeated
+
+        refuse_repeated(parser, argv)  # a flag typed twice with different values: the first would do nothing
         args.argv = argv  # what was typed, for the commands that record it
         args.entered, args.is_process = entered, argv_was_none  # for --profile's start-up rows
         if not args.command:

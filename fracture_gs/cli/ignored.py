@@ -184,3 +184,40 @@ def refuse_figures(args: argparse.Namespace) -> None:
                 f"{_flag(name)} has no effect with --readme-only, which only rewrites OUT/README.md from what OUT "
                 f"holds; drop {_flag(name)} or --readme-only."
             )
+
+
+def refuse_repeated(parser: argparse.ArgumentParser, argv: list) -> None:
+    """A flag given twice with different effects (`--device cpu --device cuda`, `--frames-png --no-frames-png`):
+    argparse keeps the last, so the first would do nothing. The same flag with the same value twice is harmless
+    and passes. Abbreviations count as the flag they abbreviate (argparse has already refused ambiguous ones)."""
+    sub = next((a for a in parser._actions if isinstance(a, argparse._SubParsersAction)), None)
+    command = next((t for t in argv if sub is not None and t in sub.choices), None)
+    p = sub.choices[command] if command is not None else parser
+    longs = [o for a in p._actions for o in a.option_strings if o.startswith("--")]
+    seen: dict = {}
+    i = 0
+    while i < len(argv):
+        token = argv[i]
+        if token == "--":
+            break
+        name, eq, value = token.partition("=")
+        if not name.startswith("--"):
+            i += 1
+            continue
+        matches = [name] if name in longs else [o for o in longs if o.startswith(name)]
+        action = p._option_string_actions.get(matches[0]) if len(matches) == 1 else None
+        if action is None:
+            i += 1
+            continue
+        takes_value = action.nargs != 0 and not isinstance(action, argparse.BooleanOptionalAction)
+        if takes_value and not eq:
+            value = argv[i + 1] if i + 1 < len(argv) else ""
+            i += 1
+        said = f"{matches[0]} {value}".strip() if takes_value else matches[0]
+        before = seen.setdefault(action.dest, said)
+        if before != said:
+            raise CliError(
+                f"{said} and {before} both set {action.option_strings[0]}, and only the last one typed would count; "
+                "give it once."
+            )
+        i += 1

@@ -205,15 +205,35 @@ def cmd_figures(args: argparse.Namespace) -> int:
     from ..paper.readme import refresh_readme
 
     refuse_figures(args)
-    out_dir = output_dir(args.out if args.out is not None else Path("figures") / "out")
+    out = Path(args.out) if args.out is not None else Path("figures") / "out"
+    if args.readme_only and not (out / "summary.json").is_file():
+        raise CliError(
+            f"--readme-only rewrites README.md from a figures folder's summary.json, and {out} holds none; run "
+            f"`fracture-gs figures --out {out}` first, or point --out at such a folder."
+        )
+    out_dir = output_dir(out)
     if args.readme_only:
         print(refresh_readme(out_dir))
         return 0
-    only = [g.strip() for g in args.only.split(",")] if args.only else None
-    unknown = sorted(set(only or ()) - set(GROUPS))
-    if unknown:
-        raise CliError(f"--only {', '.join(unknown)} unknown; choose from {', '.join(GROUPS)}.")
+    only = _figure_groups(args.only, GROUPS)
+    if only is not None and args.backend is not None and not {"ficus", "bread"} & set(only):
+        raise CliError(
+            f"--backend draws the ficus and bread scene panels only, and --only {args.only} runs neither; drop "
+            "--backend or add ficus or bread to --only."
+        )
+    if only is not None and args.reuse and not any(GROUPS[g] for g in only):
+        raise CliError(
+            f"--reuse loads cached simulation runs, and --only {args.only} runs none (bench times the solver "
+            "afresh); drop --reuse."
+        )
     device = resolve_device(args.device)
+    if args.backend is not None:
+        on_cuda = device.startswith("cuda")
+        if (args.backend == "gsplat" and not on_cuda) or (args.backend == "warp" and on_cuda):
+            raise CliError(
+                f"--backend {args.backend} cannot draw on {device} (gsplat draws on CUDA only, warp on the CPU only); "
+                "use --backend auto or torch."
+            )
     _prepare_warp()
     args.partial_out = out_dir
     command = "fracture-gs " + " ".join(args.argv)
@@ -229,6 +249,24 @@ def cmd_figures(args: argparse.Namespace) -> int:
         )
     )
     return 0
+
+
+def _figure_groups(text, groups) -> list | None:
+    """--only as a list of known groups, each once (None: every group)."""
+    if text is None:
+        return None
+    only = [g.strip() for g in text.split(",")]
+    if not any(only):
+        raise CliError(f"--only is empty; list some of {', '.join(groups)}, or drop it to run every group.")
+    if "" in only:
+        raise CliError(f"--only {text!r} has an empty entry; write it like --only bread,bench.")
+    twice = sorted({g for g in only if only.count(g) > 1})
+    if twice:
+        raise CliError(f"--only {text} lists {', '.join(twice)} twice; list each group once.")
+    unknown = sorted(set(only) - set(groups))
+    if unknown:
+        raise CliError(f"--only {', '.join(unknown)} unknown; choose from {', '.join(groups)}.")
+    return only
 
 
 def cmd_init(args: argparse.Namespace) -> int:

@@ -12,6 +12,8 @@ from pathlib import Path
 from typing import Optional, Sequence
 
 PROG = "fracture-gs"
+MAX_RANK_TIMEOUT_S = 604_800
+"""The longest --rank-timeout: a week (torch's timedelta overflows on inf; no rank is meant to wait longer)."""
 
 SWEEP_EPILOG = """\
 examples:
@@ -53,8 +55,10 @@ def _positive_seconds(text: str) -> float:
         value = float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds; write it like 300") from None
-    if not value > 0:
-        raise argparse.ArgumentTypeError(f"{value:g} must be a positive number of seconds")
+    if not 0 < value <= MAX_RANK_TIMEOUT_S:
+        raise argparse.ArgumentTypeError(
+            f"{value:g} must be a positive number of seconds up to {MAX_RANK_TIMEOUT_S:,} (a week)"
+        )
     return value
 
 

@@ -264,8 +264,16 @@ def _value_rules(out: dict) -> list:
     rules = [("means", ~torch.isfinite(out["means"]), "NaN or infinite values", "give finite positions")]
     if "quats" in out:
         q = out["quats"]
-        bad = ~torch.isfinite(q).all(-1) | (q.abs().amax(-1) == 0)
-        rules.append(("quats", bad, "zero or non-finite quaternions", "give rotations as non-zero wxyz quaternions"))
+        # below a norm of 1e-12 torch's normalize (its eps) no longer makes a unit quaternion: the rotation is lost
+        bad = ~torch.isfinite(q).all(-1) | (torch.linalg.vector_norm(q.double(), dim=-1) < 1e-12)
+        rules.append(
+            (
+                "quats",
+                bad,
+                "zero or non-finite quaternions (or a norm below 1e-12)",
+                "give rotations as unit wxyz quaternions",
+            )
+        )
     if "scales" in out:
         s = out["scales"]
         bad = ~(torch.isfinite(s) & (s >= SIGMA_RANGE[0]) & (s <= SIGMA_RANGE[1]))

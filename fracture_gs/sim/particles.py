@@ -7,7 +7,7 @@ from typing import Optional
 import torch
 
 from ..config import MATERIALS, MaterialConfig, SceneConfig
-from ..errors import SimulationError
+from ..errors import ArgumentError, SimulationError
 from .physics.constitutive import MATERIAL_IDS, dp_alpha
 
 
@@ -178,6 +178,18 @@ class Particles:
         """Particles from a GaussianSet: x = means, volume = Δx³ / (particles in its cell) (as in
         PhysGaussian), mass = ρ V, material parameters from the config's defaults and its
         per-label material map."""
+        from ..io.gaussian_set import GaussianSet
+
+        if not isinstance(gs, GaussianSet):
+            raise ArgumentError(
+                f"Particles.from_gaussians: gs must be a GaussianSet, got {type(gs).__name__}; build one with "
+                "fracture_gs.assets.build, fracture_gs.io.load_ply or fracture_gs.io.GaussianSet(...)."
+            )
+        if not isinstance(cfg, SceneConfig):
+            raise ArgumentError(
+                f"Particles.from_gaussians: cfg must be a SceneConfig, got {type(cfg).__name__}; load one with "
+                "fracture_gs.io.load_config."
+            )
         dx = float(dx or cfg.sim.dx)
         x = gs.means.detach().to(torch.float32)
         cell = torch.floor(x / dx).to(torch.int64)

@@ -36,6 +36,13 @@ TEXT_KEYS = frozenset({"id", "kind", "labels", "message", "device", "device_name
 """Row keys that are text."""
 NUMBER_KEYS = frozenset({"cell_s", "wall_s", "dt", "error", "cfl"})
 """Row keys the driver and the tables compute with: a finite number or null."""
+LOWER_BOUNDS = {
+    **{k: (0, True) for k in INT_KEYS},
+    **{k: (0.0, True) for k in ("cell_s", "wall_s", "error")},
+    **{k: (0.0, False) for k in ("dt", "cfl")},
+}
+"""(bound, inclusive) of the row's counts, times and errors: a negative count or time, or a zero step, is a
+damaged file, not a result."""
 ACCURACY_OK_KEYS = ("dt", "particles", "substeps", "wall_s", "error", "unit")
 """Keys a finished accuracy row needs for its table row and the Pareto front."""
 
@@ -153,7 +160,14 @@ def _what(v: Any) -> str:
 
 
 def _is_number(v: Any) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool)
+    """A JSON number the tables can compute with: not a boolean, and finite as a float (a 400-digit integer
+    is not)."""
+    if not isinstance(v, (int, float)) or isinstance(v, bool):
+        return False
+    try:
+        return math.isfinite(float(v))
+    except OverflowError:
+        return False
 
 
 def _non_finite(value: Any) -> Optional[str]:
@@ -204,12 +218,20 @@ def check_row(path: Path, cell: Cell, row: Any) -> dict:
             raise bad(key, f"is {_what(v)}, not an integer")
         if key in NUMBER_KEYS and not _is_number(v):
             raise bad(key, f"is {_what(v)}, not a number")
+        if isinstance(v, (int, float)) and not isinstance(v, bool) and not _is_number(v):
+            raise bad(key, f"is {_what(v)[:60]}, too large for a number")
+        low = LOWER_BOUNDS.get(key)
+        if low is not None and not isinstance(v, str) and (v < low[0] or (not low[1] and v == low[0])):
+            raise bad(key, f"is {v!r}, not {'at least' if low[1] else 'above'} {low[0]:g} (no run writes that)")
         if key in TEXT_KEYS and not isinstance(v, str):
             raise bad(key, f"is {_what(v)}, not text")
     if status == "ok" and cell.kind == "accuracy":
         for key in ACCURACY_OK_KEYS:
             if row.get(key) is None:
                 raise bad(key, "is missing from a finished accuracy cell")
+        for key in ("particles", "substeps"):
+            if row[key] < 1:
+                raise bad(key, f"is {row[key]}, but a finished accuracy cell simulated at least one")
     return row
 
 

@@ -16,7 +16,7 @@ from typing import Any, Optional, Union
 import tomllib
 
 from ...config import SceneConfig
-from ...errors import ConfigError
+from ...errors import ArgumentError, ConfigError
 from ..detect import is_splat_file
 from .build import build_scene, describe
 from .dump import to_dict
@@ -35,7 +35,14 @@ def builtin_configs() -> list[str]:
 
 def find_config(name_or_path: Union[str, os.PathLike]) -> Path:
     """Resolve a config path, a path without `.toml`, or a bare built-in name like `bread`."""
+    if not isinstance(name_or_path, (str, os.PathLike)):
+        raise ArgumentError(
+            f"load_config: path_or_name must be a TOML path or a built-in name (str or pathlib.Path), got "
+            f"{type(name_or_path).__name__}; pass e.g. 'bread' or 'configs/my_scene.toml'."
+        )
     text = os.fspath(name_or_path)
+    if isinstance(text, bytes):
+        text = os.fsdecode(text)
     if not text.strip():
         raise ConfigError(
             "", None, "the config name is empty; pass a TOML path, a splat file or a built-in name like bread."

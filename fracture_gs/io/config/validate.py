@@ -108,12 +108,12 @@ def validate(cfg: SceneConfig, source: str = "<config>") -> SceneConfig:
     _check_material_map(c, cfg.material_map)
     _check_topology(c, cfg.topology, cfg.frames)
     _check_render(c, cfg.render)
-    _check_capture(c, cfg.capture)
+    _check_capture(c, cfg.capture, cfg.sim.boundaries)
     _check_provider_needed(c, cfg)
     return cfg
 
 
-def _check_capture(c: _Checker, cap) -> None:
+def _check_capture(c: _Checker, cap, cfg_boundaries=()) -> None:
     """Every [capture] key: clean-up, region of interest, fit, resolution, fill, load, camera and regions
     (types and NaN are checked before; here the ranges and the keys that only mean something together)."""
     c.within("capture.min_opacity", cap.min_opacity, 0.0, 1.0, "use an opacity in [0, 1), e.g. 0.01", open_high=True)
@@ -161,6 +161,7 @@ def _check_capture(c: _Checker, cap) -> None:
         f"use 0 (automatic) or a speed up to {MAX_LOAD_SPEED:g} m/s",
     )
     c.at_least("capture.view", cap.view, 0, "use the index of a view in cameras.json, from 0")
+    _check_unused_capture_keys(c, cap, bool(cfg_boundaries))
     if cap.cameras_json is not None and not cap.cameras_json.strip():
         c.fail("capture.cameras_json", "capture.cameras_json is empty", "give the path of the trainer's cameras.json")
     _check_roi(c, cap)
@@ -175,6 +176,30 @@ def _check_capture(c: _Checker, cap) -> None:
             )
         if r.material == "config":
             c.fail(f"{p}.material", f'{p}.material = "config" names no preset', "use ceramic, wood, plant or bread")
+
+
+def _check_unused_capture_keys(c: _Checker, cap, has_boundaries: bool) -> None:
+    """Keys the rest of [capture] would make do nothing (a value only the default leaves unnoticed): a view
+    without the trainer camera, a load speed without a load, a ground level with the ground turned off."""
+    if cap.view != 0 and cap.camera == "auto":
+        c.fail(
+            "capture.view",
+            f'capture.view = {cap.view} picks a trainer view, but capture.camera = "auto" frames the object itself',
+            'set capture.camera = "trainer" to use that view, or remove capture.view',
+        )
+    if cap.load_speed != 0 and (cap.load == "none" or has_boundaries):
+        why = "capture.load = 'none' adds no load" if cap.load == "none" else "the config's sim.boundaries are its load"
+        c.fail(
+            "capture.load_speed",
+            f"capture.load_speed = {cap.load_speed:g} has no effect: {why}",
+            "choose a capture.load (pull, drop, impact, shoot or crush), or remove capture.load_speed",
+        )
+    if cap.ground == "none" and cap.ground_level is not None:
+        c.fail(
+            "capture.ground_level",
+            f'capture.ground_level = {cap.ground_level:g} is set but capture.ground = "none" keeps every Gaussian',
+            'set capture.ground = "auto" to cut the ground there, or remove capture.ground_level',
+        )
 
 
 def _check_roi(c: _Checker, cap) -> None:
