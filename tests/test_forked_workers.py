@@ -14,13 +14,11 @@ import sys
 import time
 
 import pytest
-import torch
+from runutil import metrics_rows
 
 from fracture_gs.render_sim import forked
 from fracture_gs.render_sim.job import cpu_slots
 from fracture_gs.render_sim.multi_device import WorkerSetup
-
-from runutil import metrics_rows
 
 
 @pytest.mark.parametrize(
