@@ -18,7 +18,6 @@ from runutil import metrics_rows
 
 from fracture_gs.render_sim import forked
 from fracture_gs.render_sim.job import cpu_slots
-from fracture_gs.render_sim.multi_device import WorkerSetup
 
 
 @pytest.mark.parametrize(
@@ -50,8 +49,7 @@ def test_a_child_that_does_not_prove_openmp_in_time_is_stopped(monkeypatch):
     monkeypatch.setattr(forked, "READY_SECONDS", 0.5)
     workers = forked.ForkedWorkers(2)
     t0 = time.perf_counter()
-    setup = WorkerSetup(threads=1, run=None)
-    assert workers.start([(1, None, [], None, None, setup)]) is None
+    assert workers.start(print, [(1, 1, (), {})]) is None
     assert time.perf_counter() - t0 < 10
     assert not any(p.is_alive() for p in workers.procs)
 
@@ -71,16 +69,15 @@ def test_a_healthy_child_reports_ready_with_the_parents_thread_count():
     code = (
         "import torch\n"
         "from fracture_gs.render_sim import forked\n"
-        "from fracture_gs.render_sim.multi_device import WorkerSetup\n"
         "def probe(jobs, ready, stop, results):  # the real child's first steps, then its thread count\n"
-        "    slot, *_, setup = jobs.get()\n"
-        "    torch.set_num_threads(setup.threads)\n"
+        "    fn, slot, threads, args, kwargs = jobs.get()\n"
+        "    torch.set_num_threads(threads)\n"
         "    torch.ones(1 << 16, dtype=torch.float64).sum()\n"
         "    ready.put(slot)\n"
         "    results.put(('threads', torch.get_num_threads()))\n"
         "forked._child = probe\n"
         "w = forked.ForkedWorkers(1)\n"
-        "procs = w.start([(1, None, [], None, None, WorkerSetup(threads=2, run=None))])\n"
+        "procs = w.start(print, [(1, 2, (), {})])\n"
         "print(procs is not None, w.results.get(timeout=10))\n"
         "for p in procs or []: p.join(10)\n"
     )

@@ -10,7 +10,8 @@ prepared, and each child waits for its job (the prepared `RunContext` and its va
 Each child checks first that OpenMP works in it (one parallel reduction) and says so; the parent waits for every
 child's word (`READY_SECONDS`) before it runs its own variants. A child that does not answer is taken as a
 broken fork: the workers are stopped and the schedule spawns fresh ones instead (`multi_device`), so the run
-goes on, slower, and says why.
+goes on, slower, and says why. A job names the function the child runs (`multi_device._worker`), so this module
+imports nothing of the scheduler's.
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ import multiprocessing
 import queue
 import signal
 import sys
-from typing import Optional
+from typing import Callable, Optional
 
 import torch
 
@@ -34,21 +35,20 @@ def can_fork() -> bool:
 
 
 def _child(jobs, ready, stop, results) -> None:
-    """A forked worker: wait for a job, prove OpenMP works here, then run `multi_device._worker` on it."""
+    """A forked worker: wait for a job (fn, slot, threads, args, kwargs), prove OpenMP works here on `threads`
+    torch threads, then run fn(*args, stop=stop, results=results, **kwargs)."""
     signal.signal(signal.SIGINT, signal.default_int_handler)  # not the parent's handler, which sets its own event
     try:
         job = jobs.get()
         if job is None:  # the run chose another schedule
             return
-        slot, ctx, variants, leader, channel_dir, setup = job
-        torch.set_num_threads(setup.threads)
+        fn, slot, threads, args, kwargs = job
+        torch.set_num_threads(threads)
         torch.ones(1 << 16, dtype=torch.float64).sum()  # a parallel region: hangs here if the fork broke OpenMP
         ready.put(slot)
     except KeyboardInterrupt:  # Ctrl-C before the run began: the parent reports it
         return
-    from .multi_device import _worker
-
-    _worker(slot, ctx, variants, leader, channel_dir, stop, results, setup)
+    fn(*args, stop=stop, results=results, **kwargs)
 
 
 class ForkedWorkers:
@@ -74,14 +74,15 @@ class ForkedWorkers:
     def __len__(self) -> int:
         return len(self.procs)
 
-    def start(self, jobs: list[tuple]) -> Optional[list]:
-        """Hand each job (slot, ctx, variants, leader, channel_dir, setup) to a child; the others end. Returns the
-        children running them once each has proved OpenMP works in it, or None if one did not within
+    def start(self, fn: Callable, jobs: list[tuple]) -> Optional[list]:
+        """Hand each job (slot, threads, args, kwargs) to a child, which runs fn(*args, stop=, results=, **kwargs)
+        (`fn` a module-level function: it travels by name) on `threads` torch threads; the other children end.
+        Returns the children running them once each has proved OpenMP works in it, or None if one did not within
         `READY_SECONDS` (then every child is stopped and the caller spawns workers instead)."""
         if len(jobs) > len(self.procs):
             raise ValueError(f"{len(jobs)} jobs for {len(self.procs)} forked workers")
         for q, job in zip(self.jobs, jobs):
-            q.put(job)
+            q.put((fn, *job))
         self.used = self.procs[: len(jobs)]
         self.close()
         waiting = {job[0] for job in jobs}
