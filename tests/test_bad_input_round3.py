@@ -275,6 +275,8 @@ FIGURES_PROBES = [
     (["--only", "bench", "--reuse"], "--reuse"),
     (["--only", "bread", "--backend", "gsplat", "--device", "cpu"], "--backend gsplat"),
     (["--readme-only", "--out", "no_figures_here"], "summary.json"),
+    (["--out", ""], "--out is empty"),  # Path("") is the current folder: the figures went there
+    (["--readme-only", "--out", " "], "--out is empty"),
 ]
 
 

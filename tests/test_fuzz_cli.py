@@ -30,7 +30,7 @@ FLAGS = {
         "--devices": (["cpu"], ["gpu", "cuda:9", ",", "cpu,cpu", "cpu,auto"]),
         "--export-ply": (["1", "5"], ["0", "-2"]),
         "--profile": (None, None),
-        "--device": (["cpu", "auto", "CPU"], ["gpu", "", "cuda:0", "cuda:x"]),
+        "--device": (["cpu", "auto", "CPU"], ["gpu", "", "cuda:99", "cuda:x"]),  # cuda:99: no machine has it
     },
     "bench": {
         "--particles": (["1000"], ["0", "-1"]),

@@ -205,6 +205,8 @@ def cmd_figures(args: argparse.Namespace) -> int:
     from ..paper.readme import refresh_readme
 
     refuse_figures(args)
+    if args.out is not None and not args.out.strip():
+        output_dir(args.out)  # refuses an empty --out in one line (Path("") would be the current folder)
     out = Path(args.out) if args.out is not None else Path("figures") / "out"
     if args.readme_only and not (out / "summary.json").is_file():
         raise CliError(
