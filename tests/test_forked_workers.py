@@ -104,3 +104,34 @@ def test_the_cli_forks_its_workers_and_gives_the_in_turn_run(tmp_path):
     assert metrics_rows(tmp_path / "processes") == metrics_rows(tmp_path / "in-turn")
     latches = [json.loads((tmp_path / s / "summary.json").read_text())["variants"] for s in ("processes", "in-turn")]
     assert [v["latch"] for v in latches[0]] == [v["latch"] for v in latches[1]]
+
+
+@pytest.mark.slow
+def test_ctrl_c_stops_every_forked_worker_and_keeps_the_partial_run(tmp_path):
+    """A terminal's Ctrl-C (SIGINT to the whole process group) during a processes run: the command exits 130
+    within seconds, says where the partial outputs are, keeps the frames' metrics and the summary written so far,
+    and leaves no worker process behind."""
+    import os
+    import signal
+
+    out = tmp_path / "run"
+    argv = [sys.executable, "-m", "fracture_gs.cli", "render-sim", "bread", "--device", "cpu", "--frames", "400"]
+    argv += ["--particles", "2500", "--resolution", "64x48", "--schedule", "processes", "--out", str(out)]
+    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True)
+    deadline = time.monotonic() + 120
+    part = out / ".metrics_full.jsonl"  # a forked follower's rows, written as it goes
+    while time.monotonic() < deadline and not (part.exists() and part.read_text().count("\n") >= 3):
+        assert proc.poll() is None, proc.communicate()[0][-2000:]
+        time.sleep(0.2)
+    os.killpg(proc.pid, signal.SIGINT)
+    t0 = time.monotonic()
+    text = proc.communicate(timeout=60)[0]
+    assert proc.returncode == 130, text[-2000:]
+    assert time.monotonic() - t0 < 30
+    assert f"partial outputs are in {out}" in text
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["interrupted"] and {v["variant"] for v in summary["variants"]} == {"baseline", "stress_zero", "full"}
+    rows = [json.loads(line) for line in (out / "metrics.jsonl").read_text().splitlines()]
+    assert {r["variant"] for r in rows} == {"baseline", "stress_zero", "full"} and len(rows) < 3 * 401
+    left = subprocess.run(["pgrep", "-f", str(out)], capture_output=True, text=True).stdout.split()
+    assert left == [], left
