@@ -98,3 +98,17 @@ def test_a_mutant_that_breaks_a_test_modules_import_is_killed():
     assert pick_tests.outcome(4, "ERROR: not found: tests/t.py::test_gone\n") == 0
     assert pick_tests.outcome(5, "no tests ran\n") == 0
     assert (pick_tests.outcome(0, "1 passed"), pick_tests.outcome(1, "1 failed")) == (0, 1)
+
+
+def test_a_selection_pytest_cannot_find_is_rerun_by_file():
+    """pytest runs nothing when one selected node id is not found (exit 4): the picker then runs the selected tests'
+    files, once each, so a mutant is never counted as survived by tests that did not run; a module that failed to
+    import (a kill) and a normal run are left as they are."""
+    tests = ["tests/a.py::test_x[p1]", "tests/a.py::test_y", "tests/b.py::test_z"]
+    assert pick_tests.by_file_retry(4, "ERROR: not found: tests/a.py::test_x[p1]\n", tests) == [
+        "tests/a.py",
+        "tests/b.py",
+    ]
+    assert pick_tests.by_file_retry(4, "ERROR collecting tests/a.py\nERROR: not found: x\n", tests) == []
+    assert pick_tests.by_file_retry(1, "1 failed", tests) == []
+    assert pick_tests.by_file_retry(0, "3 passed", tests) == []
