@@ -143,7 +143,7 @@ def run_on_devices(
     procs = None
     if workers is not None:
         procs = workers.start(_worker, [(j[0], setup.threads, j[:5], {"setup": setup}) for j in jobs])
-    if procs is not None:
+    if workers is not None and procs is not None:
         stop, results = workers.stop, workers.results
         tqdm.write(f"render-sim: {len(order)} variants in {len(procs) + 1} processes (forked at the start)")
     else:
