@@ -135,3 +135,32 @@ def test_ctrl_c_stops_every_forked_worker_and_keeps_the_partial_run(tmp_path):
     assert {r["variant"] for r in rows} == {"baseline", "stress_zero", "full"} and len(rows) < 3 * 401
     left = subprocess.run(["pgrep", "-f", str(out)], capture_output=True, text=True).stdout.split()
     assert left == [], left
+
+
+def test_a_child_whose_parent_dies_before_its_job_exits():
+    """A run killed outright (SIGKILL, out of memory) while it prepares the scene sends no job: its forked children
+    notice their parent is gone and exit within seconds instead of waiting forever."""
+    code = (
+        "import os, signal, sys\n"
+        "from fracture_gs.render_sim import forked\n"
+        "w = forked.ForkedWorkers(2)\n"
+        "print(' '.join(str(p.pid) for p in w.procs), flush=True)\n"
+        "os.kill(os.getpid(), signal.SIGKILL)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    pids = [int(p) for p in out.stdout.split()]
+    assert len(pids) == 2, out.stderr[-2000:]
+    deadline = time.monotonic() + 15
+    alive = pids
+    while alive and time.monotonic() < deadline:
+        time.sleep(0.2)
+        alive = [p for p in pids if _running(p)]
+    assert alive == [], alive
+
+
+def _running(pid: int) -> bool:  # a live process, not a zombie waiting for a parent that is gone
+    try:
+        with open(f"/proc/{pid}/stat") as fh:
+            return fh.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except FileNotFoundError:
+        return False

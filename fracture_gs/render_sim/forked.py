@@ -17,6 +17,7 @@ imports nothing of the scheduler's.
 from __future__ import annotations
 
 import multiprocessing
+import os
 import queue
 import signal
 import sys
@@ -38,8 +39,15 @@ def _child(jobs, ready, stop, results) -> None:
     """A forked worker: wait for a job (fn, slot, threads, args, kwargs), prove OpenMP works here on `threads`
     torch threads, then run fn(*args, stop=stop, results=results, **kwargs)."""
     signal.signal(signal.SIGINT, signal.default_int_handler)  # not the parent's handler, which sets its own event
+    parent = os.getppid()
     try:
-        job = jobs.get()
+        while True:  # a parent killed before it sent the job (SIGKILL, out of memory) leaves no child waiting
+            try:
+                job = jobs.get(timeout=1.0)
+                break
+            except queue.Empty:
+                if os.getppid() != parent:
+                    return
         if job is None:  # the run chose another schedule
             return
         fn, slot, threads, args, kwargs = job
