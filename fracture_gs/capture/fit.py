@@ -20,7 +20,7 @@ import torch
 
 from ..config import CaptureConfig
 from ..errors import SceneError
-from ..io.config.validate import ROTATION_TOLERANCE
+from ..io.config.validate import ROTATION_TOLERANCE, is_finite_number
 from .transform import SceneTransform
 
 AXES = {
@@ -108,7 +108,7 @@ def _describe(v) -> str:
     if isinstance(v, bool):
         return f"the boolean {str(v).lower()}"
     if isinstance(v, (int, float)):
-        return f"the number {v!r:.40}" if _is_number(v) else f"the non-finite number {v!r:.40}"
+        return f"the number {v!r:.40}" if is_finite_number(v) else f"the non-finite number {v!r:.40}"
     if isinstance(v, str):
         return f"the string {v[:40]!r}"
     if isinstance(v, list):
@@ -116,16 +116,6 @@ def _describe(v) -> str:
     if isinstance(v, dict):
         return "an object"
     return "null" if v is None else type(v).__name__
-
-
-def _is_number(v) -> bool:
-    """A finite JSON number that converts to a float (an integer of 400 digits does not)."""
-    if not isinstance(v, (int, float)) or isinstance(v, bool):
-        return False
-    try:
-        return math.isfinite(float(v))
-    except OverflowError:
-        return False
 
 
 def _camera(path: Path, i: int, c) -> TrainerCamera:
@@ -147,9 +137,10 @@ def _camera(path: Path, i: int, c) -> TrainerCamera:
     pos = c["position"]
     if not isinstance(pos, list) or len(pos) != 3:
         raise bad("position", f"must be 3 finite numbers, not {_describe(pos)}")
-    if not all(_is_number(v) for v in pos):
+    if not all(is_finite_number(v) for v in pos):
         raise bad(
-            "position", f"holds {_describe(next(v for v in pos if not _is_number(v)))}; it must be 3 finite numbers"
+            "position",
+            f"holds {_describe(next(v for v in pos if not is_finite_number(v)))}; it must be 3 finite numbers",
         )
     if max(abs(float(v)) for v in pos) > MAX_CAMERA_DISTANCE:
         raise bad("position", f"= {pos} is more than {MAX_CAMERA_DISTANCE:g} scene units from the origin")
@@ -157,8 +148,8 @@ def _camera(path: Path, i: int, c) -> TrainerCamera:
     rows_ok = isinstance(rot, list) and len(rot) == 3 and all(isinstance(r, list) and len(r) == 3 for r in rot)
     if not rows_ok:
         raise bad("rotation", f"must be a 3×3 array of finite numbers, not {_describe(rot)}")
-    wrong = next((v for r in rot for v in r if not _is_number(v)), None)
-    if wrong is not None or any(not _is_number(v) for r in rot for v in r):
+    wrong = next((v for r in rot for v in r if not is_finite_number(v)), None)
+    if wrong is not None or any(not is_finite_number(v) for r in rot for v in r):
         raise bad("rotation", f"holds {_describe(wrong)}; it must be a 3×3 array of finite numbers")
     R = torch.tensor(rot, dtype=torch.float64)
     err = float((R.T @ R - torch.eye(3, dtype=torch.float64)).abs().max())
@@ -167,11 +158,11 @@ def _camera(path: Path, i: int, c) -> TrainerCamera:
     if float(torch.linalg.det(R)) < 0:
         raise bad("rotation", "is a reflection (determinant −1), not a camera rotation")
     for key in ("fx", "fy"):
-        if not _is_number(c[key]) or not c[key] > 0:
+        if not is_finite_number(c[key]) or not c[key] > 0:
             raise bad(key, f"must be a positive focal length in pixels, not {_describe(c[key])}")
     for key in ("width", "height"):
         v = c[key]
-        if not (_is_number(v) and float(v).is_integer() and 1 <= v <= MAX_IMAGE_SIDE):
+        if not (is_finite_number(v) and float(v).is_integer() and 1 <= v <= MAX_IMAGE_SIDE):
             raise bad(key, f"must be a whole number of pixels from 1 to {MAX_IMAGE_SIDE:,}, not {_describe(v)}")
     return TrainerCamera(
         position=torch.tensor(pos, dtype=torch.float64),

@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import Any, Optional
 
 from ..errors import OutputError
+from ..io.config.validate import is_finite_number
 from .expansion import Cell
 
 STATUSES = ("ok", "failed")
@@ -159,17 +160,6 @@ def _what(v: Any) -> str:
     return "a list" if isinstance(v, list) else "an object" if isinstance(v, dict) else type(v).__name__
 
 
-def _is_number(v: Any) -> bool:
-    """A JSON number the tables can compute with: not a boolean, and finite as a float (a 400-digit integer
-    is not)."""
-    if not isinstance(v, (int, float)) or isinstance(v, bool):
-        return False
-    try:
-        return math.isfinite(float(v))
-    except OverflowError:
-        return False
-
-
 def _non_finite(value: Any) -> Optional[str]:
     """The path (e.g. `.latch.time` or `[3]`) of the first NaN or inf inside nested JSON, or None (iterative:
     a deeply nested file cannot exhaust the stack)."""
@@ -216,9 +206,9 @@ def check_row(path: Path, cell: Cell, row: Any) -> dict:
             raise bad(key, f"is {_what(v)}, not a number, text, true/false or null")
         if key in INT_KEYS and (isinstance(v, bool) or not isinstance(v, int)):
             raise bad(key, f"is {_what(v)}, not an integer")
-        if key in NUMBER_KEYS and not _is_number(v):
+        if key in NUMBER_KEYS and not is_finite_number(v):
             raise bad(key, f"is {_what(v)}, not a number")
-        if isinstance(v, (int, float)) and not isinstance(v, bool) and not _is_number(v):
+        if isinstance(v, (int, float)) and not isinstance(v, bool) and not is_finite_number(v):
             raise bad(key, f"is {_what(v)[:60]}, too large for a number")
         low = LOWER_BOUNDS.get(key)
         if low is not None and not isinstance(v, str) and (v < low[0] or (not low[1] and v == low[0])):

@@ -98,6 +98,17 @@ class _Checker:
             )
 
 
+def is_finite_number(v) -> bool:
+    """A number read from TOML or JSON that a check can compute with: an int or float, not a boolean, finite as a
+    float (a 400-digit JSON integer overflows float() and is not)."""
+    if not isinstance(v, (int, float)) or isinstance(v, bool):
+        return False
+    try:
+        return math.isfinite(float(v))
+    except OverflowError:
+        return False
+
+
 def validate(cfg: SceneConfig, source: str = "<config>") -> SceneConfig:
     """Check every value of a SceneConfig; raise ConfigError (one sentence) on the first problem."""
     c = _Checker(source)
