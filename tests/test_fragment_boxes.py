@@ -394,6 +394,8 @@ def test_latched_normal_contact_gated_by_both_band_masses(device, seed, fast):
         (0.0, 0.0, 0.0), 1.0 / n, DT, band=cpu["band"],
     )  # fmt: skip
     eps_b = 0.01 * float(gm[gm > 0].mean())
+    while bool(((gb - eps_b).abs() < 1e-4 * eps_b).any()):  # no node's band mass at the gate itself: float32
+        eps_b *= 1.01  # kernels and the float64 reference may round a node 1e-6 away from ε_b to either side
     none = wp.zeros(2, dtype=wp.vec3, device=device)
     boxes.update(c, EPS_M, GRAVITY, 0.0, none, cw, no_walls(device), e=0.0, mu=0.2, latched=(1.0, 0.0, 0.0),
                  eps_b=eps_b, fast_math=fast)  # fmt: skip
