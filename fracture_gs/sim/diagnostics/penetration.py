@@ -229,11 +229,18 @@ class _Cells:
         out[self.order] = (lo != hi)[self.inverse]
         return out
 
-    def gather(self, coord: torch.Tensor, reach: int) -> tuple[torch.Tensor, torch.Tensor]:
+    def gather(
+        self, coord: torch.Tensor, reach: int, other_than: Optional[torch.Tensor] = None
+    ) -> tuple[torch.Tensor, torch.Tensor]:
         """(query index, particle index) for every particle in the cells within `reach` cells of each query
-        cell [M, 3] (a point of the query cell sees no other particle within reach·size)."""
+        cell [M, 3] (a point of the query cell sees no other particle within reach·size). `other_than` [M]: a
+        fragment id per query; cells holding only that fragment's particles are left out (the pairs that remain
+        come in the same order as without it)."""
         off = _cube(reach, coord.device, ball=True)
         i, hit = self.find(_keys(coord[:, None, :] + off[None]))  # [M, C]
+        if other_than is not None:  # a cell of the query's own piece alone holds no pair of another piece
+            own = (self.fmin[i] == self.fmax[i]) & (self.fmin[i] == other_than[:, None])
+            hit = hit & ~own
         i = i.reshape(-1)
         n = torch.where(hit.reshape(-1), self.count[i], torch.zeros_like(i))
         cell = torch.repeat_interleave(torch.arange(n.numel(), device=n.device), n)  # [P]
@@ -408,7 +415,7 @@ def surface_depth(
     xf = (xd - lo).float()  # pair offsets in float32 (relative to the box: ample for |x_p − x_j| ≤ R)
     for s in range(0, query.numel(), chunk):
         q = query[s : s + chunk]
-        qi, j = big.gather(big.coord[q], 3)
+        qi, j = big.gather(big.coord[q], 3, other_than=frag[q])  # pairs with another piece's particles only
         fq, fj = frag[q][qi], frag[j]
         u2 = ((xf[q][qi] - xf[j]) ** 2).sum(1) / (radius * radius)
         keep = (fj >= 0) & (fj != fq) & (u2 < 1.0)
