@@ -135,14 +135,14 @@ def run_on_devices(
     # workers sharing one CPU split its cores: each kernel's ranges stay on its own share (bitwise the same)
     cores = max(1, usable_cores() // len(devices)) if all(d == "cpu" for d in devices) else None
     setup = WorkerSetup(torch.get_num_threads(), run, phases.enabled, cores)
-    jobs = [  # the first device's variants run here, the others' in worker processes
-        (i, replace(on_cpu, device=devices[i]), vs, order[0], channel_dir, setup)
+    jobs = [  # `_worker`'s leading arguments: the first device's variants run here, the others' in worker processes
+        (i, replace(on_cpu, device=devices[i]), vs, order[0], channel_dir)
         for i, vs in enumerate(queues)
         if vs and i > 0
     ]
     procs = None
     if workers is not None:
-        procs = workers.start(_worker, [(j[0], setup.threads, j[:5], {"setup": setup}) for j in jobs])
+        procs = workers.start(_worker, [(job[0], setup.threads, job, {"setup": setup}) for job in jobs])
     if workers is not None and procs is not None:
         stop, results = workers.stop, workers.results
         tqdm.write(f"render-sim: {len(order)} variants in {len(procs) + 1} processes (forked at the start)")
@@ -157,7 +157,8 @@ def run_on_devices(
         procs = [
             mp.Process(
                 target=_worker,
-                args=(*job[:5], stop, results, job[5]),
+                args=job,
+                kwargs={"stop": stop, "results": results, "setup": setup},
                 name=f"fgs-{job[1].device}-{job[0]}",
                 daemon=True,
             )
