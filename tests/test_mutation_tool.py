@@ -112,3 +112,32 @@ def test_a_selection_pytest_cannot_find_is_rerun_by_file():
     assert pick_tests.by_file_retry(4, "ERROR collecting tests/a.py\nERROR: not found: x\n", tests) == []
     assert pick_tests.by_file_retry(1, "1 failed", tests) == []
     assert pick_tests.by_file_retry(0, "3 passed", tests) == []
+
+
+@pytest.mark.slow
+def test_a_shard_that_dies_is_mapped_again_file_by_file(tmp_path):
+    """A test file that kills its pytest process (here `os.abort()`, as a fatal error in an extension would) leaves
+    its shard without coverage data. The map runs that shard's files again one a process: the file sharing the
+    dead shard is mapped, the dying one is listed in map_gaps.json and named on the way out, and `map` exits 1."""
+    shutil.copytree(MUTATION, tmp_path / "mutation", ignore=shutil.ignore_patterns(".state", "__pycache__"))
+    (tmp_path / "fracture_gs").mkdir()
+    (tmp_path / "fracture_gs" / "__init__.py").write_text("")
+    (tmp_path / "fracture_gs" / "toy.py").write_text("def double(v):\n    return 2 * v\n")
+    (tmp_path / "tests").mkdir()
+    (tmp_path / "tests" / "test_a_toy.py").write_text(
+        "from fracture_gs.toy import double\n\n\ndef test_double():\n    assert double(2) == 4\n"
+    )
+    (tmp_path / "tests" / "test_b_dies.py").write_text("import os\n\n\ndef test_dies():\n    os.abort()\n")
+    done = subprocess.run(
+        [sys.executable, "mutation/run.py", "map", "--jobs", "1"],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert done.returncode == 1, done.stdout + done.stderr
+    state = tmp_path / "mutation" / ".state"
+    assert json.loads((state / "map_gaps.json").read_text()) == ["tests/test_b_dies.py"]
+    assert "NOT in the map" in done.stdout and "tests/test_b_dies.py" in done.stdout
+    cov = json.loads((state / "coverage_map.json").read_text())
+    assert cov["fracture_gs/toy.py"]["2"] == ["tests/test_a_toy.py::test_double"]
