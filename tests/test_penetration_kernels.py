@@ -1,18 +1,22 @@
-"""The surface measure's depth inversion in Warp (`penetration_kernels.depth_from_share`) against its torch twin
-(`penetration.depth_from_fraction`) and against the closed form it inverts: for every share c in [0, 1] it returns
-the u in [−1, 1] with F(u) = c, F the kernel's half-space share, to the bisection's 2⁻⁴⁰; shares outside [0, 1]
-read as the nearest end (a piece cannot fill less than none or more than all of the ball)."""
+"""The surface measure in Warp (`penetration_kernels`) against its torch twins and the closed form it inverts.
 
+Inversion: for every share c in [0, 1] `depth_from_share` returns the u in [−1, 1] with F(u) = c, F the kernel's
+half-space share, to the bisection's 2⁻⁴⁰; shares outside [0, 1] read as the nearest end. Sums: the walk of the
+cells around each query gives the depth and the piece of `penetration.behind_surfaces_torch`'s pairs."""
+
+import pytest
 import torch
 
+from fracture_gs.sim.diagnostics import penetration as pen
+from fracture_gs.sim.diagnostics import penetration_kernels as pk
 from fracture_gs.sim.diagnostics.penetration import depth_from_fraction, fraction_of_half_space
 from fracture_gs.sim.diagnostics.penetration_kernels import depth_from_share
 
 
 def test_the_kernel_inverts_the_half_space_share():
-    """u → F(u) → depth_from_share gives u back within 1e-11 for |u| ≤ 0.95; towards the ends F flattens (F′ ∝ (1 − u²)²,
-    so a share one rounding from 1 is a cube root of it, ≈ 1e-5, from u = 1) and u comes back within 1e-4. F of the
-    returned u is the share asked for everywhere."""
+    """u → F(u) → depth_from_share gives u back within 1e-11 for |u| ≤ 0.95; towards the ends F flattens
+    (F′ ∝ (1 − u²)², so a share one rounding from 1 is a cube root of it, ≈ 1e-5, from u = 1) and u comes back
+    within 1e-4. F of the returned u is the share asked for everywhere."""
     u = torch.linspace(-1, 1, 4001, dtype=torch.float64)
     back = depth_from_share(fraction_of_half_space(u))
     inner = u.abs() <= 0.95
@@ -51,3 +55,92 @@ def test_a_float32_share_is_inverted_in_float64():
     out = depth_from_share(c)
     assert out.dtype == torch.float64
     torch.testing.assert_close(out, depth_from_fraction(c.double()), rtol=0, atol=1e-12)
+
+
+def _pressed(depth_spacings: float, seed: int, third: bool = False) -> tuple[torch.Tensor, torch.Tensor]:
+    """Two jittered 14³ blocks (spacing 0.02 m) pressed into each other along x by `depth_spacings` spacings; with
+    `third` a third block (id 2) pressed into block 0 from the other side by the same depth (a tie in depth)."""
+    g = torch.Generator().manual_seed(seed)
+    s, n = 0.02, 14
+    starts = [0.0, n * s - depth_spacings * s] + ([-(n * s) + depth_spacings * s] if third else [])
+    parts, ids = [], []
+    for k, x0 in enumerate(starts):
+        axes = [torch.arange(n) * s + x0, torch.arange(n) * s, torch.arange(n) * s]
+        p = torch.stack(torch.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3).double()
+        parts.append(p + 0.2 * s * (torch.rand(p.shape, generator=g, dtype=torch.float64) - 0.5))
+        ids.append(torch.full((len(p),), k, dtype=torch.long))
+    return torch.cat(parts), torch.cat(ids)
+
+
+def _calibration(x, frag, K):
+    cal = pen.calibrate(x[frag == 0], frag[frag == 0])  # one block alone: the scales at a latch
+    cal["filled"] = cal["filled"].repeat(K)
+    return cal
+
+
+@pytest.mark.parametrize("depth_spacings, seed", [(0.0, 0), (1.5, 1), (3.0, 2)])
+def test_the_warp_sums_match_the_torch_twin(depth_spacings, seed):
+    """Pieces pressed together by 0, 1.5 and 3 spacings, each particle weighted by a volume change: the Warp walk of
+    the cells gives every particle the depth and the piece of the twin's pairs (float32 offsets there: within 1e-6
+    of the kernel radius), and deeper pressing reads deeper."""
+    x, frag = _pressed(depth_spacings, seed)
+    cal = _calibration(x, frag, 2)
+    J = 1.0 + 0.1 * torch.rand(len(x), dtype=torch.float64, generator=torch.Generator().manual_seed(seed))
+    depth, into = pen.surface_depth(x, frag, cal, J)
+    depth0, into0 = pen.surface_depth(x, frag, cal, J, twin=True)
+    torch.testing.assert_close(depth, depth0, rtol=0, atol=1e-6 * cal["radius"])
+    assert torch.equal(into, into0)
+    if depth_spacings > 0:
+        assert float(depth.max()) > 0.5 * depth_spacings * 0.02 * 0.5, "pressed pieces read a depth"
+
+
+def test_a_tie_in_depth_names_the_larger_piece_and_unlabelled_or_uncalibrated_ids_are_skipped():
+    """Block 0 pressed by blocks 1 and 2 from both sides: each of its particles is behind the piece it is deepest
+    in, as the twin says (ties: the larger id). Particles with id −1 or an id the calibration lacks are neither
+    measured nor counted as another piece's volume."""
+    x, frag = _pressed(2.0, 3, third=True)
+    cal = _calibration(x, frag, 3)
+    depth, into = pen.surface_depth(x, frag, cal)
+    depth0, into0 = pen.surface_depth(x, frag, cal, twin=True)
+    torch.testing.assert_close(depth, depth0, rtol=0, atol=1e-6 * cal["radius"])
+    assert torch.equal(into, into0) and set(into[frag == 0].unique().tolist()) >= {1, 2}
+    hidden = frag.clone()
+    hidden[frag == 2] = -1  # unlabelled: piece 2 is not there for the measure
+    d_hidden, into_hidden = pen.surface_depth(x, hidden, cal)
+    cal2 = _calibration(x, frag, 2)  # calibrated for ids 0 and 1 only: id 2 is not evaluated either
+    d_short, into_short = pen.surface_depth(x, frag, cal2)
+    for d, i in ((d_hidden, into_hidden), (d_short, into_short)):
+        assert not bool((i == 2).any()) and float(d[frag == 2].abs().max()) == 0.0
+        torch.testing.assert_close(
+            d, pen.surface_depth(x, hidden, cal, twin=True)[0], rtol=0, atol=1e-6 * cal["radius"]
+        )
+
+
+def test_queries_in_chunks_read_as_in_one():
+    """The sums held for a few queries at a time (chunks of 7) give every query the same depth, bit for bit, as all
+    at once: each query's sum is its own thread's."""
+    x, frag = _pressed(2.0, 4)
+    cal = _calibration(x, frag, 2)
+    lo = x.min(0).values
+    cells = pen._Cells(x, frag, lo, cal["radius"] / 3)
+    query = torch.arange(len(x))
+    off = pen._cube(3, x.device, ball=True)
+    J = torch.ones(len(x), dtype=torch.float64)
+    args = (x, frag, J, cal["filled"], cal["radius"], cells, off, query, pen._BITS)
+    a = pk.deepest_behind_surfaces(*args, 7)
+    b = pk.deepest_behind_surfaces(*args, len(x))
+    assert torch.equal(a[0], b[0]) and torch.equal(a[1], b[1]) and float(a[0].max()) > 0
+
+
+def test_an_exact_tie_names_the_larger_piece_as_the_twin_does():
+    """A particle with one particle of piece 1 and one of piece 2 at the same distance, each filling its ball (a
+    tiny filled density makes every share 1, so both depths are exactly R): it lies behind piece 2, the larger id,
+    in the kernel as in the twin."""
+    x = torch.tensor([[0.0, 0.0, 0.0], [0.005, 0.0, 0.0], [-0.005, 0.0, 0.0]], dtype=torch.float64)
+    frag = torch.tensor([0, 1, 2])
+    cal = {"radius": 0.05, "filled": torch.full((3,), 1e-3, dtype=torch.float64), "spacing": 0.05 / pen.SPACINGS}
+    depth, into = pen.surface_depth(x, frag, cal)
+    depth0, into0 = pen.surface_depth(x, frag, cal, twin=True)
+    assert int(into[0]) == 2 and int(into0[0]) == 2
+    torch.testing.assert_close(depth, depth0, rtol=0, atol=1e-12)
+    assert torch.equal(into, into0)

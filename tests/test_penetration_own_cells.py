@@ -1,6 +1,7 @@
-"""The fragment-aware penetration measure skips the cells of a query's own piece (`penetration._Cells.gather`'s
-`other_than`): a cell that holds only the query's fragment has no pair the measure counts, and the pairs that remain
-keep their order, so every depth is the same to the last bit while the work near a long contact face falls."""
+"""The fragment-aware penetration measure's torch twin skips the cells of a query's own piece
+(`penetration._Cells.gather`'s `other_than`): a cell that holds only the query's fragment has no pair the measure
+counts, and the pairs that remain keep their order, so every depth is the same to the last bit while the work near
+a long contact face falls."""
 
 from __future__ import annotations
 
@@ -37,11 +38,11 @@ def test_skipping_own_cells_gives_the_same_depths_bit_for_bit(monkeypatch):
         return out
 
     monkeypatch.setattr(pen._Cells, "gather", counting)
-    depth, into = pen.surface_depth(x, frag, cal)
+    depth, into = pen.surface_depth(x, frag, cal, twin=True)
     skipped = seen.pop("skip")
     monkeypatch.setattr(pen._Cells, "gather", lambda self, coord, reach, other_than=None: counting(self, coord, reach))
     seen.clear()
-    depth0, into0 = pen.surface_depth(x, frag, cal)
+    depth0, into0 = pen.surface_depth(x, frag, cal, twin=True)
     assert bool((depth0 > 0).any()), "the blocks overlap"
     assert torch.equal(depth, depth0) and torch.equal(into, into0)
     assert skipped < seen["all"], (skipped, seen)

@@ -31,7 +31,7 @@ from typing import Optional
 import torch
 
 from .metrics import plane_constants
-from .penetration_kernels import depth_from_share
+from .penetration_kernels import deepest_behind_surfaces
 
 _NEIGHBOURS = ((1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0, 1), (0, 0, -1))
 
@@ -384,13 +384,16 @@ def surface_depth(
     calibration: dict,
     volume_ratio: Optional[torch.Tensor] = None,
     chunk: int = CHUNK,
+    twin: bool = False,
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """Per particle, the deepest depth [m] behind another fragment's surface and that fragment's id.
 
     x [N, 3], fragment [N] (−1: unlabelled, ignored), calibration from `calibrate` (radius R, each fragment's
     filled density; ids beyond it are not evaluated). Returns (depth [N] float64, 0 where no particle lies behind
     another piece's surface or none was evaluated; into [N] int64, −1 there). A depth saturates at R.
-    `volume_ratio` [N]: det F per particle, its weight (as in `calibrate`; default 1)."""
+    `volume_ratio` [N]: det F per particle, its weight (as in `calibrate`; default 1). The sums and depths run in
+    Warp (`penetration_kernels`); `twin` runs the torch twin instead (`behind_surfaces_torch`, `chunk` queries at a
+    time), for tests."""
     radius, filled = float(calibration["radius"]), calibration["filled"].to(x.device, torch.float64)
     n = x.shape[0]
     depth = torch.zeros(n, dtype=torch.float64, device=x.device)
@@ -413,33 +416,58 @@ def surface_depth(
     close = (frag[j] != frag[query][qi]) & (frag[j] >= 0) & (gap2 < (NEAR * spacing) ** 2)
     query = query[torch.zeros(query.numel(), dtype=torch.bool, device=x.device).index_fill_(0, qi[close], True)]
     big = _Cells(xd, frag, lo, radius / 3)  # cells within 3 of the query's: every particle within R
-    K = int(frag.max()) + 1
+    J = torch.ones_like(xd[:, 0]) if volume_ratio is None else volume_ratio.double()  # [N] weights
+    offsets = _cube(3, x.device, ball=True)
+    if twin:
+        best, which = behind_surfaces_torch(xd, lo, frag, J, filled, radius, big, query, chunk)
+    else:
+        rows = max(1, DENSE_LIMIT // filled.numel())  # queries whose [rows, K] sums are held at once
+        best, which = deepest_behind_surfaces(xd, frag, J, filled, radius, big, offsets, query, _BITS, rows)
+    depth[query], into[query] = best, which
+    return depth, into
+
+
+def behind_surfaces_torch(
+    xd: torch.Tensor,
+    lo: torch.Tensor,
+    frag: torch.Tensor,
+    J: torch.Tensor,
+    filled: torch.Tensor,
+    radius: float,
+    big: _Cells,
+    query: torch.Tensor,
+    chunk: int = CHUNK,
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """The torch twin of `penetration_kernels.deepest_behind_surfaces`: (depth [M] float64 [m], into [M] int64) of
+    each query particle behind the other pieces' surfaces, from every (query, particle) pair of the cells around it
+    (pair offsets in float32), `chunk` queries at a time."""
+    K, n = filled.numel(), query.numel()
+    depth = torch.zeros(n, dtype=torch.float64, device=xd.device)
+    into = torch.full((n,), -1, dtype=torch.long, device=xd.device)
     xf = (xd - lo).float()  # pair offsets in float32 (relative to the box: ample for |x_p − x_j| ≤ R)
-    for s in range(0, query.numel(), chunk):
+    for s in range(0, n, chunk):
         q = query[s : s + chunk]
         qi, j = big.gather(big.coord[q], 3, other_than=frag[q])  # pairs with another piece's particles only
         fq, fj = frag[q][qi], frag[j]
         u2 = ((xf[q][qi] - xf[j]) ** 2).sum(1) / (radius * radius)
         keep = (fj >= 0) & (fj != fq) & (u2 < 1.0)
         qi, fj = qi[keep], fj[keep]
-        w = kernel(u2[keep].double(), radius) / filled[fj]  # each particle 1/n_b of b's volume …
-        if volume_ratio is not None:
-            w = w * volume_ratio.double()[j[keep]]  # … times its volume change
+        w = kernel(u2[keep].double(), radius) / filled[fj] * J[j[keep]]  # each particle 1/n_b of b's volume, × det F
         m = q.numel()
         if m * K <= DENSE_LIMIT:
-            frac = torch.zeros(m * K, dtype=torch.float64, device=x.device).index_add_(0, qi * K + fj, w)
+            frac = torch.zeros(m * K, dtype=torch.float64, device=xd.device).index_add_(0, qi * K + fj, w)
             key = torch.nonzero(frac > 0.5).flatten()  # behind b's surface only where b fills over half
             frac = frac[key]
         else:
             key, inv = torch.unique(qi * K + fj, return_inverse=True)
-            frac = torch.zeros(key.numel(), dtype=torch.float64, device=x.device).index_add_(0, inv, w)
+            frac = torch.zeros(key.numel(), dtype=torch.float64, device=xd.device).index_add_(0, inv, w)
             key, frac = key[frac > 0.5], frac[frac > 0.5]
-        d = radius * depth_from_share(frac)  # [E] entries (candidate, other fragment): one launch
+        d = radius * depth_from_fraction(frac)  # [E] entries (candidate, other fragment)
         row, other = torch.div(key, K, rounding_mode="floor"), key % K
-        best = torch.zeros(m, dtype=torch.float64, device=x.device).scatter_reduce(0, row, d, "amax")
+        best = torch.zeros(m, dtype=torch.float64, device=xd.device).scatter_reduce(0, row, d, "amax")
         hit = (best[row] == d) & (d > 0)
-        which = torch.full((m,), -1, dtype=torch.long, device=x.device).scatter_reduce(0, row[hit], other[hit], "amax")
-        depth[q], into[q] = best, which
+        which = torch.full((m,), -1, dtype=torch.long, device=xd.device).scatter_reduce(0, row[hit], other[hit], "amax")
+        depth[s : s + chunk], into[s : s + chunk] = best, which
     return depth, into
 
 

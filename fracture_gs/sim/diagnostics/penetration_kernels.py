@@ -1,17 +1,30 @@
-"""The surface measure's depth inversion (`penetration.surface_depth`) in one Warp launch.
+"""The surface measure (`penetration.surface_depth`) in Warp: the kernel sums behind other pieces' surfaces and their
+depth inversion, one launch each, nothing read back.
 
-A particle whose ball of radius R is filled to a share c by another piece lies d = R·u behind that piece's flat
+Sums: for a query particle p of piece a, c_b(p) = Σ_{j∈b, b≠a} J_j W(|x_p − x_j|) / n_b over every particle within
+the kernel radius R (W the compact kernel of `penetration.kernel`, J_j its volume change det F, n_b b's filled
+density). The torch twin (`penetration.behind_surfaces_torch`) materialises every (query, particle) pair of the
+cells around the queries — about a million pairs a frame for pieces pressed together, 60 ms a frame on one CPU
+core and ≈ 60 ops a chunk on a GPU. Here one thread per query walks the same cells (binary searches in the sorted
+cell keys, cells of its own piece alone skipped), in the same order, and sums in float64 (the twin takes the pair
+offsets in float32, so the two agree to about 1e-6 of a share). The same thread then inverts each share over ½
+(below, the particle is in front of b's surface) and keeps the deepest: depth [m] and the piece it lies behind.
+
+Inversion:
+a particle whose ball of radius R is filled to a share c by another piece lies d = R·u behind that piece's flat
 surface, where u solves F(u) = c for the kernel's half-space share
 
     F(u) = 1/2 + 35/32 · (u − u³ + 3u⁵/5 − u⁷/7),    u ∈ [−1, 1],
 
 monotone in u. `penetration.depth_from_fraction` is the torch twin: 40 halvings of [−1, 1], about 600 elementwise
-ops, each a launch on a GPU, every frame and every variant. Here each thread halves its own interval 40 times:
-the same bisection and the same polynomial, one launch, nothing read back. The two agree to within rounding
-(the powers may round differently by an ulp, which moves u by about that much; `tests/test_penetration_kernels.py`).
+ops, each a launch on a GPU. Here each thread halves its own interval 40 times: the same bisection and the same
+polynomial. The two agree to within rounding (the powers may round differently by an ulp, which moves u by about
+that much; `tests/test_penetration_kernels.py`).
 """
 
 from __future__ import annotations
+
+import math
 
 import torch
 import warp as wp
@@ -32,11 +45,10 @@ def half_space_share(u: wp.float64):
     )
 
 
-@wp.kernel
-def invert_half_space_share(share: wp.array(dtype=wp.float64), u: wp.array(dtype=wp.float64)):
-    """u[i] with F(u[i]) = share[i] (clamped to [0, 1]), by bisection of [−1, 1]."""
-    i = wp.tid()
-    c = wp.clamp(share[i], wp.float64(0.0), wp.float64(1.0))
+@wp.func
+def invert_share(c: wp.float64):
+    """u in [−1, 1] with F(u) = c (c clamped to [0, 1]): 40 halvings of [−1, 1]."""
+    c = wp.clamp(c, wp.float64(0.0), wp.float64(1.0))
     lo = wp.float64(-1.0)
     hi = wp.float64(1.0)
     for _halving in range(HALVINGS):
@@ -45,7 +57,137 @@ def invert_half_space_share(share: wp.array(dtype=wp.float64), u: wp.array(dtype
             lo = mid
         else:
             hi = mid
-    u[i] = wp.float64(0.5) * (lo + hi)
+    return wp.float64(0.5) * (lo + hi)
+
+
+@wp.func
+def lower_bound(keys: wp.array(dtype=wp.int64), key: wp.int64):
+    """The first index of the sorted `keys` not below `key` (len(keys) if none)."""
+    lo = int(0)  # noqa: UP018 - a typed variable Warp may change in the loop
+    hi = keys.shape[0]
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if keys[mid] < key:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
+
+
+@wp.kernel
+def deepest_behind(
+    query: wp.array(dtype=wp.int64),  # [M] particle indices
+    coord: wp.array2d(dtype=wp.int64),  # [N, 3] cell coordinates (cells of edge R/3)
+    offsets: wp.array2d(dtype=wp.int64),  # [C, 3] the cells within reach of a cell
+    keys: wp.array(dtype=wp.int64),  # [V] sorted occupied cell keys
+    start: wp.array(dtype=wp.int64),  # [V] first sorted index of each cell
+    count: wp.array(dtype=wp.int64),  # [V]
+    fmin: wp.array(dtype=wp.int64),  # [V] smallest / largest fragment id in each cell
+    fmax: wp.array(dtype=wp.int64),
+    order: wp.array(dtype=wp.int64),  # [N] particle index of each sorted slot
+    x: wp.array2d(dtype=wp.float64),  # [N, 3] positions [m]
+    frag: wp.array(dtype=wp.int64),  # [N] fragment id, −1: not evaluated
+    volume_ratio: wp.array(dtype=wp.float64),  # [N] det F
+    filled: wp.array(dtype=wp.float64),  # [K] each piece's filled density [1/m³]
+    radius: wp.float64,
+    norm: wp.float64,  # 105 / (32π R³), W's value at its centre
+    bits: int,
+    sums: wp.array2d(dtype=wp.float64),  # [M, K] scratch, zero on entry
+    depth: wp.array(dtype=wp.float64),  # [M] out: deepest depth [m], 0 if behind none
+    into: wp.array(dtype=wp.int64),  # [M] out: the piece it lies behind (largest id among equals), −1 if none
+):
+    m = wp.tid()
+    p = query[m]
+    fp = frag[p]
+    r2 = radius * radius
+    for c in range(offsets.shape[0]):
+        cx = coord[p, 0] + offsets[c, 0]
+        cy = coord[p, 1] + offsets[c, 1]
+        cz = coord[p, 2] + offsets[c, 2]
+        key = (cx << wp.int64(2 * bits)) | (cy << wp.int64(bits)) | cz
+        i = lower_bound(keys, key)
+        if i < keys.shape[0]:
+            if keys[i] == key and not (fmin[i] == fmax[i] and fmin[i] == fp):
+                for s in range(int(start[i]), int(start[i] + count[i])):
+                    j = order[s]
+                    fj = frag[j]
+                    if fj >= wp.int64(0) and fj != fp:
+                        dx = x[p, 0] - x[j, 0]
+                        dy = x[p, 1] - x[j, 1]
+                        dz = x[p, 2] - x[j, 2]
+                        u2 = (dx * dx + dy * dy + dz * dz) / r2
+                        if u2 < wp.float64(1.0):
+                            t = wp.float64(1.0) - u2
+                            sums[m, int(fj)] += norm * t * t / filled[int(fj)] * volume_ratio[j]
+    best = wp.float64(0.0)
+    which = wp.int64(-1)
+    for b in range(sums.shape[1]):
+        share = sums[m, b]
+        if share > wp.float64(0.5):  # behind b's surface only where b fills over half
+            d = radius * invert_share(share)
+            if d > wp.float64(0.0) and d >= best:
+                best = d
+                which = wp.int64(b)
+    depth[m] = best
+    into[m] = which
+
+
+def deepest_behind_surfaces(
+    x: torch.Tensor,
+    frag: torch.Tensor,
+    volume_ratio: torch.Tensor,
+    filled: torch.Tensor,
+    radius: float,
+    cells,
+    offsets: torch.Tensor,
+    query: torch.Tensor,
+    bits: int,
+    chunk: int,
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """(depth [M] float64 [m], into [M] int64) of each query particle behind the other pieces' surfaces (see the
+    module's docstring; `penetration.behind_surfaces_torch` is the twin). x [N, 3] float64, frag [N] int64 (−1: not
+    evaluated), volume_ratio [N] float64, filled [K] float64, `cells` a `penetration._Cells` of edge R/3 over x,
+    offsets [C, 3] int64 the cells around a cell to visit, query [M] int64; at most `chunk` queries' [chunk, K]
+    sums at a time."""
+    K, M = filled.numel(), query.numel()
+    dev = x.device
+    depth = torch.zeros(M, dtype=torch.float64, device=dev)
+    into = torch.full((M,), -1, dtype=torch.long, device=dev)
+    if M == 0 or K == 0:
+        return depth, into
+    ensure_warp()
+    device = str(dev)
+    w = {
+        k: wp.from_torch(t.contiguous())
+        for k, t in dict(
+            keys=cells.keys, start=cells.start, count=cells.count, fmin=cells.fmin, fmax=cells.fmax,
+            order=cells.order, frag=frag, volume_ratio=volume_ratio, filled=filled,
+        ).items()
+    }  # fmt: skip
+    coord, off, xs = (wp.from_torch(t.contiguous()) for t in (cells.coord, offsets, x))
+    norm = 105.0 / (32.0 * math.pi * radius**3)
+    for s in range(0, M, chunk):
+        q = query[s : s + chunk].contiguous()
+        sums = torch.zeros(q.numel(), K, dtype=torch.float64, device=dev)
+        wp.launch(
+            deepest_behind,
+            dim=q.numel(),
+            inputs=[
+                wp.from_torch(q), coord, off, w["keys"], w["start"], w["count"], w["fmin"], w["fmax"], w["order"],
+                xs, w["frag"], w["volume_ratio"], w["filled"], radius, norm, bits, wp.from_torch(sums),
+                wp.from_torch(depth[s : s + chunk]), wp.from_torch(into[s : s + chunk]),
+            ],
+            device=device,
+            stream=warp_stream(device),
+        )  # fmt: skip
+    return depth, into
+
+
+@wp.kernel
+def invert_half_space_share(share: wp.array(dtype=wp.float64), u: wp.array(dtype=wp.float64)):
+    """u[i] with F(u[i]) = share[i] (clamped to [0, 1])."""
+    i = wp.tid()
+    u[i] = invert_share(share[i])
 
 
 def depth_from_share(share: torch.Tensor) -> torch.Tensor:  # [E] float64 -> [E] float64 in [−1, 1]
