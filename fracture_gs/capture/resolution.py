@@ -80,8 +80,11 @@ def choose(gs: GaussianSet, cap, device: str) -> Resolution:
     wanted = math.ceil(2.0 * size / thin) if thin > 0 else hi
     cells = min(max(wanted, lo), hi)
     particles = lambda c: 8.0 * solid_fraction * c**3  # noqa: E731  (8 per solid cell; c³ cells in the size cube)
-    while cells > lo and particles(cells) > budget:
-        cells = max(lo, int(cells * (budget / particles(cells)) ** (1 / 3)))
+    if solid_fraction > 0:  # the most cells whose particles fit the budget, never below the fewest
+        fit = int((budget / (8.0 * solid_fraction)) ** (1 / 3))
+        if particles(fit + 1) <= budget:  # the cube root's round-off lands one short of an exact fit
+            fit += 1
+        cells = max(lo, min(cells, fit))
     why = f"capture.quality = {cap.quality!r} on the {'GPU' if kind == 'cuda' else 'CPU'}"
     return Resolution(cells, size / cells, thin, _note(cells, size / cells, thin, why), budget)
 
