@@ -13,25 +13,31 @@ from fracture_gs.sim.diagnostics.penetration import depth_from_fraction, fractio
 from fracture_gs.sim.diagnostics.penetration_kernels import depth_from_share
 
 
-def test_the_kernel_inverts_the_half_space_share():
+def test_the_kernel_inverts_the_half_space_share(device):
     """u → F(u) → depth_from_share gives u back within 1e-11 for |u| ≤ 0.95; towards the ends F flattens
     (F′ ∝ (1 − u²)², so a share one rounding from 1 is a cube root of it, ≈ 1e-5, from u = 1) and u comes back
     within 1e-4. F of the returned u is the share asked for everywhere."""
-    u = torch.linspace(-1, 1, 4001, dtype=torch.float64)
+    u = torch.linspace(-1, 1, 4001, dtype=torch.float64, device=device)
     back = depth_from_share(fraction_of_half_space(u))
     inner = u.abs() <= 0.95
     torch.testing.assert_close(back[inner], u[inner], rtol=0, atol=1e-11)
     torch.testing.assert_close(back, u, rtol=0, atol=1e-4)
-    c = torch.rand(5000, dtype=torch.float64, generator=torch.Generator().manual_seed(4))
+    c = torch.rand(5000, dtype=torch.float64, generator=torch.Generator().manual_seed(4)).to(device)
     torch.testing.assert_close(fraction_of_half_space(depth_from_share(c)), c, rtol=0, atol=1e-11)
 
 
-def test_the_kernel_matches_its_torch_twin():
-    """Same bisection, same polynomial: the Warp kernel and the torch twin agree to 1e-12 on random shares,
-    the half-full ball (u = 0), and the ends."""
-    c = torch.cat([torch.rand(3000, dtype=torch.float64), torch.tensor([0.0, 0.5, 1.0, 1e-300, 1 - 1e-16])])
-    torch.testing.assert_close(depth_from_share(c), depth_from_fraction(c), rtol=0, atol=1e-12)
-    assert abs(float(depth_from_share(torch.tensor([0.5], dtype=torch.float64)))) < 1e-12
+def test_the_kernel_matches_its_torch_twin(device):
+    """Same bisection, same polynomial: the Warp kernel and the torch twin agree to 1e-12 where F is steep enough
+    to tell u apart (shares of |u| ≤ 0.95, the half-full ball u = 0 included); towards the ends, where F flattens
+    and the two may round its powers differently (a GPU contracts a·b + c into one rounding), both return a u whose
+    share is the one asked for."""
+    c = torch.cat([torch.rand(3000, dtype=torch.float64), torch.tensor([0.0, 0.5, 1.0, 1e-300, 1 - 1e-16])]).to(device)
+    u, u0 = depth_from_share(c), depth_from_fraction(c)
+    steep = (c >= fraction_of_half_space(torch.tensor(-0.95))) & (c <= fraction_of_half_space(torch.tensor(0.95)))
+    torch.testing.assert_close(u[steep], u0[steep], rtol=0, atol=1e-12)
+    torch.testing.assert_close(u, u0, rtol=0, atol=1e-4)
+    torch.testing.assert_close(fraction_of_half_space(u), c.clamp(0, 1), rtol=0, atol=1e-10)
+    assert abs(float(depth_from_share(torch.tensor([0.5], dtype=torch.float64, device=device)))) < 1e-12
 
 
 def test_shares_outside_the_unit_range_read_as_its_ends():
@@ -72,6 +78,10 @@ def _pressed(depth_spacings: float, seed: int, third: bool = False) -> tuple[tor
     return torch.cat(parts), torch.cat(ids)
 
 
+def _on(device, x, frag):
+    return x.to(device), frag.to(device)
+
+
 def _calibration(x, frag, K):
     cal = pen.calibrate(x[frag == 0], frag[frag == 0])  # one block alone: the scales at a latch
     cal["filled"] = cal["filled"].repeat(K)
@@ -79,13 +89,13 @@ def _calibration(x, frag, K):
 
 
 @pytest.mark.parametrize("depth_spacings, seed", [(0.0, 0), (1.5, 1), (3.0, 2)])
-def test_the_warp_sums_match_the_torch_twin(depth_spacings, seed):
+def test_the_warp_sums_match_the_torch_twin(depth_spacings, seed, device):
     """Pieces pressed together by 0, 1.5 and 3 spacings, each particle weighted by a volume change: the Warp walk of
     the cells gives every particle the depth and the piece of the twin's pairs (float32 offsets there: within 1e-6
     of the kernel radius), and deeper pressing reads deeper."""
-    x, frag = _pressed(depth_spacings, seed)
+    x, frag = _on(device, *_pressed(depth_spacings, seed))
     cal = _calibration(x, frag, 2)
-    J = 1.0 + 0.1 * torch.rand(len(x), dtype=torch.float64, generator=torch.Generator().manual_seed(seed))
+    J = 1.0 + 0.1 * torch.rand(len(x), dtype=torch.float64, generator=torch.Generator().manual_seed(seed)).to(device)
     depth, into = pen.surface_depth(x, frag, cal, J)
     depth0, into0 = pen.surface_depth(x, frag, cal, J, twin=True)
     torch.testing.assert_close(depth, depth0, rtol=0, atol=1e-6 * cal["radius"])
@@ -94,11 +104,11 @@ def test_the_warp_sums_match_the_torch_twin(depth_spacings, seed):
         assert float(depth.max()) > 0.5 * depth_spacings * 0.02 * 0.5, "pressed pieces read a depth"
 
 
-def test_a_tie_in_depth_names_the_larger_piece_and_unlabelled_or_uncalibrated_ids_are_skipped():
+def test_a_tie_in_depth_names_the_larger_piece_and_unlabelled_or_uncalibrated_ids_are_skipped(device):
     """Block 0 pressed by blocks 1 and 2 from both sides: each of its particles is behind the piece it is deepest
     in, as the twin says (ties: the larger id). Particles with id −1 or an id the calibration lacks are neither
     measured nor counted as another piece's volume."""
-    x, frag = _pressed(2.0, 3, third=True)
+    x, frag = _on(device, *_pressed(2.0, 3, third=True))
     cal = _calibration(x, frag, 3)
     depth, into = pen.surface_depth(x, frag, cal)
     depth0, into0 = pen.surface_depth(x, frag, cal, twin=True)
@@ -116,31 +126,32 @@ def test_a_tie_in_depth_names_the_larger_piece_and_unlabelled_or_uncalibrated_id
         )
 
 
-def test_queries_in_chunks_read_as_in_one():
+def test_queries_in_chunks_read_as_in_one(device):
     """The sums held for a few queries at a time (chunks of 7) give every query the same depth, bit for bit, as all
     at once: each query's sum is its own thread's."""
-    x, frag = _pressed(2.0, 4)
+    x, frag = _on(device, *_pressed(2.0, 4))
     cal = _calibration(x, frag, 2)
     lo = x.min(0).values
     cells = pen._Cells(x, frag, lo, cal["radius"] / 3)
-    query = torch.arange(len(x))
+    query = torch.arange(len(x), device=device)
     off = pen._cube(3, x.device, ball=True)
-    J = torch.ones(len(x), dtype=torch.float64)
+    J = torch.ones(len(x), dtype=torch.float64, device=device)
     args = (x, frag, J, cal["filled"], cal["radius"], cells, off, query, pen._BITS)
     a = pk.deepest_behind_surfaces(*args, 7)
     b = pk.deepest_behind_surfaces(*args, len(x))
     assert torch.equal(a[0], b[0]) and torch.equal(a[1], b[1]) and float(a[0].max()) > 0
 
 
-def test_an_exact_tie_names_the_larger_piece_as_the_twin_does():
+def test_an_exact_tie_names_the_larger_piece_as_the_twin_does(device):
     """A particle with one particle of piece 1 and one of piece 2 at the same distance, each filling its ball (a
-    tiny filled density makes every share 1, so both depths are exactly R): it lies behind piece 2, the larger id,
-    in the kernel as in the twin."""
-    x = torch.tensor([[0.0, 0.0, 0.0], [0.005, 0.0, 0.0], [-0.005, 0.0, 0.0]], dtype=torch.float64)
-    frag = torch.tensor([0, 1, 2])
-    cal = {"radius": 0.05, "filled": torch.full((3,), 1e-3, dtype=torch.float64), "spacing": 0.05 / pen.SPACINGS}
+    tiny filled density makes every share 1, so both depths are the same, about R): it lies behind piece 2, the
+    larger id, in the kernel as in the twin (their depths agree to where F is flat at u = 1)."""
+    x = torch.tensor([[0.0, 0.0, 0.0], [0.005, 0.0, 0.0], [-0.005, 0.0, 0.0]], dtype=torch.float64, device=device)
+    frag = torch.tensor([0, 1, 2], device=device)
+    filled = torch.full((3,), 1e-3, dtype=torch.float64, device=device)
+    cal = {"radius": 0.05, "filled": filled, "spacing": 0.05 / pen.SPACINGS}
     depth, into = pen.surface_depth(x, frag, cal)
     depth0, into0 = pen.surface_depth(x, frag, cal, twin=True)
     assert int(into[0]) == 2 and int(into0[0]) == 2
-    torch.testing.assert_close(depth, depth0, rtol=0, atol=1e-12)
+    torch.testing.assert_close(depth, depth0, rtol=0, atol=1e-4 * 0.05)
     assert torch.equal(into, into0)
