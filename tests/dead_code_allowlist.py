@@ -30,7 +30,7 @@ encode_epoch  # viewer.format: the numpy reference of the recorder's on-device e
 box_volume  # sim.grid.layout: node count of a box
 fragment_overlap  # sim.diagnostics.penetration: the voxel measure of Panel A's overlap
 collider_crossing  # sim.diagnostics.penetration: particles behind a collider plane
-depth_from_share  # sim.diagnostics.penetration_kernels: launches the inversion alone, to test it against its closed form and twin
+depth_from_share  # sim.diagnostics.penetration_kernels: the inversion alone, tested against closed form and twin
 WALL_KEYS  # sweep.cells: the row keys that differ between runs by nature (wall times)
 RUN_KEYS  # sweep.driver: the row keys that say where and when a cell ran
 

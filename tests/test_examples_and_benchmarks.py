@@ -143,3 +143,31 @@ def test_capture_targets_reads_back_what_a_user_gets(tmp_path):
     assert row["rc"] == 0 and row["wall_s"] > 0 and row["load"] == "drop" and row["ok"] is False
     assert row["pieces"] == 0 and 0.5 < row["edge"] < 1.5, row
     assert "| luma_seal_5k.splat | drop |" in (out / "targets.md").read_text()
+
+
+@pytest.mark.slow
+def test_surface_measure_times_both_and_they_agree(tmp_path):
+    """benchmarks/surface_measure.py: on three small pressed blocks the Warp measure and its torch twin each print a
+    positive time, the same count of particles behind another piece and the same deepest depth (about the two
+    spacings the blocks were pressed by)."""
+    text = _run([str(BENCH / "surface_measure.py"), "--device", "cpu", "--cells", "10", "--repeats", "1"], BENCH.parent)
+    rows = [line for line in text.splitlines() if " ms a call, " in line]
+    assert [r.split(":")[0] for r in rows] == ["Warp", "torch twin"], text
+    ms = [float(r.split(": ")[1].split(" ms")[0]) for r in rows]
+    behind = [r.split("particles, ")[1].split(" behind")[0] for r in rows]
+    deepest = [float(r.split("deepest ")[1].split(" spacings")[0]) for r in rows]
+    assert min(ms) > 0 and behind[0] == behind[1] and int(behind[0]) > 0, text
+    assert deepest[0] == pytest.approx(deepest[1], abs=1e-3) and 0.5 < deepest[0] < 3.0, text
+
+
+@pytest.mark.slow
+def test_frame_costs_counts_each_part_of_a_frame(tmp_path):
+    """benchmarks/frame_costs.py: a tiny bread run prints one row per part of a frame after the latch, with the
+    diagnostics' torch ops counted (the surface measure among them, in Warp: far fewer ops than its twin's ≈ 900)."""
+    text = _run(
+        [str(BENCH / "frame_costs.py"), "--device", "cpu", "--particles", "3000", "--frames", "16"], BENCH.parent
+    )
+    rows = {r.split("|")[1].strip(): r.split("|") for r in text.splitlines() if r.startswith("| ") and "---" not in r}
+    assert {"paint (draw + host copy)", "view record write", "diagnostics: surface penetration"} <= set(rows), text
+    ops = int(rows["diagnostics: surface penetration"][5])
+    assert 0 < ops < 600, text
