@@ -155,3 +155,41 @@ def test_an_exact_tie_names_the_larger_piece_as_the_twin_does(device):
     assert int(into[0]) == 2 and int(into0[0]) == 2
     torch.testing.assert_close(depth, depth0, rtol=0, atol=1e-4 * 0.05)
     assert torch.equal(into, into0)
+
+
+def test_near_another_piece_is_a_strict_distance_to_a_labelled_other_piece(device):
+    """A query is near another piece when a particle of another piece (id ≥ 0) lies closer than the reach: at 0.9
+    of it yes, at 1.1 no, a particle of its own piece or an unlabelled one at any distance never."""
+    reach = 0.01
+    x = torch.tensor(
+        [
+            [0, 0, 0],
+            [0.009, 0, 0],
+            [0.5, 0, 0],
+            [0.5, 0.011, 0],
+            [1, 0, 0],
+            [1, 0, 0.002],
+            [1.5, 0, 0],
+            [1.5, 0.003, 0],
+        ],
+        dtype=torch.float64,
+        device=device,
+    )
+    frag = torch.tensor([0, 1, 0, 1, 0, 0, 0, -1], device=device)
+    cells = pen._Cells(x, frag, x.min(0).values, reach)
+    query = torch.tensor([0, 2, 4, 6], device=device)
+    near = pk.near_another_piece_mask(x, frag, cells, query, reach, pen._BITS)
+    assert near.tolist() == [True, False, False, False]
+
+
+def test_near_another_piece_matches_the_torch_pairs(device):
+    """On pressed blocks the kernel marks exactly the candidates the twin's pair gather keeps."""
+    x, frag = _on(device, *_pressed(1.0, 5))
+    reach = 1.2 * 0.02
+    cells = pen._Cells(x, frag, x.min(0).values, reach)
+    query = torch.arange(len(x), device=device)
+    qi, j = cells.gather(cells.coord[query], 1)
+    close = (frag[j] != frag[query][qi]) & (frag[j] >= 0) & (((x[query][qi] - x[j]) ** 2).sum(1) < reach**2)
+    expected = torch.zeros(len(x), dtype=torch.bool, device=device).index_fill_(0, qi[close], True)
+    near = pk.near_another_piece_mask(x, frag, cells, query, reach, pen._BITS)
+    assert torch.equal(near, expected) and 0 < int(near.sum()) < len(x)

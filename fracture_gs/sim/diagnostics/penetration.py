@@ -31,7 +31,7 @@ from typing import Optional
 import torch
 
 from .metrics import plane_constants
-from .penetration_kernels import deepest_behind_surfaces
+from .penetration_kernels import deepest_behind_surfaces, near_another_piece_mask
 
 _NEIGHBOURS = ((1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0, 1), (0, 0, -1))
 
@@ -411,10 +411,13 @@ def surface_depth(
     if query.numel() == 0:
         return depth, into
     # a particle behind b's surface has a particle of b within about a spacing (b's sample is dense there)
-    qi, j = small.gather(small.coord[query], 1)
-    gap2 = ((xd[query][qi] - xd[j]) ** 2).sum(1)
-    close = (frag[j] != frag[query][qi]) & (frag[j] >= 0) & (gap2 < (NEAR * spacing) ** 2)
-    query = query[torch.zeros(query.numel(), dtype=torch.bool, device=x.device).index_fill_(0, qi[close], True)]
+    if twin:
+        qi, j = small.gather(small.coord[query], 1)
+        gap2 = ((xd[query][qi] - xd[j]) ** 2).sum(1)
+        close = (frag[j] != frag[query][qi]) & (frag[j] >= 0) & (gap2 < (NEAR * spacing) ** 2)
+        query = query[torch.zeros(query.numel(), dtype=torch.bool, device=x.device).index_fill_(0, qi[close], True)]
+    else:
+        query = query[near_another_piece_mask(xd, frag, small, query, NEAR * spacing, _BITS)]
     big = _Cells(xd, frag, lo, radius / 3)  # cells within 3 of the query's: every particle within R
     J = torch.ones_like(xd[:, 0]) if volume_ratio is None else volume_ratio.double()  # [N] weights
     offsets = _cube(3, x.device, ball=True)

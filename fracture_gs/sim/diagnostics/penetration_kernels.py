@@ -132,6 +132,69 @@ def deepest_behind(
     into[m] = which
 
 
+@wp.kernel
+def near_another_piece(
+    query: wp.array(dtype=wp.int64),  # [M] particle indices
+    coord: wp.array2d(dtype=wp.int64),  # [N, 3] cell coordinates (cells of edge `reach`)
+    keys: wp.array(dtype=wp.int64),  # [V] sorted occupied cell keys
+    start: wp.array(dtype=wp.int64),  # [V]
+    count: wp.array(dtype=wp.int64),  # [V]
+    order: wp.array(dtype=wp.int64),  # [N]
+    x: wp.array2d(dtype=wp.float64),  # [N, 3] positions [m]
+    frag: wp.array(dtype=wp.int64),  # [N] fragment id, −1: none
+    reach2: wp.float64,  # squared distance [m²]
+    bits: int,
+    near: wp.array(dtype=wp.int32),  # [M] out: 1 if a particle of another piece is closer than √reach2
+):
+    m = wp.tid()
+    p = query[m]
+    fp = frag[p]
+    found = int(0)  # noqa: UP018 - a typed variable Warp may change in the loop
+    for ox in range(-1, 2):
+        for oy in range(-1, 2):
+            for oz in range(-1, 2):
+                key = (
+                    ((coord[p, 0] + wp.int64(ox)) << wp.int64(2 * bits))
+                    | ((coord[p, 1] + wp.int64(oy)) << wp.int64(bits))
+                    | (coord[p, 2] + wp.int64(oz))
+                )
+                i = lower_bound(keys, key)
+                if found == 0 and i < keys.shape[0]:
+                    if keys[i] == key:
+                        for s in range(int(start[i]), int(start[i] + count[i])):
+                            j = order[s]
+                            fj = frag[j]
+                            if fj >= wp.int64(0) and fj != fp:
+                                dx = x[p, 0] - x[j, 0]
+                                dy = x[p, 1] - x[j, 1]
+                                dz = x[p, 2] - x[j, 2]
+                                if dx * dx + dy * dy + dz * dz < reach2:
+                                    found = 1
+    near[m] = found
+
+
+def near_another_piece_mask(
+    x: torch.Tensor, frag: torch.Tensor, cells, query: torch.Tensor, reach: float, bits: int
+) -> torch.Tensor:  # -> [M] bool
+    """Which query particles have a particle of another piece (id ≥ 0) closer than `reach` [m]: one thread per query
+    walks the 27 cells around its own (`cells` a `penetration._Cells` of edge ≥ reach over x [N, 3] float64, frag
+    [N] int64). The twin is the torch gather in `penetration.surface_depth(twin=True)`."""
+    near = torch.zeros(query.numel(), dtype=torch.int32, device=x.device)
+    if query.numel() == 0:
+        return near.bool()
+    ensure_warp()
+    device = str(x.device)
+    inputs = [query, cells.coord, cells.keys, cells.start, cells.count, cells.order, x, frag]
+    wp.launch(
+        near_another_piece,
+        dim=query.numel(),
+        inputs=[wp.from_torch(t.contiguous()) for t in inputs] + [reach * reach, bits, wp.from_torch(near)],
+        device=device,
+        stream=warp_stream(device),
+    )
+    return near.bool()
+
+
 def deepest_behind_surfaces(
     x: torch.Tensor,
     frag: torch.Tensor,
