@@ -12,6 +12,7 @@ returns tensors with gradients to the Gaussians and to E, ν, density and initia
 from __future__ import annotations
 
 import copy
+import os
 from typing import Iterator, Optional, Union
 
 import torch
@@ -178,6 +179,14 @@ def _velocity_argument(value, n: int) -> torch.Tensor:
         )
     if not bool(torch.isfinite(t.detach()).all()):
         raise ArgumentError(f"{FORWARD}: velocity has NaN or infinite entries; pass finite velocities (m/s).")
+    from .io.config.validate import MAX_SPEED
+
+    fastest = float(t.detach().double().norm(dim=-1).max()) if t.numel() else 0.0
+    if fastest > MAX_SPEED:
+        raise ArgumentError(
+            f"{FORWARD}: velocity reaches {fastest:.3g} m/s, over {MAX_SPEED:g} m/s; pass velocities in m/s (the "
+            "substep shrinks with the speed: Δt ≤ CFL·Δx / |v|)."
+        )
     return t
 
 
@@ -213,7 +222,7 @@ class FractureSim(torch.nn.Module):
         differentiable: bool = False,
     ):
         super().__init__()
-        if isinstance(cfg, str):
+        if isinstance(cfg, (str, os.PathLike)):
             from .io.config import load_config
 
             cfg = load_config(cfg)
@@ -236,6 +245,11 @@ class FractureSim(torch.nn.Module):
             as_device("FractureSim", device)
         self.device_name = device
         _check_topology(topology)
+        for name, flag in (("diagnostics", diagnostics), ("differentiable", differentiable)):
+            if not isinstance(flag, bool):
+                raise ArgumentError(
+                    f"FractureSim: {name} must be True or False, not {flag!r:.40}; pass {name}=True or {name}=False."
+                )
         self.topology = topology
         self.diagnostics = diagnostics
         self.differentiable = differentiable
@@ -279,6 +293,11 @@ class FractureSim(torch.nn.Module):
     ) -> dict:
         """Runs cfg.frames frames; returns {"means": [T+1,N,3], "covars": [T+1,N,3,3],
         "rotations": [T+1,N,3,3], "fragment": [T+1,N], "time": [T+1], "metrics": list[dict]}."""
+        if labels is not None and not self.cfg.material_map:
+            raise ArgumentError(
+                f"{FORWARD}: labels has no effect: they pick a material per Gaussian from cfg.material_map, which is "
+                "empty; add [[material_map]] entries to the config, or drop labels."
+            )
         gs = gaussians_from_tensors(means, opacities, sh, quats, scales, covars, interior, labels)
         if self.differentiable:
             from .differentiable import differentiable_forward

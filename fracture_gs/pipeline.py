@@ -93,6 +93,11 @@ def prepare_scene(cfg: SceneConfig, device="cpu"):
     from .io.ply import as_device
 
     device = str(as_device("prepare_scene", device))
+    if not isinstance(cfg, SceneConfig):
+        raise ArgumentError(
+            f"prepare_scene: cfg must be a SceneConfig, got {type(cfg).__name__}; load one first, e.g. "
+            "prepare_scene(fracture_gs.io.load_config('bread'))."
+        )
     if cfg.scene in assets.names():
         check_config(cfg, f"prepare_scene: {cfg.name}")  # a config built or edited in Python (resolve checks a PLY's)
         gs = assets.build(cfg.scene, size=cfg.preset, n=cfg.particles).to(device)

@@ -187,6 +187,7 @@ def test_render_sim_dispatches_to_runner(monkeypatch, tmp_path, capsys):
 
 def test_keyboard_interrupt_reports_partial_outputs(monkeypatch, tmp_path, capsys):
     def interrupted(cfg, variants, device, out_dir, profile=False, stop=None, schedule="in_turn"):
+        (out_dir / "config.toml").write_text("")  # something written before the Ctrl-C
         raise KeyboardInterrupt
 
     monkeypatch.setattr(runner, "run_render_sim", interrupted)

@@ -151,9 +151,10 @@ def test_ctrl_c_keeps_partial_outputs(tmp_path):
 
 
 def test_ctrl_c_dropped_inside_a_finalizer_still_sets_the_stop_event():
-    """Python drops an exception raised in `__del__` ("Exception ignored"), and a SIGINT handler can run
-    there: the KeyboardInterrupt is lost, but the CLI's handler has set the stop event the runner checks
-    every frame (a fresh-clone CI run once finished all 200 frames after its Ctrl-C)."""
+    """Python drops an exception raised in `__del__` ("Exception ignored", with a traceback), and a SIGINT
+    handler can run there: the CLI's handler sets the stop event the runner checks every frame (a fresh-clone CI
+    run once finished all 200 frames after its Ctrl-C), and inside a finalizer it raises nothing, so no
+    traceback is printed (bad input round four)."""
     from fracture_gs.cli.run import sigint_event
 
     class Finalized:
@@ -179,7 +180,7 @@ def test_ctrl_c_dropped_inside_a_finalizer_still_sets_the_stop_event():
     finally:
         sys.unraisablehook = hook
         signal.signal(signal.SIGINT, outer)
-    assert dropped == [KeyboardInterrupt]
+    assert dropped == []
 
 
 @pytest.mark.slow

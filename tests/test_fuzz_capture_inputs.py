@@ -131,6 +131,30 @@ def check_capture(cap: CaptureConfig) -> None:
     assert cap.view == 0 or cap.camera != "auto", "a trainer view without the trainer camera"
     assert cap.load_speed == 0 or cap.load != "none", "a load speed without a load"
     assert cap.ground_level is None or cap.ground != "none", "a ground level with the ground turned off"
+    # ... and round four
+    assert cap.outlier_neighbours != 0 or cap.outlier_std == 3.0, "an outlier cut with the outlier removal off"
+    assert cap.roi not in ("sphere", "all") or cap.percentile == 1.0, "a percentile beside a ROI it does not bound"
+    if cap.rotation is not None and cap.up != "auto":
+        axis = {"+x": (1, 0, 0), "-x": (-1, 0, 0), "+y": (0, 1, 0), "-y": (0, -1, 0), "+z": (0, 0, 1), "-z": (0, 0, -1)}
+        row = cap.rotation[2]  # the scene axis the rotation takes to the simulation's up, +z
+        cos = sum(a * b for a, b in zip(axis[cap.up], row)) / math.sqrt(sum(v * v for v in row))
+        assert cos > 0.99, "an up axis the rotation contradicts"
+
+
+DEFAULT_CAPTURE = dataclasses.asdict(CaptureConfig())
+"""What [capture] holds when no key is written: the only table a built-in scene or `fit = false` may have (round
+four: every other key there would do nothing; `fit` itself is the exception of the second)."""
+
+
+def check_scene_kind(cfg, kind: str) -> None:
+    """Round four's rules on the scene around the table: nothing but defaults on a built-in scene or beside
+    fit = false, and no interior-fill budget without a fill."""
+    # capture.panel: runs wrote "config" on every scene, and such a config.toml loads again
+    skip = ("panel",) if kind == "bread" else ("panel", "fit")
+    held = {k: v for k, v in dataclasses.asdict(cfg.capture).items() if k not in skip}
+    if kind == "bread" or not cfg.capture.fit:
+        assert held == {k: v for k, v in DEFAULT_CAPTURE.items() if k in held}, "a [capture] key that does nothing"
+    assert cfg.fill_interior or cfg.capture.max_particles is None, "a fill budget without a fill"
 
 
 def one_line(err: BaseException) -> None:
@@ -142,9 +166,12 @@ def test_fuzz_capture_keys(capsys):
     tally = Tally("capture keys")
 
     @bounded(300)
-    @given(capture_table())
-    def documents(table):
-        doc = {"extends": "capture", "scene": "scene.ply", "capture": table}
+    @given(capture_table(), st.sampled_from(["capture"] * 4 + ["bread"]), st.integers(0, 5))
+    def documents(table, kind, fill):
+        doc = {"extends": kind, "capture": table} if kind == "bread" else {"extends": kind, "scene": "scene.ply"}
+        doc["capture"] = table
+        if not fill:
+            doc["fill_interior"] = False
         try:
             cfg = config_from_dict(doc, "fuzz.toml")
         except ConfigError as err:
@@ -155,6 +182,7 @@ def test_fuzz_capture_keys(capsys):
             tally.add("[capture] table", "traceback")
             raise
         check_capture(cfg.capture)
+        check_scene_kind(cfg, kind)
         again = config_from_dict(config_to_dict(cfg), "round trip")  # what init writes loads back
         assert again.capture == cfg.capture
         tally.add("[capture] table", "clean load")

@@ -21,7 +21,7 @@ TEXT = st.text(st.characters(exclude_categories=["Cs"], exclude_characters="\x00
 # flag -> (valid values, known-bad values); None = a switch without a value
 FLAGS = {
     "render-sim": {
-        "--variants": (["baseline,full", "full", "baseline"], ["nope", "", "full,full", "baseline,fulll"]),
+        "--variants": (["baseline,full", "full", "baseline"], ["nope", "", "full,full", "baseline,fulll", "full,"]),
         "--preset": (["small", "paper"], ["huge", ""]),
         "--frames": (["1", "2"], ["0", "-1", "x", "1.5"]),
         "--particles": (["300", "500"], ["0", "-5", "many"]),
@@ -33,11 +33,11 @@ FLAGS = {
         "--device": (["cpu", "auto", "CPU"], ["gpu", "", "cuda:99", "cuda:x"]),  # cuda:99: no machine has it
     },
     "bench": {
-        "--particles": (["1000"], ["0", "-1"]),
+        "--particles": (["1000"], ["0", "-1", str(10**10)]),
         "--steps": (["1", "3"], ["0", "x"]),
         "--warmup": (["1"], ["0"]),
         "--trials": (["1"], ["0"]),
-        "--grid": (["16", "32"], ["0", "-3"]),
+        "--grid": (["16", "32"], ["0", "-3", "2", "100000"]),  # round four: 8 to 256 nodes per axis
         "--sort": (["interleaved", "cell"], ["random"]),
         "--no-graph": (None, None),
         "--device": (["cpu", "auto"], ["gpu", ""]),
@@ -61,7 +61,7 @@ POSITIONAL = {
     "figures": ([], []),
     "info": ([], []),
 }
-BAD_OUT = ["", "/dev/null", "A_FILE", "A_FILE/sub"]
+BAD_OUT = ["", "/dev/null", "A_FILE", "A_FILE/sub", "n" * 300]  # a name over 255 bytes: round four
 
 
 @st.composite

@@ -85,7 +85,7 @@ def test_preset_wave_speeds_and_strengths_follow_the_module_budget():
 def test_apply_material_writes_the_preset_and_is_idempotent():
     """A preset writes its E, ν, ρ, σ_R and interior colour into the config, a failure stretch of 1 + 4σ_R/E,
     and switches capture.material to "config", so applying again keeps what was written; the result validates."""
-    cfg = SceneConfig(variants=["baseline"])
+    cfg = SceneConfig(scene="scene.ply", variants=["baseline"])  # [capture] keys act on a captured scene only
     cfg.capture.material = "wood"
     note = apply_material(cfg, 0.5)
     p = PRESETS["wood"]

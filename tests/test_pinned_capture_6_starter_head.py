@@ -20,7 +20,7 @@ from fracture_gs.io.config import config_from_dict
 
 
 def capture(notes=("fit: scale 0.5 m per scene unit", "load drop: falls from 0.1 m")) -> SimpleNamespace:
-    cfg = SceneConfig()
+    cfg = SceneConfig(scene="scene.ply")  # [capture] keys act on a captured scene only
     cfg.frames, cfg.capture.load, cfg.variants = 7, "crush", ["baseline"]
     cfg.sim.boundaries = [CuboidBoundary(lower=(0.1, 0.2, 0.3), upper=(0.4, 0.5, 0.6), velocity=(0.0, 0.0, -0.2))]
     return SimpleNamespace(notes=list(notes), cfg=cfg)

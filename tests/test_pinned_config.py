@@ -36,6 +36,8 @@ BASE = {"variants": ["baseline"]}  # the smallest valid dict: defaults everywher
 def _with(**dotted) -> dict:
     """BASE with `a__b__c=value` set as d["a"]["b"]["c"] (double underscores separate tables)."""
     d = copy.deepcopy(BASE)
+    if any(k.startswith("capture__") for k in dotted):
+        d["scene"] = "scene.ply"  # [capture] keys act on a captured scene only (a built-in one refuses them)
     for key, value in dotted.items():
         node = d
         parts = key.split("__")

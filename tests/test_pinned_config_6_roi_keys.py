@@ -23,7 +23,7 @@ OWNER = {"roi_lower": "box", "roi_upper": "box", "roi_center": "sphere", "roi_ra
 
 
 def build(**capture):
-    return config_from_dict({"variants": ["baseline"], "capture": capture})
+    return config_from_dict({"scene": "scene.ply", "variants": ["baseline"], "capture": capture})
 
 
 def refused(**capture) -> str:

@@ -221,6 +221,41 @@ def _concat(a: GaussianSet, b: GaussianSet) -> GaussianSet:
     )
 
 
+MAX_GRID = 512
+"""fill_interior's largest `max_grid` (voxels along the longest axis): 512³ voxels hold ≈ 0.5 GB of densities."""
+
+
+def _check_args(gs, spacing, max_particles, max_grid, threshold, min_opacity, max_radius, closing) -> None:
+    """fill_interior's arguments, each an ArgumentError naming it: a GaussianSet, a positive finite spacing (or
+    None), whole counts in their ranges (the grid, and the padding `closing` and `max_radius` add around it,
+    bound the memory), a positive threshold and an opacity cut in [0, 1)."""
+    from ..errors import ArgumentError
+    from ..io.ply import as_gaussians
+
+    where = "assets.fill_interior"
+    as_gaussians(where, gs)
+
+    def whole(name, value, low, high, example):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not low <= value <= high:
+            raise ArgumentError(
+                f"{where}: {name} = {value!r:.40} must be a whole number from {low} to {high:,}; "
+                f"pass e.g. {name}={example}."
+            )
+
+    def number(name, value, ok, rule, example):
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or not ok(value):
+            raise ArgumentError(f"{where}: {name} = {value!r:.40} must be {rule}; pass e.g. {name}={example}.")
+
+    if spacing is not None:
+        number("spacing", spacing, lambda v: v > 0, "a positive voxel size in metres, or None (automatic)", 0.005)
+    whole("max_particles", max_particles, 0, 100_000_000, 200_000)
+    whole("max_grid", max_grid, 8, MAX_GRID, 256)
+    whole("max_radius", max_radius, 1, max_grid // 8, 3)
+    whole("closing", closing, 0, max_grid // 8, 1)
+    number("threshold", threshold, lambda v: v > 0, "a positive voxel density", 0.2)
+    number("min_opacity", min_opacity, lambda v: 0 <= v < 1, "an opacity in [0, 1)", 0.05)
+
+
 def _voxel_size(src: GaussianSet, spacing, ext: float, max_grid: int, pad: int) -> float:
     """Requested spacing (default: `_default_spacing`), at least ext / usable grid cells."""
     dv = spacing if spacing is not None else _default_spacing(src.scales.double())
@@ -253,6 +288,7 @@ def fill_interior(
     floor at its lowest layer, z up). Deterministic for a given seed (it only drives the jitter). `stats`, if given,
     receives `added`, `spacing`, `solid_voxels`, `fill_voxels`, `fill_fraction` (fill / solid) and
     `enclosed_fraction` (solid voxels that are not shell / solid: near 0 for an open surface)."""
+    _check_args(gs, spacing, max_particles, max_grid, threshold, min_opacity, max_radius, closing)
     if stats is not None:
         stats.update(added=0, spacing=None, solid_voxels=0, fill_voxels=0, fill_fraction=0.0, enclosed_fraction=0.0)
     ok = _valid(gs, min_opacity)

@@ -104,6 +104,12 @@ def read_cameras(path: Path) -> list[TrainerCamera]:
     return [_camera(path, i, c) for i, c in enumerate(data)]
 
 
+def _short_name(name: str) -> str:
+    """A view's image name as a message shows it: one line, at most 40 characters."""
+    text = " ".join(name.split())
+    return text if len(text) <= 40 else text[:39] + "…"
+
+
 def _describe(v) -> str:
     if isinstance(v, bool):
         return f"the boolean {str(v).lower()}"
@@ -121,7 +127,7 @@ def _describe(v) -> str:
 def _camera(path: Path, i: int, c) -> TrainerCamera:
     """One view of cameras.json, checked key by key."""
     name = c.get("img_name") if isinstance(c, dict) else None
-    where = f"{path}: camera {i}" + (f" ({name})" if isinstance(name, str) and name else "")
+    where = f"{path}: camera {i}" + (f" ({_short_name(name)})" if isinstance(name, str) and name.strip() else "")
 
     def bad(key: str, problem: str) -> SceneError:
         return SceneError(f"{where}: {key} {problem}; {_CAMERA_FIX}.")
@@ -179,7 +185,7 @@ def check_view(path, index: int, cam: TrainerCamera) -> None:
     """The view `capture.camera = "trainer"` draws from: an image shape the panel can keep (at most MAX_ASPECT:1)
     and focal lengths whose field of view the renderer can draw (FOV_RANGE), else SceneError naming the file, the
     view and the key (the file itself may hold such views: only the chosen one is drawn)."""
-    where = f"{path}: camera {index}" + (f" ({cam.name})" if cam.name else "")
+    where = f"{path}: camera {index}" + (f" ({_short_name(cam.name)})" if cam.name.strip() else "")
     fix = 'pick another capture.view, or set capture.camera = "auto" to frame the object instead'
     if not 1 / MAX_ASPECT <= cam.width / cam.height <= MAX_ASPECT:
         raise SceneError(
@@ -241,11 +247,12 @@ def roi_mask(points: torch.Tensor, cap: CaptureConfig, source: str) -> tuple[tor
     return ((x >= lo) & (x <= hi)).all(1), "region of interest: box (capture.roi_lower/upper)"
 
 
-def auto_roi(x: torch.Tensor, percentile: float) -> tuple[torch.Tensor, torch.Tensor]:
+def auto_roi(x: torch.Tensor, percentile: float, source: str = "") -> tuple[torch.Tensor, torch.Tensor]:
     """The object's bounds: a robust core (per-axis bounds at `percentile` % and its complement), grown to
     everything connected to it, so thin extremities (a leaf, a handle, an antenna) that the percentiles clip
     stay part of the object and only what is apart from it is background. Connected: Gaussians on voxels of
-    1/48 of the core's extent that touch (26-neighbours, one voxel of slack). Widened by 2 % each side."""
+    1/48 of the core's extent that touch (26-neighbours, one voxel of slack). Widened by 2 % each side. A
+    percentile whose core holds fewer than 10 Gaussians is a SceneError naming it (`source`: "<file>: ")."""
     q = torch.tensor([percentile / 100.0, 1.0 - percentile / 100.0], dtype=torch.float64)
     b = torch.quantile(x[torch.randperm(len(x))[:200_000]] if len(x) > 200_000 else x, q, dim=0)
     core_lo, core_hi = b[0], b[1]
@@ -253,6 +260,13 @@ def auto_roi(x: torch.Tensor, percentile: float) -> tuple[torch.Tensor, torch.Te
     span = (x.max(0).values - x.min(0).values) / h + 1
     if float(span.prod()) > 64_000_000:  # a scene whose floaters lie far away: voxel the core only
         near = ((x >= core_lo - 0.5 * (core_hi - core_lo)) & (x <= core_hi + 0.5 * (core_hi - core_lo))).all(1)
+        if int(near.sum()) < 10:  # the quantiles of each axis alone meet in a box that holds (almost) nothing
+            raise SceneError(
+                f"{source}capture.percentile = {percentile:g} bounds the automatic region of interest by the "
+                f"{percentile:g}th and {100 - percentile:g}th percentiles on every axis, a box that holds "
+                f"{int(near.sum())} of {len(x)} Gaussians; use a smaller percentile, e.g. 1 (the default), or set "
+                'capture.roi = "box" with roi_lower and roi_upper.'
+            )
         return auto_roi_connected(x[near], core_lo, core_hi, h)
     return auto_roi_connected(x, core_lo, core_hi, h)
 
@@ -284,11 +298,12 @@ def fit_transform(
     scale: Optional[float] = None,
     rotation: Optional[torch.Tensor] = None,
     offset: Optional[torch.Tensor] = None,
+    source: str = "",
 ) -> SceneTransform:
     """Up onto +z, the longest horizontal principal axis onto x, longest side = size [m], bounding-box
     centre at CENTRE. points: the object's Gaussian means in scene coordinates [N, 3]. Each of `scale`,
     `rotation` [3, 3] (a proper rotation) and `offset` [3] given replaces its automatic value, alone or
-    together: the automatic parts are found around the given ones."""
+    together: the automatic parts are found around the given ones. `source` ("<file>: ") starts its SceneError."""
     x = points.to(torch.float64)
     if rotation is not None:
         Q = rotation.to(torch.float64)
@@ -306,7 +321,10 @@ def fit_transform(
     lo, hi = y.min(0).values, y.max(0).values
     longest = float((hi - lo).max())
     if not math.isfinite(longest) or longest <= 0:
-        raise SceneError("the object has no extent after clean-up (every Gaussian at one point)")
+        raise SceneError(
+            f"{source}the object's {len(x)} Gaussians all lie at one point after clean-up, so it has no size to fit; "
+            "check the scene file (a captured object has an extent), or set capture.fit = false to use it as written."
+        )
     s_ = float(scale) if scale is not None else size / longest
     if offset is None:
         offset = torch.tensor(CENTRE, dtype=torch.float64) - s_ * 0.5 * (lo + hi)

@@ -84,15 +84,17 @@ def substep_note(cfg) -> str:
     )
 
 
-def apply_regions(cfg, gs) -> str:
+def apply_regions(cfg, gs, source: str = "") -> str:
     """Label the Gaussians of `gs` (scene coordinates) inside each of `cfg.capture.regions` REGION_LABEL + i and
     give each label a `material_map` entry with its preset (replacing one of the same label, so resolving a
-    written config again changes nothing); returns the note line."""
+    written config again changes nothing); returns the note line. A region left with none of the object's
+    Gaussians (outside it, or covered by a later region) would change nothing: SceneError naming it (`source`:
+    "<file>: ")."""
     import torch
 
     from ..config import REGION_LABEL, MaterialMapEntry
+    from ..errors import SceneError
 
-    parts = []
     x = gs.means.detach().to(torch.float64)
     for i, r in enumerate(cfg.capture.regions):
         lo, hi = torch.tensor(r.lower, dtype=torch.float64), torch.tensor(r.upper, dtype=torch.float64)
@@ -101,5 +103,14 @@ def apply_regions(cfg, gs) -> str:
         gs.labels[inside] = label
         entry = MaterialMapEntry(label, "fixed_corotated", p.E, p.nu, p.density, sigma_R=p.sigma_R)
         cfg.material_map = [e for e in cfg.material_map if e.label != label] + [entry]
-        parts.append(f"{int(inside.sum())} Gaussians {r.material} (label {label})")
+    parts = []
+    for i, r in enumerate(cfg.capture.regions):
+        count = int((gs.labels == REGION_LABEL + i).sum())
+        if count == 0:
+            raise SceneError(
+                f"{source}capture.regions[{i}] (lower = {list(r.lower)}, upper = {list(r.upper)}) holds none of the "
+                f"object's {len(gs)} Gaussians (or a later region covers all of them), so its material {r.material!r} "
+                "would change nothing; move the box over the part it names (scene coordinates), or remove it."
+            )
+        parts.append(f"{count} Gaussians {r.material} (label {REGION_LABEL + i})")
     return "material regions: " + ", ".join(parts)

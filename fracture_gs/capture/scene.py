@@ -19,7 +19,7 @@ from typing import Optional
 import torch
 
 from .. import assets
-from ..config import SceneConfig
+from ..config import CameraConfig, RenderConfig, SceneConfig
 from ..errors import SceneError
 from ..io.gaussian_set import GaussianSet
 from .camera import frame_box, trainer_view
@@ -60,8 +60,17 @@ def resolve(cfg: SceneConfig, device: str = "cpu") -> Capture:
     """See the module doc. `device` decides the resolution budget and the panel size. Raises SceneError (one
     sentence naming the file and the fix) for scenes that leave nothing to simulate."""
     from ..io.config import validate
+    from ..io.devices import as_device
     from ..io.formats import read_gaussians
 
+    device = str(as_device("resolve", device))  # "tpu" was taken for the CPU's budget without a word
+    if not isinstance(cfg, SceneConfig):
+        from ..errors import ArgumentError
+
+        raise ArgumentError(
+            f"resolve: cfg must be a SceneConfig, got {type(cfg).__name__}; load the scene's config first, e.g. "
+            "resolve(fracture_gs.io.load_config('scene.ply'))."
+        )
     cfg = copy.deepcopy(cfg)
     path = Path(cfg.scene)
     validate(cfg, f"{path} (captured scene)")  # a config built in Python, not loaded, is checked here too
@@ -96,7 +105,7 @@ def resolve(cfg: SceneConfig, device: str = "cpu") -> Capture:
     above = _above_ground(kept.means, up, cap, notes)
     roi_note = "region of interest: automatic (robust bounds grown to what connects to them)"
     if cap.roi == "auto":  # resolved to a box, so the written config repeats it
-        lo, hi = auto_roi(kept.means[above].to(torch.float64), cap.percentile)
+        lo, hi = auto_roi(kept.means[above].to(torch.float64), cap.percentile, f"{path}: ")
         cap.roi, cap.roi_lower, cap.roi_upper = "box", _vec(lo), _vec(hi)
         inside, _ = roi_mask(kept.means, cap, str(path))
     else:
@@ -111,7 +120,7 @@ def resolve(cfg: SceneConfig, device: str = "cpu") -> Capture:
     notes.append(f"{roi_note}: {n_obj} Gaussians simulated, {report.kept - n_obj} kept as a static background")
     obj, bg = kept.subset(inside), kept.subset(~inside)
     if cap.regions:
-        notes.append(apply_regions(cfg, obj))
+        notes.append(apply_regions(cfg, obj, f"{path}: "))
     fit = _fit(obj, up, up_note, Q, cap, path, notes)
     cap.scale, cap.rotation, cap.offset = fit.scale, fit.to_config()["rotation"], fit.to_config()["offset"]
     obj = fit.gaussians(obj)
@@ -146,9 +155,21 @@ def resolve(cfg: SceneConfig, device: str = "cpu") -> Capture:
     notes.append(substep_note(cfg))
     if cap.panel == "auto":
         r = cfg.render
+        written = (r.width, r.height)
         r.width, r.height = (1280, 720) if str(device).startswith("cuda") else (640, 480)
+        if written not in AUTO_PANELS:  # a size the config asked for, not the placeholder of capture.toml
+            notes.append(
+                f'panel: {r.width}×{r.height} (capture.panel = "auto"); the [render] width × height the config '
+                f'gives, {written[0]}×{written[1]}, is not used (capture.panel = "config" keeps it)'
+            )
         cap.panel = "config"
+    asked = _camera_asked(cfg.render.camera)
     _camera(cfg, cameras, fit, lo, hi, room_lo, room_hi, notes, cams_path)
+    if asked and not notes[-1].startswith("camera: [render.camera] as written"):
+        notes[-1] += (
+            f"; the config's [render.camera] {', '.join(asked)} {'is' if len(asked) == 1 else 'are'} not used "
+            '(capture.camera = "config" keeps them)'
+        )
     cfg.sim.max_fragments = max(cfg.sim.max_fragments, 2 * cfg.topology.max_events + 2)
     return Capture(validate(cfg, f"{path} (captured scene)"), obj, bg, fit, notes)
 
@@ -157,7 +178,7 @@ def _fit(obj: GaussianSet, up, up_note: str, Q, cap, path: Path, notes: list) ->
     """The scene → simulation transform: capture.scale, rotation and offset as given (each alone or together),
     the rest automatic. A given scale decides the object's size: capture.size follows it, within its range."""
     offset = None if cap.offset is None else torch.tensor(cap.offset, dtype=torch.float64)
-    fit = fit_transform(obj.means, up, cap.size, scale=cap.scale, rotation=Q, offset=offset)
+    fit = fit_transform(obj.means, up, cap.size, scale=cap.scale, rotation=Q, offset=offset, source=f"{path}: ")
     given = [k for k in ("scale", "rotation", "offset") if getattr(cap, k) is not None]
     if cap.scale is not None:
         q = obj.means.to(torch.float64) @ fit.rotation.T
@@ -206,6 +227,17 @@ def _above_ground(means: torch.Tensor, up: torch.Tensor, cap, notes: list) -> to
         'the up axis) is kept as a static background and the floor stands on it (capture.ground = "none" keeps it)'
     )
     return above
+
+
+AUTO_PANELS = ((640, 480), (1280, 720), (RenderConfig().width, RenderConfig().height))
+"""The panel sizes capture.panel = "auto" chooses, and the unset default: a config holding one asked for none."""
+
+
+def _camera_asked(camera) -> list:
+    """The [render.camera] keys a config sets to other than their defaults (an automatic camera replaces them;
+    orbit_degrees is kept)."""
+    default = CameraConfig()
+    return [k for k in ("eye", "target", "up", "fov_deg") if getattr(camera, k) != getattr(default, k)]
 
 
 def _vec(t: torch.Tensor) -> tuple:

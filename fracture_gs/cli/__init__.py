@@ -115,7 +115,7 @@ class _Interrupts:
 
     def _handler(self, signum, frame) -> None:
         self.hit = True
-        if not self.held:
+        if not self.held and not in_finalizer(frame):  # in a finalizer, `check` raises it at the next check
             raise KeyboardInterrupt
 
     def check(self) -> None:
@@ -132,6 +132,17 @@ class _Interrupts:
 
             signal.signal(signal.SIGINT, signal.SIG_IGN if leaving else self.previous)
             self.previous = None
+
+
+def in_finalizer(frame) -> bool:
+    """Whether a signal handler interrupted a finalizer (`__del__`, up the stack of `frame`): a KeyboardInterrupt
+    raised there is printed as "Exception ignored in ..." with its traceback and dropped, so a handler only records
+    the Ctrl-C then (the command stops at its next check and exits 130 with its one line)."""
+    while frame is not None:
+        if frame.f_code.co_name == "__del__":
+            return True
+        frame = frame.f_back
+    return False
 
 
 _running: "Optional[_Interrupts]" = None  # main()'s, while it runs
@@ -214,6 +225,16 @@ def _interrupted(args) -> int:
     # SIGINT at exit although this handler caught it; the next string it runs clears that record, so run one.
     eval("None")
     partial = getattr(args, "partial_out", None)  # set by a command once it knows its output folder
-    where = f"partial outputs are in {partial}" if partial else "nothing was written"
+    where = f"partial outputs are in {partial}" if partial and _holds_anything(partial) else "nothing was written"
     print(f"\n{PROG}: interrupted; {where}.", file=sys.stderr)
     return 130
+
+
+def _holds_anything(folder) -> bool:
+    """Whether the output folder has any entry (a Ctrl-C before the first file is written leaves it empty, and
+    "partial outputs are in" an empty folder would send the user to look for nothing)."""
+    try:
+        with os.scandir(folder) as entries:
+            return any(True for _ in entries)
+    except OSError:
+        return False

@@ -58,14 +58,21 @@ def run_devices(args: argparse.Namespace) -> tuple[str, Optional[list[str]]]:
     return devices[0], devices
 
 
-def refuse_render_sim(cfg, args: argparse.Namespace, devices: Optional[list[str]]) -> None:
-    """render-sim: flags that the config's scene, frame count, variants or devices would make do nothing."""
+def refuse_scene_flags(cfg, args: argparse.Namespace) -> None:
+    """render-sim: flags that the config's kind of scene would make do nothing (capture flags on a built-in scene,
+    built-in flags on a capture). Run on the config as loaded, before the flags are applied to it, so the
+    sentence names the flag typed rather than the config key it would set."""
     from ..config import BUILTIN_SCENES
 
     if cfg.scene in BUILTIN_SCENES:
         _builtin_scene(cfg, args)
     else:
         _captured_scene(cfg, args)
+
+
+def refuse_render_sim(cfg, args: argparse.Namespace, devices: Optional[list[str]]) -> None:
+    """render-sim: flags that the config's scene, frame count, variants or devices would make do nothing."""
+    refuse_scene_flags(cfg, args)
     every = getattr(args, "export_ply", None)
     if every is not None and every > cfg.frames:
         raise CliError(

@@ -14,6 +14,11 @@ from .sweep import add_sweep_parser
 DEVICE_RE = re.compile(r"^(auto|cpu|cuda(:\d+)?)$")
 RESOLUTION_RE = re.compile(r"\s*([0-9]+)\s*[xX×]\s*([0-9]+)\s*")
 BENCH_DEFAULTS = {"steps": 200, "warmup": 20, "trials": 3, "grid": 128, "sort": "cell"}
+BENCH_GRID = (8, 256)
+"""bench --grid: nodes per axis. The ficus spans [0.1, 0.9] m of the [0, 1) box, which 8 nodes still cover with the
+stencil; 256³ is sim.max_grid_cells (16.8 M nodes, ≈ 0.5 GiB of grid buffers), above which the grid is refused."""
+MAX_BENCH_PARTICLES = 100_000_000
+"""bench --particles: the config's particle cap (io.config.validate.MAX_PARTICLES, ≈ 20 GB of state)."""
 """bench's defaults, applied by `cmd_bench` (the flags default to None, so a flag typed is told from one not)."""
 
 
@@ -177,11 +182,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--preset", metavar="small|paper", help="small (dx 1/64, CPU sized) or paper (dx 1/128, paper particle counts)"
     )
-    p.add_argument("--frames", metavar="N", type=_positive_int, help="number of frames (default: the config's)")
+    p.add_argument(
+        "--frames", metavar="N", type=_positive_int("--frames", 30), help="number of frames (default: the config's)"
+    )
     p.add_argument(
         "--particles",
         metavar="N",
-        type=_positive_int,
+        type=_positive_int("--particles", 2000),
         help="built-in scenes only: override the preset's particle count (quick looks)",
     )
     p.add_argument(
@@ -220,7 +227,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--export-ply",
         metavar="N",
-        type=_positive_int,
+        type=_positive_int("--export-ply", 5),
         help="also write every N-th frame of every variant as a splat file (ply/<variant>/frame_NNNN.*, the scene's "
         "own coordinates), in --export-format",
     )
@@ -268,18 +275,32 @@ def build_parser() -> argparse.ArgumentParser:
         epilog=_BENCH_EPILOG,
     )
     p.add_argument(
-        "--particles", metavar="N", type=_positive_int, help="ficus particle count (default: the paper's 171,553)"
+        "--particles",
+        metavar="N",
+        type=_positive_int("--particles", 20000, MAX_BENCH_PARTICLES),
+        help="ficus particle count (default: the paper's 171,553)",
     )
-    p.add_argument("--steps", metavar="N", type=_positive_int, help="substeps per timing sample (default 200)")
-    p.add_argument("--warmup", metavar="N", type=_positive_int, help="untimed substeps first (default 20)")
-    p.add_argument("--trials", metavar="N", type=_positive_int, help="timing samples per build (default 3)")
+    p.add_argument(
+        "--steps", metavar="N", type=_positive_int("--steps", 200), help="substeps per timing sample (default 200)"
+    )
+    p.add_argument(
+        "--warmup", metavar="N", type=_positive_int("--warmup", 20), help="untimed substeps first (default 20)"
+    )
+    p.add_argument(
+        "--trials", metavar="N", type=_positive_int("--trials", 3), help="timing samples per build (default 3)"
+    )
     p.add_argument(
         "--placements",
         metavar="N",
-        type=_positive_int,
+        type=_positive_int("--placements", 5),
         help="fresh-memory builds per branch (default: 5 on CUDA, 1 on the CPU)",
     )
-    p.add_argument("--grid", metavar="N", type=_positive_int, help="N³ grid, Δx = 1/N (default 128)")
+    p.add_argument(
+        "--grid",
+        metavar="N",
+        type=_bench_grid,
+        help=f"N³ grid, Δx = 1/N, {BENCH_GRID[0]} to {BENCH_GRID[1]} (default 128)",
+    )
     p.add_argument("--no-graph", action="store_true", help="time plain launches, no CUDA graph")
     p.add_argument(
         "--sort",
@@ -435,14 +456,32 @@ def add_capture_options(p: argparse.ArgumentParser) -> None:
     )
 
 
-def _positive_int(text: str) -> int:
-    """argparse type for --frames."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not an integer; write it like --frames 30") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"{value} must be at least 1")
+def _positive_int(flag: str, example: int, most: int | None = None):
+    """argparse type for a count flag (--frames, --particles, --steps, ...): a whole number from 1 to `most`, the
+    error's example naming that flag."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not an integer; write it like {flag} {example}") from None
+        if value < 1:
+            raise argparse.ArgumentTypeError(f"{value} must be at least 1")
+        if most is not None and value > most:
+            raise argparse.ArgumentTypeError(f"{value:,} is more than {most:,}; write it like {flag} {example}")
+        return value
+
+    parse.__name__ = flag  # argparse names the type in some messages
+    return parse
+
+
+def _bench_grid(text: str) -> int:
+    """argparse type for bench --grid: nodes per axis within BENCH_GRID."""
+    value = _positive_int("--grid", 128)(text)
+    if not BENCH_GRID[0] <= value <= BENCH_GRID[1]:
+        raise argparse.ArgumentTypeError(
+            f"{value:,} is outside {BENCH_GRID[0]} to {BENCH_GRID[1]} nodes per axis; write it like --grid 128"
+        )
     return value
 
 

@@ -13,17 +13,18 @@ from pathlib import Path
 from typing import Any
 
 from ..io.outputs import output_dir, output_file
-from . import CliError
+from . import CliError, in_finalizer
 from .devices import resolve_device
-from .ignored import refuse_bench, refuse_figures, refuse_render_sim, run_devices
+from .ignored import refuse_bench, refuse_figures, refuse_render_sim, refuse_scene_flags, run_devices
 from .parser import BENCH_DEFAULTS
 
 
 @contextlib.contextmanager
 def sigint_event():
     """A threading Event that Ctrl-C sets, besides raising KeyboardInterrupt as usual. Python drops an
-    exception raised in a finalizer (`__del__`, printed as "Exception ignored"), and a signal handler
-    can run inside one; the run still stops at its next frame because the event is set. Outside the
+    exception raised in a finalizer (`__del__`, printed as "Exception ignored" with a traceback), and a signal
+    handler can run inside one: there the handler only sets the event, and the run stops at its next frame (and
+    the command exits 130) because the event is set. Outside the
     main thread (no signal handlers there), or where SIGINT is ignored (a background job of a
     non-interactive shell, as Python leaves it), the event is only returned."""
     stop = threading.Event()
@@ -33,7 +34,8 @@ def sigint_event():
 
     def handler(signum, frame):
         stop.set()
-        raise KeyboardInterrupt
+        if not in_finalizer(frame):  # raised there, Python prints "Exception ignored in ... Traceback" and drops it
+            raise KeyboardInterrupt
 
     previous = signal.signal(signal.SIGINT, handler)
     try:
@@ -79,6 +81,7 @@ def cmd_render_sim(args: argparse.Namespace) -> int:
         raise CliError(f"--export-format {export_format} needs --export-ply N (which frames to write in it).")
     path = find_config(args.config)
     cfg = load_config(path)
+    refuse_scene_flags(cfg, args)  # before the overrides: the config's own checks would name the key, not the flag
     cfg = apply_overrides(
         cfg,
         preset=args.preset,
@@ -161,22 +164,22 @@ def cmd_render_sim(args: argparse.Namespace) -> int:
 
 def cmd_bench(args: argparse.Namespace) -> int:
     """bench: Table 2 branches (fracture_gs.paper.bench) or the accuracy sweeps (fracture_gs.paper.accuracy)."""
-    device = None if args.accuracy and args.from_json else resolve_device(args.device)
+    redraw = args.accuracy and args.from_json is not None
+    device = None if redraw else resolve_device(args.device)
     refuse_bench(args, device)
-    if not (args.accuracy and args.from_json):  # redrawing a saved sweep runs no kernel
-        _prepare_warp()
+    payload = _accuracy_payload(args.from_json) if redraw else None
     if args.accuracy:
         from ..paper import accuracy
 
+        cases = _named_list("--cases", args.cases, accuracy.CASES, "bar,spin")
+    if not redraw:  # redrawing a saved sweep runs no kernel
+        _prepare_warp()
+    if args.accuracy:
         out_dir = output_dir(args.out if args.out is not None else Path("runs") / "accuracy")
         args.partial_out = out_dir
-        if args.from_json:
-            accuracy.write_outputs(json.loads(Path(args.from_json).read_text()), out_dir)
+        if redraw:
+            accuracy.write_outputs(payload, out_dir)
         else:
-            cases = [c.strip() for c in args.cases.split(",")] if args.cases else None
-            unknown = sorted(set(cases or ()) - set(accuracy.CASES))
-            if unknown:
-                raise CliError(f"--cases {', '.join(unknown)} unknown; choose from {', '.join(accuracy.CASES)}.")
             _print_summary(accuracy.run_accuracy(device, out_dir, quick=args.quick, cases=cases))
         print((out_dir / "accuracy.md").read_text())
         return 0
@@ -199,6 +202,59 @@ def cmd_bench(args: argparse.Namespace) -> int:
     return 0
 
 
+def _named_list(flag: str, text, names, example: str) -> list | None:
+    """A comma-separated flag of known names, each once (None: the flag not given, every name)."""
+    if text is None:
+        return None
+    items = [t.strip() for t in text.split(",")]
+    if not any(items):
+        raise CliError(f"{flag} is empty; list some of {', '.join(names)}, or drop it to run every one.")
+    if "" in items:
+        raise CliError(f"{flag} {text!r} has an empty entry; write it like {flag} {example}.")
+    twice = sorted({t for t in items if items.count(t) > 1})
+    if twice:
+        raise CliError(f"{flag} {text} lists {', '.join(twice)} twice; list each once.")
+    unknown = sorted(set(items) - set(names))
+    if unknown:
+        raise CliError(f"{flag} {', '.join(unknown)} unknown; choose from {', '.join(names)}.")
+    return items
+
+
+def _accuracy_payload(path_text: str) -> dict:
+    """The saved sweep `bench --accuracy --from-json FILE` redraws: an accuracy.json this command wrote, or one
+    sentence naming the file and what is wrong with it."""
+    from ..paper.accuracy import Result
+
+    if not path_text.strip():
+        raise CliError(
+            "--from-json is empty; give the accuracy.json of a saved sweep, e.g. runs/accuracy/accuracy.json."
+        )
+    path = Path(path_text)
+    fix = "point --from-json at the accuracy.json that `fracture-gs bench --accuracy` writes"
+    if path.is_dir():
+        raise CliError(f"--from-json {path} is a folder; {fix}, e.g. {path / 'accuracy.json'}.")
+    if not path.is_file():
+        raise CliError(f"--from-json {path}: no such file; {fix}.")
+    try:
+        payload = json.loads(path.read_bytes().decode("utf-8-sig"))
+    except (OSError, UnicodeDecodeError, ValueError, RecursionError) as exc:
+        raise CliError(f"--from-json {path} is not JSON ({' '.join(str(exc).split())[:80]}); {fix}.") from None
+    keys = ("results", "caption", "command", "device_name")
+    if not isinstance(payload, dict) or any(k not in payload for k in keys) or not isinstance(payload["results"], list):
+        raise CliError(f"--from-json {path} is not a saved accuracy sweep (no {', '.join(keys)}); {fix}.")
+    from ..io.config.validate import is_finite_number
+
+    for i, r in enumerate(payload["results"]):
+        try:
+            Result(**r)
+        except TypeError:
+            raise CliError(f"--from-json {path}: results[{i}] is not a sweep result; {fix}.") from None
+        bad = next((k for k in ("dx", "dt", "cfl", "wall_s", "error") if not is_finite_number(r[k])), None)
+        if bad is not None or not r["dx"] > 0:
+            raise CliError(f"--from-json {path}: results[{i}].{bad or 'dx'} is not a usable number; {fix}.")
+    return payload
+
+
 def cmd_figures(args: argparse.Namespace) -> int:
     """figures: regenerate the paper's tables and figures (fracture_gs.paper.figures)."""
     from ..paper.figures import GROUPS, run_figures
@@ -215,6 +271,7 @@ def cmd_figures(args: argparse.Namespace) -> int:
         )
     out_dir = output_dir(out)
     if args.readme_only:
+        _check_summary(out / "summary.json")
         print(refresh_readme(out_dir))
         return 0
     only = _figure_groups(args.only, GROUPS)
@@ -253,6 +310,24 @@ def cmd_figures(args: argparse.Namespace) -> int:
     return 0
 
 
+def _check_summary(path: Path) -> None:
+    """--readme-only reads the figures folder's summary.json: a JSON object with the run's `meta`, as `figures`
+    writes it, or one sentence naming the file."""
+    fix = f"rerun `fracture-gs figures --out {path.parent}` to write it again, or point --out at another figures folder"
+    try:
+        summary = json.loads(path.read_bytes().decode("utf-8-sig"))
+    except (OSError, UnicodeDecodeError, ValueError, RecursionError) as exc:
+        raise CliError(f"{path} is not JSON ({' '.join(str(exc).split())[:80]}); {fix}.") from None
+    meta = summary.get("meta") if isinstance(summary, dict) else None
+    need = ("command", "date", "device_name", "wall_s", "device", "out_arg")
+    if not isinstance(meta, dict) or any(k not in meta for k in need) or not isinstance(meta["wall_s"], (int, float)):
+        raise CliError(f"{path} is not a figures summary (no 'meta' with {', '.join(need)}); {fix}.")
+    entries = summary.get("figure_entries", [])
+    keys = ("path", "title", "caption", "function")
+    if not isinstance(entries, list) or not all(isinstance(e, dict) and all(k in e for k in keys) for e in entries):
+        raise CliError(f"{path}: figure_entries is not a list of figures with {', '.join(keys)}; {fix}.")
+
+
 def _figure_groups(text, groups) -> list | None:
     """--only as a list of known groups, each once (None: every group)."""
     if text is None:
@@ -285,6 +360,11 @@ def cmd_init(args: argparse.Namespace) -> int:
         )
     cfg = apply_overrides(load_config(ply), source=f"{ply} with command-line overrides", keys=_key_flags(args))
     out = output_file(args.out if args.out is not None else Path(f"{cfg.name}.toml"))
+    if out.exists() and out.resolve() == ply.resolve():
+        raise CliError(
+            f"--out {out} is the scene file itself, which init would overwrite with its TOML; choose another --out, "
+            f"e.g. --out {ply.with_suffix('.toml').name}."
+        )
     if out.exists() and not args.force:
         raise CliError(f"{out} exists; pass --force to overwrite it or choose another --out.")
     capture = resolve(cfg, resolve_device(args.device))

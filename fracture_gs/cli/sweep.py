@@ -12,6 +12,8 @@ from pathlib import Path
 from typing import Optional, Sequence
 
 PROG = "fracture-gs"
+TABLE_FILES = ("sweep.md", "sweep.tex", "sweep.csv", "sweep.json", "sweep_pareto.png")
+"""The files rank 0 writes in --out once every cell has run (`sweep.report`)."""
 MAX_RANK_TIMEOUT_S = 604_800
 """The longest --rank-timeout: a week (torch's timedelta overflows on inf; no rank is meant to wait longer)."""
 
@@ -183,7 +185,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     """sweep: run (or --list) a spec's cells on this rank; rank 0 prints the summary and the table. Bad input
     raises the package's errors (one line from the CLI)."""
     _refuse_ignored(args)
-    from ..io.outputs import output_dir
+    from ..io.outputs import check_output_paths, output_dir
     from ..sweep import expand, find_spec, load_spec
     from ..sweep.distributed import RankFailure, launch_from_env, resolve_device
     from ..sweep.driver import SweepOptions, run_sweep
@@ -196,10 +198,21 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         total = check_size(load_spec(path), args.max_cells)
     else:  # a bad spec, launch or device is one sentence before any folder is made
         cells = expand(load_spec(path), args.max_cells, _progress())
-    resolve_device(args.device, launch_from_env())
+    launch = launch_from_env()
+    resolve_device(args.device, launch)
+    if args.rank_timeout is not None and not launch.distributed:
+        from . import CliError
+
+        raise CliError(
+            f"--rank-timeout {args.rank_timeout:g} has no effect on a single-process sweep (there are no other ranks "
+            "to wait for); drop it, or launch the ranks with torchrun."
+        )
+    if args.out is not None and not args.out.strip():
+        output_dir(args.out)  # refuses an empty --out in one line (Path("") would be the current folder)
     out = Path(args.out) if args.out is not None else Path("runs") / path.stem
     if not args.list:  # --list only reads the cache
         out = output_dir(out)
+        check_output_paths(out, files=TABLE_FILES)  # the tables are written last: a folder in the way fails now
         args.partial_out = out
     argv = getattr(args, "argv", None) or ["sweep", *sys.argv[1:]]
     opts = SweepOptions(

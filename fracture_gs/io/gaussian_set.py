@@ -15,6 +15,7 @@ import numpy as np
 import torch
 
 from ..errors import ArgumentError
+from .devices import as_device
 
 SIGMA_RANGE = (1e-18, 1e18)  # σ whose σ² is a normal, finite float32 (the covariance stays invertible)
 
@@ -69,6 +70,7 @@ class GaussianSet:
         return self.means.device
 
     def to(self, device) -> GaussianSet:
+        device = as_device("GaussianSet.to", device)
         moved = {f.name: getattr(self, f.name) for f in fields(self) if f.name not in ("extra", "carrier")}
         moved = {k: v.to(device) if torch.is_tensor(v) else v for k, v in moved.items()}
         carrier = self.carrier.to(device) if self.carrier is not None else None
@@ -76,6 +78,7 @@ class GaussianSet:
 
     def subset(self, mask: torch.Tensor) -> GaussianSet:
         """The Gaussians selected by a boolean mask or index tensor (without a carrier: its map is per Gaussian)."""
+        mask = _selection(mask, len(self), self.means.device)
         pick = {f.name: getattr(self, f.name)[mask] for f in fields(self) if f.name not in ("extra", "carrier")}
         return GaussianSet._derived(**pick, extra={k: v[mask] for k, v in self.extra.items()})
 
@@ -102,6 +105,28 @@ class GaussianSet:
 
     def replace(self, **changes) -> GaussianSet:
         return replace(self, **changes)
+
+
+def _selection(mask: Any, n: int, device) -> torch.Tensor:
+    """`GaussianSet.subset`'s argument: a bool mask of N entries, or integer indices in -N … N-1 (a list or numpy
+    array is converted), else ArgumentError."""
+    t = as_tensor("GaussianSet.subset", "mask", mask, "[N] bool or [M] int")
+    if t.dtype == torch.bool:
+        if tuple(t.shape) != (n,):
+            raise ArgumentError(
+                f"GaussianSet.subset: mask has shape {list(t.shape)}, not [N] with N = {n} (the number of Gaussians); "
+                "pass one bool per Gaussian, or integer indices."
+            )
+    elif t.is_floating_point() or t.is_complex() or t.dim() != 1:
+        raise ArgumentError(
+            f"GaussianSet.subset: mask has dtype {t.dtype} and shape {list(t.shape)}; pass a bool mask [N] or "
+            "integer indices [M]."
+        )
+    elif t.numel() and not bool(((t >= -n) & (t < n)).all()):
+        raise ArgumentError(
+            f"GaussianSet.subset: mask holds indices outside -{n} … {n - 1}; pass indices of Gaussians."
+        )
+    return t.to(device)
 
 
 def quat_to_matrix(q: torch.Tensor) -> torch.Tensor:  # [N, 4] wxyz (any norm) -> [N, 3, 3]
@@ -167,6 +192,10 @@ class Carrier:
 # ----------------------------------------------------------------------------- checks
 
 _SHAPES = {"means": "[N, 3]", "quats": "[N, 4]", "scales": "[N, 3]", "opacities": "[N]", "sh": "[N, K, 3]"}
+
+
+INT32_MAX = 2**31 - 1
+"""The largest material label: labels are stored as int32 (`GaussianSet.labels`, the PLY's `fgs_label`)."""
 
 
 def as_tensor(where: str, name: str, value: Any, shape: str) -> torch.Tensor:
@@ -288,6 +317,8 @@ def _value_rules(out: dict) -> list:
     if "labels" in out:
         lab = out["labels"]
         rules.append(("labels", lab < 0, "negative labels", "give non-negative material labels"))
+        big = lab > INT32_MAX  # stored as int32: a larger label would wrap onto another one
+        rules.append(("labels", big, f"labels above {INT32_MAX:,} (int32)", "give material labels that fit in int32"))
     return rules
 
 

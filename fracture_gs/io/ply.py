@@ -29,6 +29,7 @@ from plyfile import PlyData, PlyElement
 
 from ..errors import ArgumentError, OutputError, PlyError
 from .detect import as_path
+from .devices import as_device  # callers import it from here too (io.ply.as_device)
 from .gaussian_set import SIGMA_RANGE, GaussianSet
 
 INTERIOR_PROP = "fgs_interior"
@@ -84,24 +85,6 @@ def inverse_opacity(p: np.ndarray) -> np.ndarray:
 
 
 # ----------------------------------------------------------------------------- arguments
-
-
-def as_device(where: str, device) -> torch.device:
-    """A device argument (`"cpu"`, `"cuda:0"`, a torch.device), or an ArgumentError naming it."""
-    try:
-        dev = torch.device(device)
-    except (RuntimeError, TypeError, ValueError):
-        raise ArgumentError(
-            f"{where}: device {device!r:.40} is not a torch device; pass 'cpu', 'cuda' or 'cuda:N'."
-        ) from None
-    if dev.type == "cuda":
-        count = torch.cuda.device_count() if torch.cuda.is_available() else 0
-        if (dev.index or 0) >= count:
-            have = f"{count} CUDA device(s)" if count else "no CUDA device"
-            raise ArgumentError(f"{where}: device {str(dev)!r} does not exist (this machine has {have}); pass 'cpu'.")
-    elif dev.type != "cpu":
-        raise ArgumentError(f"{where}: device {str(dev)!r} is not one this package runs on; pass 'cpu' or 'cuda:N'.")
-    return dev
 
 
 def as_gaussians(where: str, gs) -> GaussianSet:

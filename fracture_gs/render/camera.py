@@ -8,6 +8,7 @@ with f = (H/2) / tan(fov_y/2) (square pixels). A pixel (u, v) covers [u, u+1) ×
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass
 
 import torch
@@ -53,6 +54,37 @@ def _vec(v, dtype=torch.float64) -> Tensor:
     return torch.as_tensor(v, dtype=dtype).reshape(3)
 
 
+MAX_SIDE = 16384
+"""Pixels: the largest image side a camera may have (the widest frame the video encoder takes)."""
+
+
+def _point(where: str, name: str, v) -> Tensor:
+    """A camera argument that is a point or direction: 3 finite numbers, else RenderError naming it."""
+    try:
+        t = _vec(v)
+    except (TypeError, ValueError, RuntimeError):
+        raise RenderError(
+            f"{where}: {name} must be 3 numbers (x, y, z), not {v!r:.60}; pass e.g. (0.0, 0.0, 1.0)."
+        ) from None
+    if not bool(torch.isfinite(t).all()):
+        raise RenderError(f"{where}: {name} = {t.tolist()} is not finite; pass 3 finite numbers (metres).")
+    return t
+
+
+def _check_image(where: str, fov_deg, width, height) -> None:
+    """A field of view strictly between 0° and 180° and whole image sides of 1 to MAX_SIDE pixels."""
+    for name, v in (("width", width), ("height", height)):
+        if isinstance(v, bool) or not isinstance(v, numbers.Integral) and not (isinstance(v, float) and v.is_integer()):
+            raise RenderError(f"{where}: {name} = {v!r:.40} is not a whole number of pixels; pass e.g. {name}=256.")
+        if not 1 <= v <= MAX_SIDE:
+            raise RenderError(f"{where}: {name} = {v} is outside 1 to {MAX_SIDE} pixels; pass e.g. {name}=256.")
+    if isinstance(fov_deg, bool) or not isinstance(fov_deg, numbers.Real) or not 0 < fov_deg < 180:
+        raise RenderError(
+            f"{where}: fov_deg = {fov_deg!r:.40} is not a field of view between 0 and 180 degrees; pass e.g. "
+            "fov_deg=40."
+        )
+
+
 def intrinsics(fov_deg: float, width: int, height: int) -> Tensor:  # [3,3]
     """K from the vertical field of view, principal point at the image centre."""
     f = 0.5 * height / math.tan(math.radians(fov_deg) / 2)
@@ -64,10 +96,13 @@ def look_at(eye, target, up=(0.0, 0.0, 1.0), fov_deg: float = 40.0, width: int =
 
     z = (target − eye)/|·|, x = z × up /|·| (right), y = z × x (down); R = [x; y; z], t = −R eye.
     """
-    eye, target, up = _vec(eye), _vec(target), _vec(up)
+    eye, target, up = (_point("look_at", k, v) for k, v in (("eye", eye), ("target", target), ("up", up)))
+    _check_image("look_at", fov_deg, width, height)
+    if not float(up.norm()) > 0:
+        raise RenderError("look_at: up is the zero vector; pass the world's up direction, e.g. up=(0, 0, 1).")
     z = target - eye
     if z.norm() < 1e-12:
-        raise RenderError("look_at: eye and target coincide")
+        raise RenderError("look_at: eye and target coincide; put the camera away from the point it looks at.")
     z = z / z.norm()
     x = torch.linalg.cross(z, up)
     if x.norm() < 1e-9 * max(up.norm().item(), 1e-30):  # up ∥ view direction: pick another up
@@ -102,7 +137,14 @@ def orbit(
     height: int = 256,
 ) -> Camera:
     """Camera on a sphere about `target`: eye = target + r (cos e (cos a e1 + sin a e2) + sin e up)."""
-    target, up = _vec(target), _vec(up)
+    target, up = _point("orbit", "target", target), _point("orbit", "up", up)
+    for name, v in (("radius", radius), ("elevation_deg", elevation_deg), ("azimuth_deg", azimuth_deg)):
+        if isinstance(v, bool) or not isinstance(v, numbers.Real) or not math.isfinite(v):
+            raise RenderError(f"orbit: {name} = {v!r:.40} is not a finite number; pass e.g. {name}=1.0.")
+    if not radius > 0:
+        raise RenderError(f"orbit: radius = {radius!r} must be a positive distance from target; pass e.g. radius=1.5.")
+    if not float(up.norm()) > 0:
+        raise RenderError("orbit: up is the zero vector; pass the world's up direction, e.g. up=(0, 0, 1).")
     up = up / up.norm()
     e1, e2 = _perp_basis(up)
     el, az = math.radians(elevation_deg), math.radians(azimuth_deg)

@@ -16,6 +16,7 @@ from __future__ import annotations
 import torch
 from torch import Tensor
 
+from ..errors import RenderError
 from ..linalg import polar_rotation  # noqa: F401  (re-exported: R(F) for the SH rotation)
 from ..sh import SH_C0, SH_C1, SH_C2, SH_C3
 
@@ -79,8 +80,11 @@ def sh_colors(
     """colour = max(0, Σ_lm c_lm Y_lm(d_rest) + 0.5) with d_rest = Rᵀ (x − c)/|x − c|."""
     K = sh.shape[-2]
     degree = int(round(K**0.5)) - 1
-    if (degree + 1) ** 2 != K:
-        raise ValueError(f"sh has K={K} coefficients per channel; expected a square (1, 4, 9, 16)")
+    if (degree + 1) ** 2 != K or degree > 3:
+        raise RenderError(
+            f"sh_colors: sh has K = {K} coefficients per channel; pass [N, (degree+1)², 3] with degree 0 to 3 (K = 1, "
+            "4, 9 or 16)."
+        )
     d = means - campos.to(means)[None, :]
     d = d / d.norm(dim=-1, keepdim=True).clamp_min(1e-12)
     if R is not None and degree > 0:  # degree 0 is view-independent

@@ -385,6 +385,7 @@ def render(
     _check_mode(mode)
     if backend not in BACKENDS:
         raise RenderError(f"render: backend must be one of {BACKENDS}, got {backend!r}")
+    _check_inputs(means, covars, colors, opacities, camera, background)
     on_cuda = means.is_cuda and torch.cuda.is_available()
     grad = _needs_grad(means, covars, colors, opacities, camera.viewmat, camera.K)
     if backend == "auto":
@@ -412,6 +413,40 @@ def render(
         raster = rasterize_warp if backend == "warp" else rasterize_tiles
         img, alpha = raster(proj, colors, camera.width, camera.height, bg)
     return RenderOutput(img.clamp(0.0, 1.0), alpha, backend)
+
+
+_RENDER_SHAPES = {"means": (3,), "covars": (3, 3), "colors": (3,), "opacities": ()}
+
+
+def _check_inputs(means, covars, colors, opacities, camera, background) -> None:
+    """render's arguments: tensors of one device with one row per Gaussian ([N, 3], [N, 3, 3], [N, 3], [N]) of
+    real numbers, a Camera and an RGB background, else RenderError naming the argument."""
+    given = {"means": means, "covars": covars, "colors": colors, "opacities": opacities}
+    n = means.shape[0] if torch.is_tensor(means) and means.dim() else None
+    for name, t in given.items():
+        want = "[N" + "".join(f", {d}" for d in _RENDER_SHAPES[name]) + "]"
+        if not torch.is_tensor(t):
+            raise RenderError(f"render: {name} must be a torch tensor {want}, got {type(t).__name__}; pass a tensor.")
+        if not (t.is_floating_point() and t.dim() == 1 + len(_RENDER_SHAPES[name])) or (
+            tuple(t.shape[1:]) != _RENDER_SHAPES[name] or t.shape[0] != n
+        ):
+            raise RenderError(
+                f"render: {name} has shape {list(t.shape)} and dtype {t.dtype}, not {want} floats with N = {n} (the "
+                "number of means); pass one row per Gaussian."
+            )
+        if t.device != means.device:
+            raise RenderError(f"render: {name} is on {t.device} but means on {means.device}; move them to one device.")
+    if not isinstance(camera, Camera):
+        raise RenderError(
+            f"render: camera must be a Camera, got {type(camera).__name__}; make one with "
+            "fracture_gs.render.look_at(eye, target) or orbit(...)."
+        )
+    try:
+        bg = torch.as_tensor(background, dtype=torch.float64).reshape(-1)
+    except (TypeError, ValueError, RuntimeError):
+        bg = None
+    if bg is None or bg.numel() != 3 or not bool(((bg >= 0) & (bg <= 1)).all()):
+        raise RenderError(f"render: background = {background!r:.60} is not an RGB colour; pass 3 numbers in [0, 1].")
 
 
 @torch.no_grad()

@@ -36,6 +36,29 @@ from ..sim import Topology
 from .writer import FrameWriter
 
 LIVE_WINDOW = 2  # frames composed at once beside the solver (more took the interpreter lock from it)
+MAX_VIDEO_SIDE = 16384
+"""Pixels: the widest frame libx264 encodes (16,386 fails with "invalid width x height")."""
+PANEL_GAP = 4  # px between the panels of a comparison frame (`compose_row`'s gap)
+
+
+def check_video_size(cfg, variants) -> None:
+    """Before the run: the comparison frame (the variants' panels side by side) fits the video encoder, or one
+    RenderError naming render.width (--resolution) and the fix, instead of "writing the video stopped" after the
+    simulation."""
+    from ..config import BUILTIN_SCENES
+    from ..errors import RenderError
+
+    if cfg.scene not in BUILTIN_SCENES and cfg.capture.fit and cfg.capture.panel == "auto":
+        return  # the capture's panel is chosen when it is prepared: 640 or 1280 pixels wide
+    n, w = len(variants), cfg.render.width
+    total = n * w + PANEL_GAP * (n - 1)
+    if total > MAX_VIDEO_SIDE:
+        widest = (MAX_VIDEO_SIDE - PANEL_GAP * (n - 1)) // n
+        raise RenderError(
+            f"render.width = {w} (--resolution) puts {n} variants side by side in a comparison video {total:,} "
+            f"pixels wide, over the {MAX_VIDEO_SIDE:,} the H.264 encoder takes; use a width of at most {widest} "
+            "pixels, or fewer variants."
+        )
 
 
 def frames_png_default(device: str) -> bool:

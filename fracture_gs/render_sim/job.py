@@ -17,7 +17,7 @@ from tqdm import tqdm
 
 from ..config import SceneConfig
 from ..io.config import dump_config
-from ..io.outputs import output_dir
+from ..io.outputs import check_output_paths, output_dir
 from ..io.video import ffmpeg
 from ..pipeline import prepare_scene
 from ..profiling import phases
@@ -25,7 +25,7 @@ from ..render.splat import check_backend
 from ..render.warm_up import start_gsplat_compile
 from ..runtime import usable_cores
 from ..viewer.record import start_record
-from .comparison import compose_comparison, frames_png_default
+from .comparison import check_video_size, compose_comparison, frames_png_default
 from .context import Export, RunContext, ScheduleResult
 from .energy_report import energy_markdown
 from .in_turn import run_in_turn
@@ -88,7 +88,14 @@ def run_render_sim(
         raise ValueError(f"schedule must be 'auto', 'in_turn', 'threads' or 'processes', got {schedule!r}")
     for d in devices if devices and len(devices) > 1 else [device]:
         check_backend(cfg.render.backend, d)  # now, not at the first frame
+    check_video_size(cfg, variants)
     out_dir = output_dir(out_dir)
+    check_output_paths(  # a folder where a file goes (or the reverse) fails now, not after the simulation
+        out_dir,
+        files=("comparison.mp4", *(f"{v}.mp4" for v in variants), "metrics.jsonl", "summary.json", "summary.md")
+        + ("config.toml", "topology.npz", "profile.md"),
+        folders=("frames",) * (frames_png is not False) + ("view",) * bool(record_view) + ("ply",) * bool(export_ply),
+    )
     ffmpeg()  # a missing video encoder is one sentence now, not after the scene is prepared and simulated
     if profile:
         phases.enable(sync_device=device if device.startswith("cuda") else None)

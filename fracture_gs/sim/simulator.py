@@ -44,6 +44,13 @@ from .topology import Topology
 
 def validate_sim_config(cfg: SimConfig) -> None:
     """One-sentence errors for invalid solver settings."""
+    if not isinstance(cfg, SimConfig):
+        from ..errors import ArgumentError
+
+        raise ArgumentError(
+            f"Simulator: cfg must be a SimConfig, got {type(cfg).__name__}; pass a config's solver settings, e.g. "
+            "fracture_gs.io.load_config('bread').sim."
+        )
     if cfg.variant not in VARIANT_NAMES:
         raise SimulationError(f"sim.variant '{cfg.variant}' is unknown; use one of {', '.join(VARIANT_NAMES)}")
     if cfg.material not in MATERIALS:
@@ -91,6 +98,13 @@ class Simulator:
         self, cfg: SimConfig, particles: Particles, device="cpu", provider=None, options: Optional[SimOptions] = None
     ):
         validate_sim_config(cfg)
+        if not isinstance(particles, Particles):
+            from ..errors import ArgumentError
+
+            raise ArgumentError(
+                f"Simulator: particles must be Particles, got {type(particles).__name__}; build them with "
+                "fracture_gs.sim.Particles.from_gaussians(gs, cfg)."
+            )
         ensure_warp()
         self.cfg = cfg
         self.spec = variant_spec(cfg.variant)

@@ -48,6 +48,10 @@ ACCURACY_OK_KEYS = ("dt", "particles", "substeps", "wall_s", "error", "unit")
 """Keys a finished accuracy row needs for its table row and the Pareto front."""
 
 
+MAX_CACHE_BYTES = 64 * 2**20
+"""The largest cache file read: a row with its traceback is a few kB; a bigger file is not the driver's."""
+
+
 def cells_dir(out_dir) -> Path:
     """The folder of the cache files."""
     return Path(out_dir) / "cells"
@@ -123,8 +127,18 @@ def load(out_dir, cell: Cell) -> Optional[dict]:
         raise OutputError(
             f"{path} is a folder, not a sweep cache file; delete that folder and rerun (the cell runs again)."
         )
+    if os.path.lexists(path) and path.exists() and not path.is_file():  # a FIFO would block, /dev/zero never end
+        raise OutputError(
+            f"{path} is not a regular file (a pipe, a device or a link to one), so it is not a sweep cache file; "
+            "delete it and rerun (the cell runs again)."
+        )
+    if path.is_file() and path.stat().st_size > MAX_CACHE_BYTES:
+        raise OutputError(
+            f"{path} holds {path.stat().st_size:,} bytes, more than a sweep cache file ever does "
+            f"({MAX_CACHE_BYTES // 2**20} MiB at most); delete it, or rerun with --fresh."
+        )
     try:
-        text = path.read_text()
+        text = path.read_text(encoding="utf-8-sig")  # a byte-order mark (an editor's) is not an error
     except FileNotFoundError:
         return None
     except (OSError, UnicodeDecodeError) as exc:

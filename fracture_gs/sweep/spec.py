@@ -52,6 +52,7 @@ import tomllib
 from ..config import PRESETS, MaterialConfig
 from ..errors import ConfigError
 from ..io.config import CONFIG_DIR
+from ..io.detect import is_splat_file
 from ..variants import VARIANT_NAMES
 
 SPEC_DIR = CONFIG_DIR / "sweeps"
@@ -186,6 +187,13 @@ def load_spec(name_or_path) -> SweepSpec:
     """Read and check a sweep spec; raises ConfigError (one sentence) on the first problem."""
     path = find_spec(name_or_path)
     src = _display(path)
+    if is_splat_file(path):
+        raise ConfigError(
+            src,
+            None,
+            "is a splat file (a captured scene), not a sweep spec; name it in a spec's [[scene]] table, e.g. "
+            f'config = ["{path.name}"], and pass that spec.',
+        )
     try:
         raw = tomllib.loads(path.read_bytes().decode("utf-8-sig"))
     except (OSError, UnicodeDecodeError) as exc:
@@ -298,6 +306,46 @@ def _label(src: str, key: str, table: dict, default: str) -> str:
     return label
 
 
+_TABLE_OWNS = {
+    "variants": ("variant", True),
+    "preset": ("preset", True),
+    "topology.seed": ("seed", True),
+    "frames": ("frames", False),
+    "particles": ("particles", False),
+    "sim.dt": ("dt", False),
+    "sim.cfl": ("cfl", False),
+    "sim.adaptive_dt": ("dt", False),
+    "sim.dx": ("cells", False),
+    "sim.grid_shape": ("cells", False),
+    "capture.cells_across": ("cells", False),
+}
+"""[scene.set] key → (the table key that sets it, always): a cell applies the table key's value (`always`: every
+cell, its default included; `variant` and `seed` are axes of their own, `preset` also rescales Δx), so the same
+key in [scene.set] would be overwritten, or overwrite it, and one of the two would do nothing."""
+
+
+def _refuse_shadowed(src: str, prefix: str, t: dict) -> None:
+    """A config key set twice by one [[scene]] table: in [scene.material] and [scene.set], or in [scene.set] and by
+    the table key that owns it (dt, cfl, cells, frames, ...). One of the two axes would do nothing."""
+    material = t.get("material") or {}
+    for key in t.get("set") or {}:
+        if key.startswith("material.") and key[len("material.") :] in material:
+            raise ConfigError(
+                src,
+                f"{prefix}.set.{key}",
+                f"{prefix}.set.{key} sets {key}, which {prefix}.material.{key[len('material.') :]} sets too, so one "
+                "of them would do nothing; give it once.",
+            )
+        owner, always = _TABLE_OWNS.get(key, (None, False))
+        if owner is not None and (always or owner in t or (key == "sim.adaptive_dt" and "cfl" in t)):
+            raise ConfigError(
+                src,
+                f"{prefix}.set.{key}",
+                f"{prefix}.set.{key} sets what {prefix}.{owner} sets for every cell, so one of them would do nothing; "
+                f"give the values as {prefix}.{owner} = [...] and remove {key} from [scene.set].",
+            )
+
+
 def _accuracy_block(src: str, prefix: str, t: dict) -> AccuracyBlock:
     _keys(src, prefix, t, _ACCURACY_KEYS)
     for key in ("case", "cells", "cfl"):
@@ -364,6 +412,7 @@ def _scene_block(src: str, prefix: str, t: dict) -> SceneBlock:
                 f'{prefix}.set.{key} is a table; quote the dotted key: "{key}.field" = [...].',
             )
         overrides.append((key, tuple(_list(src, f"{prefix}.set.{key}", value))))
+    _refuse_shadowed(src, prefix, t)
     for key in ("frames", "particles", "preset"):  # one value per [[scene]] table: a list would keep only its first
         value = t.get(key)
         if isinstance(value, list) and len(value) != 1:

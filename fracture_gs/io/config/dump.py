@@ -87,6 +87,13 @@ def _emit(lines: list[str], path: str, table: dict) -> None:
 
 def dump_config(cfg: SceneConfig, header: Optional[str] = None) -> str:
     """SceneConfig → TOML text that `load_config` reads back to an equal SceneConfig."""
+    if not isinstance(cfg, SceneConfig):
+        from ...errors import ArgumentError
+
+        raise ArgumentError(
+            f"dump_config: cfg must be a SceneConfig, got {type(cfg).__name__}; load one with "
+            "fracture_gs.io.load_config('bread') (or a path)."
+        )
     return dump_dict(config_to_dict(cfg), header)
 
 

@@ -168,7 +168,15 @@ def load_config(path_or_name: Union[str, os.PathLike]) -> SceneConfig:
     if is_splat_file(path):
         return ply_config(path)
     src = _display(path)
-    merged, cfg = _resolve_chain(_read_toml(path), src, path.parent, (path.resolve(),))
+    raw = _read_toml(path)
+    if "accuracy" in raw or "sweep" in raw or isinstance(raw.get("scene"), list):
+        raise ConfigError(
+            src,
+            None,
+            "is a sweep spec ([[accuracy]] or [[scene]] tables), not a scene config; run it with "
+            f"`fracture-gs sweep {path}` (or `fracture-gs sweep {path} --list` to see its cells).",
+        )
+    merged, cfg = _resolve_chain(raw, src, path.parent, (path.resolve(),))
     cfg = cfg or build_scene(merged, src)
     validate(cfg, src)
     return cfg

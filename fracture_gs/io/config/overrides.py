@@ -13,7 +13,7 @@ import difflib
 import re
 from typing import Any, Mapping, Optional, Sequence, Union
 
-from ...config import PRESETS, SceneConfig
+from ...config import BUILTIN_SCENES, PRESETS, SceneConfig
 from ...errors import ConfigError
 from ...variants import VARIANT_NAMES
 from .build import set_key
@@ -47,9 +47,12 @@ def parse_resolution(text: Union[str, Sequence[int]], source: str = "") -> tuple
 def parse_variants(text: Union[str, Sequence[str]], source: str = "") -> list[str]:
     """`"baseline,full"` (or a list) → ['baseline', 'full'], each a known variant, no repeats."""
     names = [v.strip() for v in text.split(",")] if isinstance(text, str) else [str(v).strip() for v in text]
-    names = [v for v in names if v]
-    if not names:
+    if not any(names):
         raise ConfigError(source, "--variants", f"--variants is empty; list some of {', '.join(VARIANT_NAMES)}.")
+    if "" in names:  # `full,` or `a,,b`: a name left out, or a stray comma; either way not what was meant
+        raise ConfigError(
+            source, "--variants", f"--variants {text!r} has an empty entry; write it like --variants baseline,full."
+        )
     for v in names:
         if v not in VARIANT_NAMES:
             close = difflib.get_close_matches(v, VARIANT_NAMES, n=1)
@@ -104,7 +107,8 @@ def apply_overrides(
         out.frames = frames
     if resolution is not None:
         out.render.width, out.render.height = parse_resolution(resolution)
-        out.capture.panel = "config"  # a captured scene keeps the size asked for
+        if out.scene not in BUILTIN_SCENES and out.capture.fit:
+            out.capture.panel = "config"  # a fitted capture keeps the size asked for (the others take it as it is)
     if variants is not None:
         out.variants = parse_variants(variants)
     for dotted, value in (keys or {}).items():

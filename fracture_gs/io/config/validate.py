@@ -31,6 +31,7 @@ from ...config import (
 from ...errors import ConfigError
 from ...variants import VARIANT_NAMES, variant_spec
 from ..detect import is_splat_file
+from .combinations import check_combinations
 
 MAX_FIELD_SLOTS = 8  # sim.storage.MAX_SLOTS (io does not import sim)
 MAX_IMAGE_SIDE = 8192  # pixels; larger frames exceed H.264 levels and the rasterizers' tile budgets
@@ -43,6 +44,7 @@ MAX_FILL_CLOSING = PROBE_VOXELS // 16  # voxels; 8 already bridges holes 16 voxe
 MAX_OUTLIER_NEIGHBOURS = 256  # a k-d tree query of k neighbours holds N·k distances
 MAX_LOAD_SPEED = 100.0  # m/s; the stiffest preset's P-wave speed is ≈ 15 m/s
 MAX_OFFSET = 100.0  # m; float32 positions keep ≈ 8 µm steps there, far below a cell
+MAX_SPEED = 1e4  # m/s: an initial velocity (a rifle bullet is 1e3); above it the CFL step underflows float32
 ROTATION_TOLERANCE = 1e-3  # max |RᵀR − I| of capture.rotation and a camera's rotation (4 written digits pass)
 _SAFE_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.+ -]{0,127}")
 
@@ -120,6 +122,7 @@ def validate(cfg: SceneConfig, source: str = "<config>") -> SceneConfig:
     _check_topology(c, cfg.topology, cfg.frames)
     _check_render(c, cfg.render)
     _check_capture(c, cfg.capture, cfg.sim.boundaries)
+    check_combinations(c, cfg)
     _check_provider_needed(c, cfg)
     return cfg
 
@@ -175,6 +178,8 @@ def _check_capture(c: _Checker, cap, cfg_boundaries=()) -> None:
     _check_unused_capture_keys(c, cap, bool(cfg_boundaries))
     if cap.cameras_json is not None and not cap.cameras_json.strip():
         c.fail("capture.cameras_json", "capture.cameras_json is empty", "give the path of the trainer's cameras.json")
+    if cap.cameras_json is not None and "\x00" in cap.cameras_json:
+        c.fail("capture.cameras_json", "capture.cameras_json holds a NUL character, which no path can", "fix the path")
     _check_roi(c, cap)
     _check_fit(c, cap)
     for i, r in enumerate(cap.regions):
@@ -324,6 +329,12 @@ def _check_scene(c: _Checker, cfg: SceneConfig) -> None:
     if cfg.particles is not None:
         c.within("particles", cfg.particles, 1, MAX_PARTICLES, f"use 1 to {MAX_PARTICLES:,} particles")
     c.positive("frame_dt", cfg.frame_dt, "give the time between frames in seconds, e.g. frame_dt = 0.01")
+    if math.sqrt(sum(v * v for v in cfg.initial_velocity)) > MAX_SPEED:
+        c.fail(
+            "initial_velocity",
+            f"initial_velocity = {list(cfg.initial_velocity)} is faster than {MAX_SPEED:g} m/s",
+            f"give a velocity in m/s up to {MAX_SPEED:g} (the substep shrinks with the speed: Δt ≤ CFL·Δx / |v|)",
+        )
     if cfg.material_property is not None and not cfg.material_property:
         c.fail(
             "material_property",
