@@ -10,6 +10,7 @@ elsewhere) and nothing is filled, so each resolve takes a fraction of a second.
 from __future__ import annotations
 
 import pytest
+import torch
 from trainer_ply import write_trainer_ply
 
 from fracture_gs.capture import scene
@@ -36,6 +37,9 @@ def test_the_panel_is_sized_for_the_device_unless_the_config_sizes_it(monkeypatc
     """[render] 320 × 200 in the config: panel "auto" replaces it with the device's size (640 × 480 on the CPU,
     1280 × 720 on a GPU), panel "config" keeps it; either way the resolved config says panel = "config"."""
     monkeypatch.setattr(scene, "choose_resolution", lambda obj, cap, device: Resolution(8, cap.size / 8, 0.0, "r", 300))
+    if device.startswith("cuda"):  # the panel rule alone: `resolve` checks the device exists, and nothing else uses it
+        monkeypatch.setattr(torch.cuda, "is_available", lambda: True)
+        monkeypatch.setattr(torch.cuda, "device_count", lambda: 1)
     doc = {
         "extends": "capture",
         "scene": str(small_ply),
