@@ -20,17 +20,11 @@ import torch
 
 from ..config import CaptureConfig
 from ..errors import SceneError
+from ..io.config.combinations import UP_AXES
 from ..io.config.validate import ROTATION_TOLERANCE, is_finite_number
 from .transform import SceneTransform
 
-AXES = {
-    "+x": (1.0, 0.0, 0.0),
-    "-x": (-1.0, 0.0, 0.0),
-    "+y": (0.0, 1.0, 0.0),
-    "-y": (0.0, -1.0, 0.0),
-    "+z": (0.0, 0.0, 1.0),
-    "-z": (0.0, 0.0, -1.0),
-}
+AXES = UP_AXES  # capture.up → the scene axis it names
 CENTRE = (0.5, 0.5, 0.5)
 """Where the fitted object's bounding-box centre goes [m]."""
 

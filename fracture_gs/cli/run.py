@@ -330,20 +330,7 @@ def _check_summary(path: Path) -> None:
 
 def _figure_groups(text, groups) -> list | None:
     """--only as a list of known groups, each once (None: every group)."""
-    if text is None:
-        return None
-    only = [g.strip() for g in text.split(",")]
-    if not any(only):
-        raise CliError(f"--only is empty; list some of {', '.join(groups)}, or drop it to run every group.")
-    if "" in only:
-        raise CliError(f"--only {text!r} has an empty entry; write it like --only bread,bench.")
-    twice = sorted({g for g in only if only.count(g) > 1})
-    if twice:
-        raise CliError(f"--only {text} lists {', '.join(twice)} twice; list each group once.")
-    unknown = sorted(set(only) - set(groups))
-    if unknown:
-        raise CliError(f"--only {', '.join(unknown)} unknown; choose from {', '.join(groups)}.")
-    return only
+    return _named_list("--only", text, groups, "bread,bench")
 
 
 def cmd_init(args: argparse.Namespace) -> int:

@@ -22,7 +22,7 @@ UP_AXES = {
     "+z": (0.0, 0.0, 1.0),
     "-z": (0.0, 0.0, -1.0),
 }
-"""capture.up → the scene axis it names (capture.fit.AXES; io does not import capture)."""
+"""capture.up → the scene axis it names (`capture.fit` takes it from here: io does not import capture)."""
 UP_AGREEMENT = 0.999
 """cos of the largest angle (≈ 2.6°) between capture.up and the axis capture.rotation takes to +z that counts as the
 same axis (a rotation written to four digits passes)."""

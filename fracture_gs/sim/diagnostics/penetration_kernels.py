@@ -74,6 +74,21 @@ def lower_bound(keys: wp.array(dtype=wp.int64), key: wp.int64):
     return lo
 
 
+@wp.func
+def cell_key(cx: wp.int64, cy: wp.int64, cz: wp.int64, bits: int):
+    """The sorted key of cell (cx, cy, cz), as `penetration._keys`."""
+    return (cx << wp.int64(2 * bits)) | (cy << wp.int64(bits)) | cz
+
+
+@wp.func
+def distance_sq(x: wp.array2d(dtype=wp.float64), p: wp.int64, j: wp.int64):
+    """|x_p − x_j|² [m²]."""
+    dx = x[p, 0] - x[j, 0]
+    dy = x[p, 1] - x[j, 1]
+    dz = x[p, 2] - x[j, 2]
+    return dx * dx + dy * dy + dz * dz
+
+
 @wp.kernel
 def deepest_behind(
     query: wp.array(dtype=wp.int64),  # [M] particle indices
@@ -101,10 +116,7 @@ def deepest_behind(
     fp = frag[p]
     r2 = radius * radius
     for c in range(offsets.shape[0]):
-        cx = coord[p, 0] + offsets[c, 0]
-        cy = coord[p, 1] + offsets[c, 1]
-        cz = coord[p, 2] + offsets[c, 2]
-        key = (cx << wp.int64(2 * bits)) | (cy << wp.int64(bits)) | cz
+        key = cell_key(coord[p, 0] + offsets[c, 0], coord[p, 1] + offsets[c, 1], coord[p, 2] + offsets[c, 2], bits)
         i = lower_bound(keys, key)
         if i < keys.shape[0]:
             if keys[i] == key and not (fmin[i] == fmax[i] and fmin[i] == fp):
@@ -112,10 +124,7 @@ def deepest_behind(
                     j = order[s]
                     fj = frag[j]
                     if fj >= wp.int64(0) and fj != fp:
-                        dx = x[p, 0] - x[j, 0]
-                        dy = x[p, 1] - x[j, 1]
-                        dz = x[p, 2] - x[j, 2]
-                        u2 = (dx * dx + dy * dy + dz * dz) / r2
+                        u2 = distance_sq(x, p, j) / r2
                         if u2 < wp.float64(1.0):
                             t = wp.float64(1.0) - u2
                             sums[m, int(fj)] += norm * t * t / filled[int(fj)] * volume_ratio[j]
@@ -153,23 +162,15 @@ def near_another_piece(
     for ox in range(-1, 2):
         for oy in range(-1, 2):
             for oz in range(-1, 2):
-                key = (
-                    ((coord[p, 0] + wp.int64(ox)) << wp.int64(2 * bits))
-                    | ((coord[p, 1] + wp.int64(oy)) << wp.int64(bits))
-                    | (coord[p, 2] + wp.int64(oz))
-                )
+                key = cell_key(coord[p, 0] + wp.int64(ox), coord[p, 1] + wp.int64(oy), coord[p, 2] + wp.int64(oz), bits)
                 i = lower_bound(keys, key)
                 if found == 0 and i < keys.shape[0]:
                     if keys[i] == key:
                         for s in range(int(start[i]), int(start[i] + count[i])):
                             j = order[s]
                             fj = frag[j]
-                            if fj >= wp.int64(0) and fj != fp:
-                                dx = x[p, 0] - x[j, 0]
-                                dy = x[p, 1] - x[j, 1]
-                                dz = x[p, 2] - x[j, 2]
-                                if dx * dx + dy * dy + dz * dz < reach2:
-                                    found = 1
+                            if fj >= wp.int64(0) and fj != fp and distance_sq(x, p, j) < reach2:
+                                found = 1
     near[m] = found
 
 
