@@ -293,11 +293,8 @@ class FractureSim(torch.nn.Module):
     ) -> dict:
         """Runs cfg.frames frames; returns {"means": [T+1,N,3], "covars": [T+1,N,3,3],
         "rotations": [T+1,N,3,3], "fragment": [T+1,N], "time": [T+1], "metrics": list[dict]}."""
-        if labels is not None and not self.cfg.material_map:
-            raise ArgumentError(
-                f"{FORWARD}: labels has no effect: they pick a material per Gaussian from cfg.material_map, which is "
-                "empty; add [[material_map]] entries to the config, or drop labels."
-            )
+        # labels without cfg.material_map are accepted and change nothing: they travel with a scene's Gaussians
+        # (`gs.labels`), and passing a scene through whole is the documented use (round four had refused them)
         gs = gaussians_from_tensors(means, opacities, sh, quats, scales, covars, interior, labels)
         if self.differentiable:
             from .differentiable import differentiable_forward
