@@ -12,6 +12,7 @@ import time
 
 import pytest
 import torch
+from badinput import capture_doc, one_line
 from trainer_ply import write_trainer_ply
 
 from fracture_gs.capture.scene import resolve
@@ -19,16 +20,6 @@ from fracture_gs.errors import ConfigError, OutputError, SceneError
 from fracture_gs.io.config import config_from_dict
 
 pytestmark = pytest.mark.usefixtures("one_thread")
-
-
-def one_line(err: BaseException) -> str:
-    msg = str(err)
-    assert msg.strip() and "\n" not in msg and msg.rstrip().endswith("."), msg
-    return msg
-
-
-def capture_doc(scene: str = "scene.ply", **capture) -> dict:
-    return {"extends": "capture", "scene": scene, "capture": capture}
 
 
 def refused(doc: dict, key: str) -> str:

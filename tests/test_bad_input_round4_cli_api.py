@@ -9,18 +9,13 @@ from pathlib import Path
 
 import pytest
 import torch
+from badinput import one_line
 from trainer_ply import write_trainer_ply
 
 from fracture_gs.cli import main
 from fracture_gs.errors import ArgumentError, FractureGSError, OutputError, RenderError
 
 pytestmark = pytest.mark.usefixtures("one_thread")
-
-
-def one_line(err: BaseException) -> str:
-    msg = str(err)
-    assert msg.strip() and "\n" not in msg and msg.rstrip().endswith("."), msg
-    return msg
 
 
 def cli_refusal(argv, capsys) -> str:

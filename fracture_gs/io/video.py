@@ -12,6 +12,10 @@ from typing import Iterable, Optional
 
 import numpy as np
 
+MAX_FRAME_SIDE = 16384
+"""Pixels: the widest frame libx264 encodes (16,386 fails with "invalid width x height"); cameras and comparison
+frames are held to it before a run."""
+
 
 def ffmpeg():
     """The `imageio_ffmpeg` module with a usable ffmpeg executable, or a one-sentence OutputError naming the

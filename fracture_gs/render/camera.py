@@ -16,6 +16,7 @@ from torch import Tensor
 
 from ..config import CameraConfig
 from ..errors import RenderError
+from ..io.video import MAX_FRAME_SIDE
 
 
 @dataclass
@@ -54,8 +55,7 @@ def _vec(v, dtype=torch.float64) -> Tensor:
     return torch.as_tensor(v, dtype=dtype).reshape(3)
 
 
-MAX_SIDE = 16384
-"""Pixels: the largest image side a camera may have (the widest frame the video encoder takes)."""
+MAX_SIDE = MAX_FRAME_SIDE  # pixels: the largest image side a camera may have (the widest frame the encoder takes)
 
 
 def _point(where: str, name: str, v) -> Tensor:

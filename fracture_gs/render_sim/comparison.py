@@ -36,8 +36,6 @@ from ..sim import Topology
 from .writer import FrameWriter
 
 LIVE_WINDOW = 2  # frames composed at once beside the solver (more took the interpreter lock from it)
-MAX_VIDEO_SIDE = 16384
-"""Pixels: the widest frame libx264 encodes (16,386 fails with "invalid width x height")."""
 PANEL_GAP = 4  # px between the panels of a comparison frame (`compose_row`'s gap)
 
 
@@ -47,6 +45,7 @@ def check_video_size(cfg, variants) -> None:
     simulation."""
     from ..config import BUILTIN_SCENES
     from ..errors import RenderError
+    from ..io.video import MAX_FRAME_SIDE as MAX_VIDEO_SIDE
 
     if cfg.scene not in BUILTIN_SCENES and cfg.capture.fit and cfg.capture.panel == "auto":
         return  # the capture's panel is chosen when it is prepared: 640 or 1280 pixels wide

@@ -420,11 +420,11 @@ def surface_depth(
         query = query[near_another_piece_mask(xd, frag, small, query, NEAR * spacing, _BITS)]
     big = _Cells(xd, frag, lo, radius / 3)  # cells within 3 of the query's: every particle within R
     J = torch.ones_like(xd[:, 0]) if volume_ratio is None else volume_ratio.double()  # [N] weights
-    offsets = _cube(3, x.device, ball=True)
     if twin:
         best, which = behind_surfaces_torch(xd, lo, frag, J, filled, radius, big, query, chunk)
     else:
         rows = max(1, DENSE_LIMIT // filled.numel())  # queries whose [rows, K] sums are held at once
+        offsets = _cube(3, x.device, ball=True)  # the cells whose points can lie within R of the query cell's
         best, which = deepest_behind_surfaces(xd, frag, J, filled, radius, big, offsets, query, _BITS, rows)
     depth[query], into[query] = best, which
     return depth, into
