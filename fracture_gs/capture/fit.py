@@ -304,13 +304,12 @@ def fit_transform(
     else:
         Q = rotation_onto_z(up)
         y = x @ Q.T
-        h = y[:, :2] - y[:, :2].mean(0)
-        if len(h) >= 3:
-            evals, evecs = torch.linalg.eigh(h.T @ h)
-            a = evecs[:, 1]  # major horizontal axis
-            theta = -math.atan2(float(a[1]), float(a[0]))
-            c, s = math.cos(theta), math.sin(theta)
-            Q = torch.tensor([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]], dtype=torch.float64) @ Q
+        h = y[:, :2] - y[:, :2].mean(0)  # [N, 2] horizontal spread; two Gaussians already have an axis
+        evals, evecs = torch.linalg.eigh(h.T @ h)
+        a = evecs[:, 1]  # major horizontal axis
+        theta = -math.atan2(float(a[1]), float(a[0]))
+        c, s = math.cos(theta), math.sin(theta)
+        Q = torch.tensor([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]], dtype=torch.float64) @ Q
     y = x @ Q.T
     lo, hi = y.min(0).values, y.max(0).values
     longest = float((hi - lo).max())
