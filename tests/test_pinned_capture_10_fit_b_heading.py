@@ -53,3 +53,14 @@ def test_gaussians_at_one_point_have_no_size(n):
         f"s.ply: the object's {n} Gaussians all lie at one point after clean-up, so it has no size to fit; check the "
         "scene file (a captured object has an extent), or set capture.fit = false to use it as written."
     )
+
+
+def test_no_gaussians_is_one_sentence_not_an_index_error():
+    """fit_transform of an empty point set (a clean-up or ROI that removed everything, called directly) refuses
+    with a SceneError that says nothing is left and where to look, not torch's reduction error."""
+    with pytest.raises(SceneError) as info:
+        fit_transform(torch.zeros((0, 3), dtype=F64), torch.tensor([0.0, 0.0, 1.0], dtype=F64), 0.5, source="s.ply: ")
+    assert str(info.value) == (
+        "s.ply: the object has no Gaussians left after clean-up, so there is nothing to fit; check the scene file "
+        "and the clean-up and ROI keys of [capture] (they may remove everything)."
+    )

@@ -299,6 +299,11 @@ def fit_transform(
     `rotation` [3, 3] (a proper rotation) and `offset` [3] given replaces its automatic value, alone or
     together: the automatic parts are found around the given ones. `source` ("<file>: ") starts its SceneError."""
     x = points.to(torch.float64)
+    if len(x) == 0:
+        raise SceneError(
+            f"{source}the object has no Gaussians left after clean-up, so there is nothing to fit; check the scene "
+            "file and the clean-up and ROI keys of [capture] (they may remove everything)."
+        )
     if rotation is not None:
         Q = rotation.to(torch.float64)
     else:
