@@ -344,7 +344,9 @@ def _camera(cfg, cameras, fit, lo, hi, room_lo, room_hi, notes, cams_path=None) 
         cam = cameras[cap.view]
         check_view(cams_path, cap.view, cam)
         r.height = max(16, int(round(r.width * cam.height / cam.width / 2)) * 2)
+        orbit = r.camera.orbit_degrees  # the view's pose replaces eye, target, up and fov; an asked orbit turns it
         r.camera = trainer_view(cam, fit, 0.5 * (lo + hi))
+        r.camera.orbit_degrees = orbit
         notes.append(f"camera: trainer view {cap.view} ({cam.name or 'unnamed'})")
     elif cap.camera == "auto":
         frame_lo, frame_hi = lo.clone(), hi.clone()
