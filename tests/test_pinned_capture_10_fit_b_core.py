@@ -17,23 +17,11 @@ from __future__ import annotations
 
 import pytest
 import torch
+from captureutil import quantile_spy, voxeller_spy
 
-from fracture_gs.capture import fit
 from fracture_gs.capture.fit import auto_roi
 
 F64 = torch.float64
-
-
-def _spy(monkeypatch) -> list:
-    """Replace the voxeller by a recorder of (Gaussians given, core_lo, core_hi, h); it returns the core."""
-    seen = []
-
-    def connected(x, core_lo, core_hi, h):
-        seen.append((x.clone(), core_lo.tolist(), core_hi.tolist(), h))
-        return core_lo, core_hi
-
-    monkeypatch.setattr(fit, "auto_roi_connected", connected)
-    return seen
 
 
 @pytest.mark.parametrize(
@@ -47,7 +35,7 @@ def test_the_core_is_the_percentile_and_its_complement_on_every_axis(monkeypatch
     150/48), and a grid this small (21 × 41 × 61 voxels at p = 10) is voxelled whole, all 101 Gaussians."""
     t = torch.arange(101, dtype=F64)[torch.randperm(101, generator=torch.Generator().manual_seed(0))]
     x = t[:, None] * torch.tensor([1.0, 2.0, 3.0], dtype=F64)
-    seen = _spy(monkeypatch)
+    seen = voxeller_spy(monkeypatch)
     auto_roi(x, percentile)
     (given, core_lo, core_hi, h) = seen[0]
     assert core_lo == pytest.approx(lo, abs=1e-9) and core_hi == pytest.approx(hi, abs=1e-9)
@@ -77,19 +65,6 @@ def test_which_apart_rods_belong_to_the_object_is_decided_at_the_quantiles_thems
     assert hi.tolist() == pytest.approx([2.203 + pad, 1e-9, 1e-9], abs=1e-12)
 
 
-def _recording_quantile(monkeypatch) -> list:
-    """Wrap torch.quantile (the real one still answers) to see the Gaussians it is given."""
-    seen = []
-    real = torch.quantile
-
-    def spy(values, q, *args, **kw):
-        seen.append(values.clone())
-        return real(values, q, *args, **kw)
-
-    monkeypatch.setattr(torch, "quantile", spy)
-    return seen
-
-
 def _numbered(n: int) -> torch.Tensor:  # [n, 3]
     """n distinct Gaussians: row i is (i, i mod 7, i mod 11) · 1 mm, so a row's x names it."""
     i = torch.arange(n, dtype=F64)
@@ -101,7 +76,7 @@ def test_the_core_of_a_large_capture_is_read_from_a_sample_of_200000(monkeypatch
     """200,001 or 300,000 Gaussians: the core's quantiles are given exactly 200,000 of them, every one a row
     of the scene, no row twice (a sample without replacement), so the cost stays that of 200,000."""
     x = _numbered(n)
-    seen = _recording_quantile(monkeypatch)
+    seen = quantile_spy(monkeypatch)
     auto_roi(x, 1.0)
     s = seen[0]
     assert s.shape == (200_000, 3)
@@ -115,8 +90,8 @@ def test_a_capture_of_up_to_200000_is_read_whole(monkeypatch, n):
     """200,000 (the cap itself) or 5,000 Gaussians: the quantiles see every Gaussian, each once, and the
     core is exactly the one read from the rows in any order (the 1 % and 99 % quantiles of 0 … n − 1 mm)."""
     x = _numbered(n)
-    seen = _recording_quantile(monkeypatch)
-    box = _spy(monkeypatch)
+    seen = quantile_spy(monkeypatch)
+    box = voxeller_spy(monkeypatch)
     auto_roi(x, 1.0)
     s = seen[0]
     assert torch.equal(s[s[:, 0].argsort()], x)

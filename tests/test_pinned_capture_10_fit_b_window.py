@@ -17,24 +17,12 @@ from __future__ import annotations
 
 import pytest
 import torch
+from captureutil import voxeller_spy
 
-from fracture_gs.capture import fit
 from fracture_gs.capture.fit import auto_roi
 from fracture_gs.errors import SceneError
 
 F64 = torch.float64
-
-
-def _spy(monkeypatch) -> list:
-    """Replace the voxeller by a recorder of (Gaussians given, core_lo, core_hi, h); it returns the core."""
-    seen = []
-
-    def connected(x, core_lo, core_hi, h):
-        seen.append((x.clone(), core_lo.tolist(), core_hi.tolist(), h))
-        return core_lo, core_hi
-
-    monkeypatch.setattr(fit, "auto_roi_connected", connected)
-    return seen
 
 
 def _lattice(xs, ys, zs) -> torch.Tensor:  # [27, 3]
@@ -61,7 +49,7 @@ def test_the_voxel_cap_counts_the_product_of_three_unequal_axes(monkeypatch, sho
             torch.tensor([[0.0, y_far, 0.0], [0.0, 0.0, z_far]], dtype=F64),
         ]
     )
-    seen = _spy(monkeypatch)
+    seen = voxeller_spy(monkeypatch)
     auto_roi(x, 5.0)
     given, core_lo, core_hi, h = seen[0]
     assert (core_lo, core_hi, h) == ([0.0, 0.0, 0.0], [short, 48.0, 48.0], 1.0)
@@ -81,7 +69,7 @@ def test_the_window_holds_its_faces(monkeypatch):
     on = torch.cat([mid - 48 * eye, mid + 48 * eye])  # [6, 3] x = -24, y = -24, z = -24, x = 72, ...
     beyond = torch.cat([mid - (48 + 1 / 64) * eye, mid + (48 + 1 / 64) * eye])
     x = torch.cat([lattice, 400.0 * eye, on, beyond])
-    seen = _spy(monkeypatch)
+    seen = voxeller_spy(monkeypatch)
     auto_roi(x, 10.0)
     given, core_lo, core_hi, h = seen[0]
     assert (core_lo, core_hi, h) == ([0.0] * 3, [48.0] * 3, 1.0)

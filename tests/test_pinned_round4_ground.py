@@ -7,6 +7,7 @@ real one) to see what it is given."""
 from __future__ import annotations
 
 import torch
+from captureutil import quantile_spy
 
 from fracture_gs.capture.ground import find_ground
 
@@ -22,23 +23,11 @@ def _scene(n: int, seed: int = 0) -> torch.Tensor:
     return torch.cat([floor, box])
 
 
-def _recording_quantile(monkeypatch):
-    seen = []
-    real = torch.quantile
-
-    def spy(values, q, *args, **kw):
-        seen.append(values.clone())
-        return real(values, q, *args, **kw)
-
-    monkeypatch.setattr(torch, "quantile", spy)
-    return seen
-
-
 def test_a_large_capture_reads_its_height_range_from_a_sample_of_200000(monkeypatch):
     """200,001 points: the range's quantile is given exactly 200,000 of their heights, all but one of the
     scene's own heights, each drawn once, and the ground is found at the sheet's top."""
     x = _scene(200_001)
-    seen = _recording_quantile(monkeypatch)
+    seen = quantile_spy(monkeypatch)
     top = find_ground(x, UP)
     heights = seen[0]
     assert heights.dim() == 1 and len(heights) == 200_000
@@ -54,7 +43,7 @@ def test_a_capture_of_up_to_200000_is_read_whole(monkeypatch):
     """5,000 points: the quantile sees every height (the same multiset), and the ground is the same as found from
     the heights in any order."""
     x = _scene(5_000, seed=1)
-    seen = _recording_quantile(monkeypatch)
+    seen = quantile_spy(monkeypatch)
     top = find_ground(x, UP)
     assert torch.equal(seen[0].sort().values, x[:, 2].sort().values)
     assert top is not None and top == find_ground(x.flip(0), UP)
