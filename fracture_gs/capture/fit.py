@@ -149,7 +149,7 @@ def _camera(path: Path, i: int, c) -> TrainerCamera:
     if not rows_ok:
         raise bad("rotation", f"must be a 3×3 array of finite numbers, not {_describe(rot)}")
     wrong = next((v for r in rot for v in r if not is_finite_number(v)), None)
-    if wrong is not None or any(not is_finite_number(v) for r in rot for v in r):
+    if wrong is not None:
         raise bad("rotation", f"holds {_describe(wrong)}; it must be a 3×3 array of finite numbers")
     R = torch.tensor(rot, dtype=torch.float64)
     err = float((R.T @ R - torch.eye(3, dtype=torch.float64)).abs().max())
