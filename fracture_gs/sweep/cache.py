@@ -221,7 +221,7 @@ def check_row(path: Path, cell: Cell, row: Any) -> dict:
         if key in INT_KEYS and (isinstance(v, bool) or not isinstance(v, int)):
             raise bad(key, f"is {_what(v)}, not an integer")
         if key in NUMBER_KEYS and not is_finite_number(v):
-            raise bad(key, f"is {_what(v)}, not a number")
+            raise bad(key, f"is {_what(v)[:60]}, not a number")  # a 400-digit integer is shown by its start
         if isinstance(v, (int, float)) and not isinstance(v, bool) and not is_finite_number(v):
             raise bad(key, f"is {_what(v)[:60]}, too large for a number")
         low = LOWER_BOUNDS.get(key)
