@@ -4,6 +4,8 @@ tests left open, each against a hand computation.
 - The active box covers where a particle at rest can fall in the next `horizon` seconds: d = ½|g|h² below the
   lowest particle, plus its stencil (base node ⌊(z − d − o)/Δx − ½⌋). A box fitted without the gravity term
   would start the frame with every falling particle's stencil leaving it (and redo the frame).
+- G2P's clamp is symmetric: w − 1 free cells inside the first node and inside the last (w = wall_cells), so a
+  body thrown at the lower walls stops as far from the grid's edge as one thrown at the upper walls.
 """
 
 import math
@@ -33,3 +35,15 @@ def test_the_active_box_reaches_as_far_down_as_a_particle_at_rest_falls():
     need = math.floor((zmin - 4 * dx) / dx - 0.5)
     lo_z = sim.slots.box[2]
     assert lo_z <= need, f"box starts at z node {lo_z}, a falling particle's stencil reaches {need}"
+
+
+def test_g2p_clamps_particles_as_far_from_the_lower_walls_as_from_the_upper():
+    """G2P clamps positions into [o + (w − 1)Δx, o + (s − w)Δx] per axis (w = wall_cells, s nodes): the first and
+    the last node are (s − 1)Δx apart, so the clamp keeps the same w − 1 cells free on both sides. 32 nodes at
+    Δx = 1/32 from o = 0, w = 2: [1/32, 30/32]."""
+    sim, _ = _resting_block()
+    lower, upper = [float(a) for a in sim.lower], [float(a) for a in sim.upper]
+    assert lower == [1 / 32] * 3
+    assert upper == [30 / 32] * 3
+    top = 31 / 32  # the last node
+    assert [top - u for u in upper] == lower
