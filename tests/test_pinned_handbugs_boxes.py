@@ -3,7 +3,9 @@
 - `sim.field_slots` = S counts the leader's own field: at a node where n fields hold mass, the contact couples the
   first S of them (the leader and S − 1 partners) and each of the other n − S is counted once as a slot overflow.
   Counted by hand from the fields' masses, for S = 2 and 3 on four quadrant fragments whose boxes meet along the
-  centre column (nodes of three and four fields)."""
+  centre column (nodes of three and four fields).
+- The boxes a latch makes are each fragment's stencils plus one node each way: motion under a cell before the
+  next frame's fit (direct `Simulator.substep` calls) escapes no box."""
 
 import pytest
 import torch
@@ -62,3 +64,26 @@ def test_slot_overflow_counts_the_fields_beyond_the_slots_at_each_node(slots):
     expected = int((fields - slots).clamp_min(0).sum())
     assert expected > 0
     assert int(counts[COUNT_SLOT_OVERFLOW]) == expected
+
+
+def test_boxes_made_at_a_latch_hold_motion_under_one_cell():
+    """After a latch the boxes are every fragment's stencils plus one node (and the slack) each way, so particles
+    that move less than a cell after it keep their stencils in their boxes: three substeps at 0.4 Δx each along +x
+    (`Simulator.substep`, which refits nothing), the third P2G deposits 0.8 Δx on, where the leading particles'
+    stencils have moved one node up (base ⌊32·0.6172 + 0.8 − ½⌋ = 20 after 19), and counts no escape."""
+    from simutil import block, config, particles
+
+    from fracture_gs import sim as S
+    from fracture_gs.sim.storage import COUNT_ESCAPED
+    from fracture_gs.sim.topology import Topology
+
+    x, vol = block((0.375, 0.375, 0.375), (0.625, 0.625, 0.625), 1.0 / 64)
+    cfg = config(32, variant="full", grid_storage="boxes", dt=1e-3)
+    P = particles(x, vol, E=torch.full((len(x),), 1e3))
+    sim = S.Simulator(cfg, P, device="cpu")
+    sim.latch(Topology.from_plane(x, (0.5, 0.5, 0.5), (1.0, 0.0, 0.0), 1.0 / 64))
+    assert sim.boxed
+    sim.particles.v[:, 0] = 0.4 * sim.grid.dx / cfg.dt
+    for _ in range(3):
+        sim.substep()
+    assert int(sim.counts[COUNT_ESCAPED]) == 0
