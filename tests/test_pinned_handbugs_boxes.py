@@ -10,12 +10,15 @@
 import pytest
 import torch
 import warp as wp
+from simutil import block, config, particles
 
+from fracture_gs import sim as S
 from fracture_gs.runtime import ensure_warp
 from fracture_gs.sim.boxes.fragment_boxes import FragmentBoxes
 from fracture_gs.sim.clock import FrameClock
 from fracture_gs.sim.physics.boundary import Boundaries
-from fracture_gs.sim.storage import COUNT_SLOT_OVERFLOW, N_COUNTS
+from fracture_gs.sim.storage import COUNT_ESCAPED, COUNT_SLOT_OVERFLOW, N_COUNTS
+from fracture_gs.sim.topology import Topology
 
 N, n, DT, EPS_M = 2000, 16, 1e-3, 1e-9
 
@@ -71,12 +74,6 @@ def test_boxes_made_at_a_latch_hold_motion_under_one_cell():
     that move less than a cell after it keep their stencils in their boxes: three substeps at 0.4 Δx each along +x
     (`Simulator.substep`, which refits nothing), the third P2G deposits 0.8 Δx on, where the leading particles'
     stencils have moved one node up (base ⌊32·0.6172 + 0.8 − ½⌋ = 20 after 19), and counts no escape."""
-    from simutil import block, config, particles
-
-    from fracture_gs import sim as S
-    from fracture_gs.sim.storage import COUNT_ESCAPED
-    from fracture_gs.sim.topology import Topology
-
     x, vol = block((0.375, 0.375, 0.375), (0.625, 0.625, 0.625), 1.0 / 64)
     cfg = config(32, variant="full", grid_storage="boxes", dt=1e-3)
     P = particles(x, vol, E=torch.full((len(x),), 1e3))

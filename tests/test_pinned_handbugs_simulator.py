@@ -10,7 +10,6 @@ tests left open, each against a hand computation.
 
 import math
 
-import torch
 from simutil import block, config, particles
 
 from fracture_gs import sim as S
