@@ -37,12 +37,22 @@ def changed_lines(original: str, mutated: str) -> list[int]:
 
 
 def kernel_lines(source: str) -> set[int]:
-    """Lines inside functions decorated with a Warp decorator (`@wp.kernel`, `@wp.func`, ...)."""
+    """Lines inside functions Warp compiles: decorated (`@wp.kernel`, `@wp.func`, ...) or built by a factory that
+    passes the function to a Warp call (`return wp.kernel(box_p2g_runs, name=...)`)."""
     import ast
 
+    tree = ast.parse(source)
+    built = {
+        call.args[0].id
+        for call in ast.walk(tree)
+        if isinstance(call, ast.Call) and call.args and isinstance(call.args[0], ast.Name)
+        if ast.unparse(call.func).startswith("wp.")
+    }
     out: set[int] = set()
-    for node in ast.walk(ast.parse(source)):
-        if isinstance(node, ast.FunctionDef) and any("wp." in ast.unparse(d) for d in node.decorator_list):
+    for node in ast.walk(tree):
+        if not isinstance(node, ast.FunctionDef):
+            continue
+        if node.name in built or any("wp." in ast.unparse(d) for d in node.decorator_list):
             out.update(range(node.lineno, (node.end_lineno or node.lineno) + 1))
     return out
 

@@ -42,6 +42,31 @@ def test_kernel_bodies_fall_back_to_the_listed_tests_and_host_lines_to_coverage(
     assert pick_tests.select_tests("c.py", [1], const, cover, {}) == ["tests/b.py::test_f", "tests/c.py::test_g"]
 
 
+def test_a_kernel_built_by_a_factory_is_a_kernel_line():
+    """A kernel compiled from a nested function (`return wp.kernel(body, name=...)`) is as invisible to the tracer
+    as a decorated one, so its body takes the listed tests; the factory's own host lines stay coverage's."""
+    src = "import warp as wp\n\n\ndef make(flag):\n    def body(x: wp.array(dtype=float)):\n"
+    src += "        x[0] = 1.0\n\n    return wp.kernel(body, name='b')\n"
+    assert pick_tests.kernel_lines(src) == {5, 6}
+    fallback = {"m.py": ["tests/test_kernels.py"]}
+    assert pick_tests.select_tests("m.py", [6], src, {"m.py": {"8": ["tests/t.py::test_make"]}}, fallback) == [
+        "tests/test_kernels.py"
+    ]
+
+
+def test_every_module_with_warp_kernels_lists_its_tests():
+    """Every package module that Warp compiles code from has a targets.toml entry naming test files that exist:
+    without one, a mutant inside its kernels runs no test and counts as a survivor the suite never saw."""
+    root = Path(__file__).resolve().parents[1]
+    listed = pick_tests.load_fallback()
+    for path in sorted((root / "fracture_gs").rglob("*.py")):
+        module = str(path.relative_to(root))
+        if pick_tests.kernel_lines(path.read_text()):
+            assert listed.get(module), f"{module} has Warp kernels but no [[target]] in mutation/targets.toml"
+            for test in listed[module]:
+                assert (root / test).is_file(), f"targets.toml lists {test} for {module}, which does not exist"
+
+
 @pytest.mark.slow
 def test_a_toy_session_kills_what_its_test_catches_and_keeps_the_equivalent(tmp_path):
     """End to end on a toy package: `v > vmax` → `v < vmax` changes clamp_speed(2, 1) and is killed;
