@@ -124,7 +124,36 @@ def validate(cfg: SceneConfig, source: str = "<config>") -> SceneConfig:
     _check_capture(c, cfg.capture, cfg.sim.boundaries)
     check_combinations(c, cfg)
     _check_provider_needed(c, cfg)
+    if cfg.scene in BUILTIN_SCENES:  # a captured scene's Δx and material are chosen later (capture.resolve)
+        _check_wave_substeps(c, cfg)
     return cfg
+
+
+def _check_wave_substeps(c: _Checker, cfg: SceneConfig) -> None:
+    """With adaptive_dt each substep is at most cfl·Δx / c, c = √((λ+2μ)/ρ) the P-wave speed: a modulus (or a
+    density) that makes a frame need more than sim.max_substeps_per_frame substeps is refused here, naming the
+    key, instead of by the first frame ("needs 131266027842848 substeps") after the scene was built."""
+    s = cfg.sim
+    if not s.adaptive_dt:
+        return
+    m = cfg.material
+    sources = [("material", m.E, m.nu, m.density)] + [
+        (f"material_map[{i}]", e.E or m.E, m.nu if e.nu is None else e.nu, e.density or m.density)
+        for i, e in enumerate(cfg.material_map)
+    ]
+    for key, E, nu, rho in sources:
+        if not (0 < E and -1 < nu < 0.5 and 0 < rho):
+            continue  # the range checks name these
+        speed = math.sqrt((E * nu / ((1 + nu) * (1 - 2 * nu)) + E / (1 + nu)) / rho)
+        n = math.ceil(cfg.frame_dt / min(s.dt, s.cfl * s.dx / speed) - 1e-9)
+        if n > s.max_substeps_per_frame:
+            c.fail(
+                f"{key}.E",
+                f"{key}.E = {E:g} Pa at density {rho:g} kg/m³ is a wave speed of {speed:.3g} m/s, so a frame of "
+                f"{cfg.frame_dt:g} s at Δx = {s.dx:g} m needs {n:,} substeps, over sim.max_substeps_per_frame = "
+                f"{s.max_substeps_per_frame:,}",
+                "lower the modulus (or raise the density, sim.dx or sim.max_substeps_per_frame)",
+            )
 
 
 def _check_capture(c: _Checker, cap, cfg_boundaries=()) -> None:
