@@ -291,3 +291,18 @@ def test_a_load_that_replaces_initial_velocity_and_gravity_says_so(tmp_path):
     doc["capture"]["load"] = "none"
     kept = resolve(config_from_dict(doc))
     assert tuple(kept.cfg.initial_velocity) == (0.0, 0.0, -5.0) and "not used" not in " ".join(kept.notes)
+
+
+# ---------------------------------------------------------------- init --out
+
+
+def test_init_refuses_an_out_that_is_not_a_toml(tmp_path, capsys):
+    """`init scene.ply --out x.ply` wrote the TOML under x.ply (render-sim then read it as a broken scene);
+    refused before the scene is resolved, naming --out and a .toml name."""
+    from fracture_gs.cli import main
+
+    ply = write_gaussians(gaussians(50), tmp_path / "scene.ply", "ply")
+    code = main(["init", str(ply), "--out", str(tmp_path / "x_out.ply")])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and "\n" not in err and "--out" in err and "x_out.toml" in err, (code, err)
+    assert not (tmp_path / "x_out.ply").exists()
