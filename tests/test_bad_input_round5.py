@@ -306,3 +306,43 @@ def test_init_refuses_an_out_that_is_not_a_toml(tmp_path, capsys):
     err = capsys.readouterr().err.strip()
     assert code == 2 and "\n" not in err and "--out" in err and "x_out.toml" in err, (code, err)
     assert not (tmp_path / "x_out.ply").exists()
+
+
+# ---------------------------------------------------------------- config ranges, FractureSim.forward
+
+
+@pytest.mark.parametrize(
+    "doc, key",
+    [
+        ({"render": {"fps": 100000}}, "render.fps"),  # written into the videos as is
+        ({"sim": {"gravity": [0.0, 0.0, 1e300]}}, "sim.gravity"),  # diverged in frame 1 (exit 1) after the build
+        ({"sim": {"gravity": [0.0, 0.0, -1e6]}}, "sim.gravity"),
+    ],
+)
+def test_a_frame_rate_or_gravity_no_user_can_mean_is_refused(doc, key):
+    """Playback above 1000 fps and gravity above 10,000 m/s² (about 1,000 g) were accepted."""
+    with pytest.raises(ConfigError) as e:
+        config_from_dict({"extends": "bread", **doc})
+    assert key in one_line(e.value)
+
+
+def test_the_neighbouring_frame_rates_and_gravities_still_load():
+    """The bounds are inclusive and leave every plausible value alone."""
+    cfg = config_from_dict({"extends": "bread", "render": {"fps": 1000}, "sim": {"gravity": [0.0, 0.0, -9999.0]}})
+    assert cfg.render.fps == 1000 and cfg.sim.gravity[2] == -9999.0
+
+
+def test_a_huge_frame_over_substep_ratio_is_shown_short():
+    """frame_dt = 1e300 printed a 300-digit substep count in its message; it is now shown in three digits."""
+    with pytest.raises(ConfigError) as e:
+        config_from_dict({"extends": "bread", "frame_dt": 1e300})
+    assert "max_substeps_per_frame" in one_line(e.value) and len(str(e.value)) < 200
+
+
+def test_fracture_sim_called_with_a_gaussian_set_names_the_fix():
+    """sim(gs) raised Python's 'missing 2 required positional arguments: opacities and sh'."""
+    from fracture_gs import FractureSim
+
+    with pytest.raises(ArgumentError) as e:
+        FractureSim(load_config("bread"))(gaussians(20))
+    assert "sim.frames(gs)" in one_line(e.value)

@@ -100,6 +100,12 @@ class _Checker:
             )
 
 
+MAX_FPS = 1000
+"""Frames per second: the fastest playback rate render.fps may ask of the videos (100,000 was written as is)."""
+MAX_GRAVITY = 1.0e4
+"""m/s²: the largest |sim.gravity| (about 1,000 g; beyond it every scene tears apart in its first substeps)."""
+
+
 def is_finite_number(v) -> bool:
     """A number read from TOML or JSON that a check can compute with: an int or float, not a boolean, finite as a
     float (a 400-digit JSON integer overflows float() and is not)."""
@@ -404,11 +410,18 @@ def _check_sim(c: _Checker, s: SimConfig, frame_dt: float) -> None:
     if frame_dt / s.dt > s.max_substeps_per_frame * (1 + 1e-9):  # Δt bounds the adaptive step too
         c.fail(
             "sim.max_substeps_per_frame",
-            f"frame_dt / sim.dt = {frame_dt / s.dt:.0f} substeps exceeds "
+            f"frame_dt / sim.dt = {frame_dt / s.dt:{'.0f' if frame_dt / s.dt < 1e12 else '.3g'}} substeps exceeds "
             f"sim.max_substeps_per_frame = {s.max_substeps_per_frame}",
             "raise max_substeps_per_frame or sim.dt",
         )
     c.within("sim.cfl", s.cfl, 1e-12, 1.0, "use a CFL number in (0, 1], e.g. cfl = 0.4")
+    g = math.hypot(*(float(v) for v in s.gravity))
+    if g > MAX_GRAVITY:  # 1e300 passed and the first frame diverged (exit 1) after the scene was built
+        c.fail(
+            "sim.gravity",
+            f"sim.gravity = {list(s.gravity)} is {g:.3g} m/s², over {MAX_GRAVITY:,.0f} m/s² (about 1,000 g)",
+            "give the acceleration in m/s², e.g. gravity = [0.0, 0.0, -9.8]",
+        )
     c.choice("sim.variant", s.variant, VARIANT_NAMES)
     c.choice("sim.grid", s.grid, GRID_KINDS)
     c.positive("sim.dx", s.dx, "give the grid spacing in metres, e.g. dx = 0.015625")
@@ -534,6 +547,7 @@ def _check_render(c: _Checker, r: RenderConfig) -> None:
     c.within("render.width", r.width, 2, MAX_IMAGE_SIDE, f"use an image width of 2 to {MAX_IMAGE_SIDE} pixels")
     c.within("render.height", r.height, 2, MAX_IMAGE_SIDE, f"use an image height of 2 to {MAX_IMAGE_SIDE} pixels")
     c.at_least("render.fps", r.fps, 1, "use a positive frame rate")
+    c.within("render.fps", r.fps, 1, MAX_FPS, f"use a playback rate of 1 to {MAX_FPS} frames per second, e.g. fps = 24")
     if r.max_stretch is not None and not r.max_stretch > 1.0:
         c.fail(
             "render.max_stretch", f"render.max_stretch = {r.max_stretch!r} is not above 1", "use e.g. 1.25, or unset it"
