@@ -203,11 +203,12 @@ def detect_format(path) -> str:
     # `.splat` has no magic number: a headerless run of 32-byte rows is accepted when nearly every
     # sampled row decodes to a Gaussian (finite means, positive finite scales, non-zero quaternion).
     # Binary data that happens to look like that would be misread; nothing else can tell.
+    share = 0.0
     if size % SPLAT_ROW_BYTES == 0:
         share = _plausible_splat(path)
         if share >= 0.9:
             return "splat"
-    if path.lower().endswith(".splat"):  # the user says it is a .splat: say why it does not read as one
+    if path.lower().endswith(".splat") and (size % SPLAT_ROW_BYTES or share >= 0.1):  # a .splat, cut or damaged
         if size % SPLAT_ROW_BYTES:
             raise PlyError(
                 f"{path}: a .splat file holds 32-byte rows, but its {size:,} bytes are no multiple of 32 (cut off, "
