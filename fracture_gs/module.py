@@ -279,8 +279,8 @@ class FractureSim(torch.nn.Module):
     def forward(
         self,
         means: torch.Tensor,  # [N, 3]
-        opacities: torch.Tensor,  # [N]
-        sh: torch.Tensor,  # [N, K, 3] (or [N, 3] colours as degree-0 SH)
+        opacities: Optional[torch.Tensor] = None,  # [N] (required: None is refused with the fix)
+        sh: Optional[torch.Tensor] = None,  # [N, K, 3] (or [N, 3] colours as degree-0 SH); required
         quats: Optional[torch.Tensor] = None,  # [N, 4] wxyz
         scales: Optional[torch.Tensor] = None,  # [N, 3]
         covars: Optional[torch.Tensor] = None,  # [N, 3, 3] instead of quats/scales
@@ -295,6 +295,17 @@ class FractureSim(torch.nn.Module):
         "rotations": [T+1,N,3,3], "fragment": [T+1,N], "time": [T+1], "metrics": list[dict]}."""
         # labels without cfg.material_map are accepted and change nothing: they travel with a scene's Gaussians
         # (`gs.labels`), and passing a scene through whole is the documented use (round four had refused them)
+        if isinstance(means, GaussianSet):  # sim(gs) was "missing 2 required positional arguments"
+            raise ArgumentError(
+                "FractureSim.forward: got a GaussianSet, but the module takes its tensors; call sim(gs.means, "
+                "gs.opacities, gs.sh, quats=gs.quats, scales=gs.scales), or stream it with sim.frames(gs)."
+            )
+        for name, value in (("opacities", opacities), ("sh", sh)):
+            if value is None:
+                raise ArgumentError(
+                    f"FractureSim.forward: {name} is missing; pass means, opacities and sh, e.g. "
+                    "sim(means, opacities, sh, quats=quats, scales=scales)."
+                )
         gs = gaussians_from_tensors(means, opacities, sh, quats, scales, covars, interior, labels)
         if self.differentiable:
             from .differentiable import differentiable_forward

@@ -107,8 +107,9 @@ def prepare_scene(cfg: SceneConfig, device="cpu"):
     if cfg.material_property:
         if cfg.material_property not in gs.extra:
             raise SimulationError(
-                f"{cfg.scene}: material_property '{cfg.material_property}' is not a vertex property of the PLY; "
-                f"available: {', '.join(sorted(gs.extra)) or 'none'}"
+                f"{cfg.scene}: material_property '{cfg.material_property}' is not a vertex property of the scene "
+                f"(its extra properties: {', '.join(sorted(gs.extra)) or 'none'}); name one of them or remove "
+                "material_property."
             )
         gs.labels = gs.extra[cfg.material_property].to(torch.int32)
         if gs.carrier is not None:  # the simulated particles carry the labels that set their material

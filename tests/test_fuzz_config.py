@@ -144,7 +144,7 @@ def random_document(draw):
 def planted(draw):
     """A built-in config with one value that must be refused, and what was planted."""
     doc = copy.deepcopy(BASE)
-    kind = draw(st.sampled_from(["nonfinite", "wrong_type", "unknown_key", "negative_count"]))
+    kind = draw(st.sampled_from(["nonfinite", "wrong_type", "unknown_key", "negative_count", "beyond_bound"]))
     if kind == "nonfinite":
         path = draw(st.sampled_from(FLOAT_LEAVES))
         bad = draw(st.sampled_from([math.nan, math.inf, -math.inf]))
@@ -159,6 +159,14 @@ def planted(draw):
     elif kind == "unknown_key":
         path = draw(st.sampled_from(["", "sim.", "render.", "topology.", "material."])) + "zz_" + draw(UNICODE)
         put(doc, path, 1)
+    elif kind == "beyond_bound":  # round five: finite values no user can mean (fps, gravity, a CFL-bound modulus)
+        path = draw(st.sampled_from(["render.fps", "sim.gravity", "material.E"]))
+        if path == "render.fps":
+            put(doc, path, draw(st.integers(1001, 10**9)))
+        elif path == "sim.gravity":
+            put(doc, path, [0.0, 0.0, draw(st.sampled_from([-1, 1])) * draw(st.floats(1.001e4, 1e300))])
+        else:
+            put(doc, path, draw(st.floats(1e25, 1e300)))
     else:
         path = draw(st.sampled_from(["frames", "render.width", "render.fps", "topology.min_particles", "particles"]))
         put(doc, path, draw(st.sampled_from([0, -1, -(2**40)])))

@@ -34,7 +34,7 @@ def build(
     """Build scene `name` with `size` (`small` ≈ 20k, `paper` = the paper's count) or exactly `n`
     particles; deterministic for a given seed."""
     if name not in SCENES:
-        raise SceneError(f"unknown built-in scene '{name}'; valid names are: {', '.join(SCENES)}")
+        raise SceneError(f"unknown built-in scene '{name}'; valid names are: {', '.join(SCENES)}.")
     spec = SCENES[name]
     if size not in ("small", "paper"):
         raise SceneError(f"unknown size {size!r:.40} for scene '{name}'; use 'small' or 'paper'.")
@@ -44,7 +44,12 @@ def build(
         if isinstance(value, bool) or not isinstance(value, numbers.Integral):
             raise SceneError(f"scene '{name}': {arg} = {value!r:.40} is not a whole number; pass an int, e.g. {arg}=1.")
     if int(n) < 1 or not 0 <= int(sh_degree) <= 3:
-        raise SceneError(f"scene '{name}': n must be ≥ 1 and sh_degree in 0..3 (got n={n}, sh_degree={sh_degree})")
+        raise SceneError(
+            f"scene '{name}': n must be ≥ 1 and sh_degree in 0..3 (got n={n}, sh_degree={sh_degree}); pass e.g. "
+            "n=1000, sh_degree=1."
+        )
+    if not -(2**63) <= int(seed) < 2**64:  # torch's generator takes a 64-bit seed (2**70 was an OverflowError)
+        raise SceneError(f"scene '{name}': seed = {int(seed)} does not fit in 64 bits; pass e.g. seed=0.")
     if int(n) > MAX_BUILT:
         raise SceneError(
             f"scene '{name}': n = {int(n):,} is more than {MAX_BUILT:,} particles (about 20 GB of state); pass a "

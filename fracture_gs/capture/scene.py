@@ -71,6 +71,13 @@ def resolve(cfg: SceneConfig, device: str = "cpu") -> Capture:
             f"resolve: cfg must be a SceneConfig, got {type(cfg).__name__}; load the scene's config first, e.g. "
             "resolve(fracture_gs.io.load_config('scene.ply'))."
         )
+    if cfg.scene in assets.names():  # "bread: no such file; ... use a built-in scene: bread, ..." said nothing useful
+        from ..errors import ArgumentError
+
+        raise ArgumentError(
+            f"resolve: scene = {cfg.scene!r} is a built-in scene, and resolve prepares captured scenes (a splat file) "
+            "only; use fracture_gs.pipeline.prepare_scene(cfg) for either kind."
+        )
     cfg = copy.deepcopy(cfg)
     path = Path(cfg.scene)
     validate(cfg, f"{path} (captured scene)")  # a config built in Python, not loaded, is checked here too
@@ -145,7 +152,11 @@ def resolve(cfg: SceneConfig, device: str = "cpu") -> Capture:
         plan = plan_load(kind, lo, hi, dx, cap.size, cap.load_speed, duration)
         if why:
             plan.note = f"{plan.note} (capture.load = 'auto' chose {kind}: {why}; --load sets it)"
+        replaced = _replaced_by_load(cfg, plan)
         apply_load(cfg, plan)
+        if replaced:
+            plan.note += f"; the config's {' and '.join(replaced)} {'is' if len(replaced) == 1 else 'are'} not used "
+            plan.note += '(the load sets them: capture.load = "none" keeps the config\'s own)'
     notes.append(plan.note)
     cap.load, cap.load_speed = "none", 0.0  # written out as boundaries: a rerun must not add them again
     room_lo, room_hi = _room(cap.size, lo, hi, plan, duration)
@@ -172,6 +183,22 @@ def resolve(cfg: SceneConfig, device: str = "cpu") -> Capture:
         )
     cfg.sim.max_fragments = max(cfg.sim.max_fragments, 2 * cfg.topology.max_events + 2)
     return Capture(validate(cfg, f"{path} (captured scene)"), obj, bg, fit, notes)
+
+
+def _replaced_by_load(cfg: SceneConfig, plan) -> list:
+    """The config's initial_velocity and sim.gravity that a load with boundaries replaces by its own, as note
+    text ("initial_velocity [0, 0, -5]"): a value the user wrote would otherwise vanish without a word."""
+    if not plan.boundaries:
+        return []
+    pairs = (
+        ("initial_velocity", cfg.initial_velocity, plan.initial_velocity),
+        ("sim.gravity", cfg.sim.gravity, plan.gravity),
+    )
+    return [
+        f"{k} {[float(v) for v in mine]}"
+        for k, mine, theirs in pairs
+        if tuple(map(float, mine)) != tuple(map(float, theirs)) and any(mine)
+    ]
 
 
 def _fit(obj: GaussianSet, up, up_note: str, Q, cap, path: Path, notes: list) -> SceneTransform:

@@ -352,6 +352,11 @@ def cmd_init(args: argparse.Namespace) -> int:
             f"--out {out} is the scene file itself, which init would overwrite with its TOML; choose another --out, "
             f"e.g. --out {ply.with_suffix('.toml').name}."
         )
+    if out.suffix.lower() != ".toml":  # a TOML under x.ply read back as a (broken) scene, not as the config
+        raise CliError(
+            f"--out {out} does not end in .toml, and init writes a TOML config that render-sim reads by that "
+            f"suffix; use e.g. --out {out.with_suffix('.toml')}."
+        )
     if out.exists() and not args.force:
         raise CliError(f"{out} exists; pass --force to overwrite it or choose another --out.")
     capture = resolve(cfg, resolve_device(args.device))

@@ -203,8 +203,22 @@ def detect_format(path) -> str:
     # `.splat` has no magic number: a headerless run of 32-byte rows is accepted when nearly every
     # sampled row decodes to a Gaussian (finite means, positive finite scales, non-zero quaternion).
     # Binary data that happens to look like that would be misread; nothing else can tell.
-    if size % SPLAT_ROW_BYTES == 0 and _plausible_splat(path) >= 0.9:
-        return "splat"
+    share = 0.0
+    if size % SPLAT_ROW_BYTES == 0:
+        share = _plausible_splat(path)
+        if share >= 0.9:
+            return "splat"
+    if path.lower().endswith(".splat") and (size % SPLAT_ROW_BYTES or share >= 0.1):  # a .splat, cut or damaged
+        if size % SPLAT_ROW_BYTES:
+            raise PlyError(
+                f"{path}: a .splat file holds 32-byte rows, but its {size:,} bytes are no multiple of 32 (cut off, "
+                "or not a .splat); download or export it again."
+            )
+        raise PlyError(
+            f"{path}: only {share:.0%} of the sampled 32-byte rows of this .splat decode to Gaussians (finite "
+            "positions, scales of 1e-12 to 1e6, a non-zero rotation), so it is damaged or not a .splat; export it "
+            "again."
+        )
     raise refuse(path, f"is binary data of {size:,} bytes in no format recognised")
 
 

@@ -22,6 +22,8 @@ its SH degree is what it stores, nothing is invented.
 from __future__ import annotations
 
 import os
+import struct
+import zlib
 from pathlib import Path
 
 import numpy as np
@@ -89,6 +91,25 @@ def _compressed_layout(path, head: bytes) -> None:
             f"is a compressed PLY of an early layout ({len(chunk_props)} chunk bounds, not 18 with colour)",
             "open and save it again in SuperSplat, or convert it with splat-transform",
         )
+    fmt = next(
+        (
+            ln.split()[1:2]
+            for ln in head[:header_len].decode("ascii", "replace").splitlines()
+            if ln.startswith("format ")
+        ),
+        [""],
+    )
+    if fmt != ["binary_little_endian"]:
+        raise PlyError(
+            f"{path}: is a compressed PLY in format {' '.join(fmt) or 'none'!r}, but compressed PLYs are "
+            "binary_little_endian (their packed fields mean nothing else); export it again from SuperSplat."
+        )
+    sh_rows = elements.get("sh", (n, []))[0]
+    if sh_rows != n:
+        raise PlyError(
+            f"{path}: the compressed PLY's sh element has {sh_rows:,} rows for its {n:,} Gaussians (one each); "
+            "download or export it again."
+        )
     need = header_len + 4 * chunks * len(chunk_props) + 16 * n + n * sh_props
     have = os.path.getsize(path)
     if have < need or chunks != -(-n // 256):
@@ -98,12 +119,44 @@ def _compressed_layout(path, head: bytes) -> None:
         )
 
 
+def _spz_layout(path) -> None:
+    """One sentence for a gzip SPZ (versions 2 and 3) whose header disagrees with its data: gsply reads the
+    header's count and SH degree and decodes whatever bytes follow, so a count that is too small, a v3 file
+    relabelled v2 or a degree that is not the data's came back as Gaussians built from the wrong bytes."""
+    with open(path, "rb") as fh:
+        if fh.read(2) != b"\x1f\x8b":
+            return  # v4 (NGSP, zstd streams): gsply checks each stream's length
+        fh.seek(0)
+        inflate, total, head = zlib.decompressobj(16 + zlib.MAX_WBITS), 0, b""
+        try:
+            while chunk := fh.read(1 << 20):
+                out = inflate.decompress(chunk)
+                head = head if len(head) >= 16 else (head + out)[:16]
+                total += len(out)
+                if inflate.eof:
+                    break
+        except zlib.error:
+            return  # a broken container: gsply names it
+    if len(head) < 16 or not inflate.eof:
+        return
+    version, n, degree = struct.unpack_from("<IIB", head, 4)
+    sh_values = 3 * ((degree + 1) ** 2 - 1)
+    need = 16 + n * (9 + 1 + 3 + 3 + (3 if version == 2 else 4) + sh_values)
+    if total != need:
+        raise PlyError(
+            f"{path}: the SPZ header (version {version}, {n:,} Gaussians, SH degree {degree}) needs {need:,} "
+            f"bytes of data but the file holds {total:,}, so header and data disagree; export it again from its "
+            "source."
+        )
+
+
 def _arrays(path, fmt: str) -> dict:
     if fmt == "compressed-ply":
         with open(path, "rb") as fh:
             _compressed_layout(path, fh.read(65536))
         return gsply_io.read_compressed_ply(path)
     if fmt == "spz":
+        _spz_layout(path)
         return gsply_io.read_spz(path)
     raw = Path(path).read_bytes()
     if len(raw) % splat_file.ROW_BYTES:
@@ -171,6 +224,11 @@ def write_gaussians(gs: GaussianSet, path, fmt: str = "ply") -> Path:
     if fmt == "ply":
         save_ply(gs if gs.device.type == "cpu" else gs.to("cpu"), path)  # a CPU set keeps load_ply's raw values
         return path
+    if len(gs) == 0:  # compressed-ply and spz took the bounds of nothing (a numpy traceback); splat wrote 0 bytes
+        raise PlyError(
+            f"write_gaussians: gs holds no Gaussians, and a {fmt} file of none cannot be read back; write at least "
+            "one Gaussian (or format 'ply')."
+        )
     a = _checked(gs, path)
     try:
         if fmt == "splat":

@@ -111,6 +111,8 @@ def _selection(mask: Any, n: int, device) -> torch.Tensor:
     """`GaussianSet.subset`'s argument: a bool mask of N entries, or integer indices in -N … N-1 (a list or numpy
     array is converted), else ArgumentError."""
     t = as_tensor("GaussianSet.subset", "mask", mask, "[N] bool or [M] int")
+    if t.numel() == 0 and t.dim() == 1 and not isinstance(mask, torch.Tensor):
+        t = t.long()  # `[]` (or an empty numpy array) selects nothing; torch reads an empty list as float
     if t.dtype == torch.bool:
         if tuple(t.shape) != (n,):
             raise ArgumentError(

@@ -28,7 +28,7 @@ import torch
 from plyfile import PlyData, PlyElement
 
 from ..errors import ArgumentError, OutputError, PlyError
-from .detect import as_path
+from .detect import as_path, detect_format
 from .devices import as_device  # callers import it from here too (io.ply.as_device)
 from .gaussian_set import SIGMA_RANGE, GaussianSet
 
@@ -108,7 +108,7 @@ def write_failed(path, err: OSError) -> OutputError:
 
 
 def _fail(path, msg: str) -> PlyError:
-    return PlyError(f"{path}: {msg}")
+    return PlyError(f"{path}: {msg}" + ("" if msg.endswith(".") else "."))  # one sentence, ended
 
 
 def _read_vertex(path) -> tuple[np.ndarray, list]:
@@ -306,11 +306,28 @@ _REQUIRED = ["x", "y", "z", "f_dc_0", "f_dc_1", "f_dc_2", "opacity", "scale_0", 
 ]
 
 
+def _not_another_format(path) -> None:
+    """A .splat, .spz or compressed PLY handed to load_ply: name the reader that takes it (plyfile's own error,
+    a codec failure or a missing f_dc_0, said nothing of the kind)."""
+    try:
+        fmt = detect_format(path)
+    except PlyError:
+        return  # not a splat file at all: _read_vertex says what is wrong with it
+    if fmt != "ply":
+        raise _fail(
+            path,
+            f"is a {fmt} file, not a 3DGS .ply; read it with fracture_gs.io.formats.read_gaussians (every format) "
+            "or pass it as a config's scene",
+        )
+
+
 def load_ply(path, device="cpu", _rows=None) -> GaussianSet:
     """Read a 3DGS PLY into a `GaussianSet` with activated values (exp scales, sigmoid opacities,
     normalized wxyz quaternions, SH [N, K, 3] DC first); raises `PlyError` on malformed input."""
     path = as_path("load_ply", path)
     as_device("load_ply", device)
+    if _rows is None:
+        _not_another_format(path)
     data, names = _read_vertex(path)
     scale_n = [f"scale_{i}" for i in range(3)]
     rot_n = [f"rot_{i}" for i in range(4)]

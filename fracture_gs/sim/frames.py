@@ -100,7 +100,9 @@ class FrameRunner:
         n = max(1, math.ceil(frame_dt / dt - 1e-9))
         if n > sim.cfg.max_substeps_per_frame:
             raise SimulationError(
-                f"a frame of {frame_dt}s needs {n} substeps of {dt:.3g}s, over sim.max_substeps_per_frame"
+                f"a frame of {frame_dt}s needs {n:,} substeps of {dt:.3g}s (the CFL bound of the material's wave "
+                f"speed at Δx = {sim.grid.dx:.3g} m), over sim.max_substeps_per_frame = "
+                f"{sim.cfg.max_substeps_per_frame:,}; lower material.E (or raise sim.max_substeps_per_frame)."
             )
         return n, frame_dt / n
 

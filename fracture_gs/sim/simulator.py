@@ -81,10 +81,10 @@ def normalize_device(device) -> str:
         device = "cuda:0"
     if device.startswith("cuda"):
         if not torch.cuda.is_available():
-            raise SimulationError(f"device '{device}' was requested but CUDA is not available here; use device='cpu'")
+            raise SimulationError(f"device '{device}' was requested but CUDA is not available here; use device='cpu'.")
         return device
     if device != "cpu":
-        raise SimulationError(f"device '{device}' is not 'cpu' or 'cuda:N'")
+        raise SimulationError(f"Simulator: device '{device}' is not 'cpu' or 'cuda:N'; pass device='cpu' or 'cuda:0'.")
     return device
 
 

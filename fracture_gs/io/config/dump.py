@@ -94,6 +94,12 @@ def dump_config(cfg: SceneConfig, header: Optional[str] = None) -> str:
             f"dump_config: cfg must be a SceneConfig, got {type(cfg).__name__}; load one with "
             "fracture_gs.io.load_config('bread') (or a path)."
         )
+    if header is not None and not isinstance(header, str):
+        from ...errors import ArgumentError
+
+        raise ArgumentError(
+            f"dump_config: header must be a string (or None), got {type(header).__name__}; pass e.g. header='my scene'."
+        )
     return dump_dict(config_to_dict(cfg), header)
 
 

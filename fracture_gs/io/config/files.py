@@ -197,18 +197,30 @@ def config_from_dict(d: dict, source: str = "<dict>") -> SceneConfig:
     An `extends` key resolves relative to the working directory, then to the built-in configs."""
     if not isinstance(d, dict):
         raise ConfigError(source, None, f"a config must be a table (dict), not {describe(d)}; pass a dict of sections.")
-    merged, cfg = _resolve_chain(_plain(d), source, Path.cwd(), ())
+    merged, cfg = _resolve_chain(_plain(d, source), source, Path.cwd(), ())
     cfg = cfg or build_scene(merged, source)
     validate(cfg, source)
     return cfg
 
 
-def _plain(value: Any) -> Any:
-    """Turn dataclass instances inside a user dict into TOML-shaped dicts (boundaries get `type`)."""
+def _plain(value: Any, source: str, where: str = "") -> Any:
+    """Turn dataclass instances inside a user dict into TOML-shaped dicts (boundaries get `type`), and numpy
+    numbers and arrays into Python ones (np.int64(3) is the integer 3, as TOML would have read it). A key that is
+    not a string (no TOML table has one) is a ConfigError naming it."""
     if dataclasses.is_dataclass(value) and not isinstance(value, type):
         return to_dict(value)
     if isinstance(value, dict):
-        return {k: _plain(v) for k, v in value.items()}
+        bad = next((k for k in value if not isinstance(k, str)), None)
+        if bad is not None:
+            raise ConfigError(
+                source,
+                None,
+                f"key {bad!r:.40} {f'in [{where}] ' if where else ''}has type {type(bad).__name__}, not str; "
+                "write every key as a string, e.g. {'frames': 30}.",
+            )
+        return {k: _plain(v, source, f"{where}.{k}" if where else k) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
-        return type(value)(_plain(v) for v in value)
+        return type(value)(_plain(v, source, where) for v in value)
+    if type(value).__module__ == "numpy" and hasattr(value, "tolist"):  # np.int64, np.float32, np.ndarray
+        return _plain(value.tolist(), source, where)
     return value

@@ -100,6 +100,12 @@ class _Checker:
             )
 
 
+MAX_FPS = 1000
+"""Frames per second: the fastest playback rate render.fps may ask of the videos (100,000 was written as is)."""
+MAX_GRAVITY = 1.0e4
+"""m/s²: the largest |sim.gravity| (about 1,000 g; beyond it every scene tears apart in its first substeps)."""
+
+
 def is_finite_number(v) -> bool:
     """A number read from TOML or JSON that a check can compute with: an int or float, not a boolean, finite as a
     float (a 400-digit JSON integer overflows float() and is not)."""
@@ -124,7 +130,36 @@ def validate(cfg: SceneConfig, source: str = "<config>") -> SceneConfig:
     _check_capture(c, cfg.capture, cfg.sim.boundaries)
     check_combinations(c, cfg)
     _check_provider_needed(c, cfg)
+    if cfg.scene in BUILTIN_SCENES:  # a captured scene's Δx and material are chosen later (capture.resolve)
+        _check_wave_substeps(c, cfg)
     return cfg
+
+
+def _check_wave_substeps(c: _Checker, cfg: SceneConfig) -> None:
+    """With adaptive_dt each substep is at most cfl·Δx / c, c = √((λ+2μ)/ρ) the P-wave speed: a modulus (or a
+    density) that makes a frame need more than sim.max_substeps_per_frame substeps is refused here, naming the
+    key, instead of by the first frame ("needs 131266027842848 substeps") after the scene was built."""
+    s = cfg.sim
+    if not s.adaptive_dt:
+        return
+    m = cfg.material
+    sources = [("material", m.E, m.nu, m.density)] + [
+        (f"material_map[{i}]", e.E or m.E, m.nu if e.nu is None else e.nu, e.density or m.density)
+        for i, e in enumerate(cfg.material_map)
+    ]
+    for key, E, nu, rho in sources:
+        if not (0 < E and -1 < nu < 0.5 and 0 < rho):
+            continue  # the range checks name these
+        speed = math.sqrt((E * nu / ((1 + nu) * (1 - 2 * nu)) + E / (1 + nu)) / rho)
+        n = math.ceil(cfg.frame_dt / min(s.dt, s.cfl * s.dx / speed) - 1e-9)
+        if n > s.max_substeps_per_frame:
+            c.fail(
+                f"{key}.E",
+                f"{key}.E = {E:g} Pa at density {rho:g} kg/m³ is a wave speed of {speed:.3g} m/s, so a frame of "
+                f"{cfg.frame_dt:g} s at Δx = {s.dx:g} m needs {n:,} substeps, over sim.max_substeps_per_frame = "
+                f"{s.max_substeps_per_frame:,}",
+                "lower the modulus (or raise the density, sim.dx or sim.max_substeps_per_frame)",
+            )
 
 
 def _check_capture(c: _Checker, cap, cfg_boundaries=()) -> None:
@@ -375,11 +410,18 @@ def _check_sim(c: _Checker, s: SimConfig, frame_dt: float) -> None:
     if frame_dt / s.dt > s.max_substeps_per_frame * (1 + 1e-9):  # Δt bounds the adaptive step too
         c.fail(
             "sim.max_substeps_per_frame",
-            f"frame_dt / sim.dt = {frame_dt / s.dt:.0f} substeps exceeds "
+            f"frame_dt / sim.dt = {frame_dt / s.dt:{'.0f' if frame_dt / s.dt < 1e12 else '.3g'}} substeps exceeds "
             f"sim.max_substeps_per_frame = {s.max_substeps_per_frame}",
             "raise max_substeps_per_frame or sim.dt",
         )
     c.within("sim.cfl", s.cfl, 1e-12, 1.0, "use a CFL number in (0, 1], e.g. cfl = 0.4")
+    g = math.hypot(*(float(v) for v in s.gravity))
+    if g > MAX_GRAVITY:  # 1e300 passed and the first frame diverged (exit 1) after the scene was built
+        c.fail(
+            "sim.gravity",
+            f"sim.gravity = {list(s.gravity)} is {g:.3g} m/s², over {MAX_GRAVITY:,.0f} m/s² (about 1,000 g)",
+            "give the acceleration in m/s², e.g. gravity = [0.0, 0.0, -9.8]",
+        )
     c.choice("sim.variant", s.variant, VARIANT_NAMES)
     c.choice("sim.grid", s.grid, GRID_KINDS)
     c.positive("sim.dx", s.dx, "give the grid spacing in metres, e.g. dx = 0.015625")
@@ -505,6 +547,7 @@ def _check_render(c: _Checker, r: RenderConfig) -> None:
     c.within("render.width", r.width, 2, MAX_IMAGE_SIDE, f"use an image width of 2 to {MAX_IMAGE_SIDE} pixels")
     c.within("render.height", r.height, 2, MAX_IMAGE_SIDE, f"use an image height of 2 to {MAX_IMAGE_SIDE} pixels")
     c.at_least("render.fps", r.fps, 1, "use a positive frame rate")
+    c.within("render.fps", r.fps, 1, MAX_FPS, f"use a playback rate of 1 to {MAX_FPS} frames per second, e.g. fps = 24")
     if r.max_stretch is not None and not r.max_stretch > 1.0:
         c.fail(
             "render.max_stretch", f"render.max_stretch = {r.max_stretch!r} is not above 1", "use e.g. 1.25, or unset it"
