@@ -58,6 +58,7 @@ def _stepper(dt=1e-3, adaptive=False, cap=100, v=0.0, cfl=None):
         cfg=types.SimpleNamespace(dt=dt, adaptive_dt=adaptive, max_substeps_per_frame=cap),
         particles=types.SimpleNamespace(v=torch.tensor([[v, 0.0, 0.0]])),
         cfl_dt=lambda vmax: cfl(vmax),
+        grid=types.SimpleNamespace(dx=0.01),  # named by the refusal's message
     )
 
 
