@@ -36,7 +36,7 @@ from torch import Tensor
 
 from ..errors import RenderError
 from .camera import Camera
-from .warm_up import wait_for_gsplat
+from .warm_up import gsplat_ready, wait_for_gsplat
 
 ALPHA_THRESHOLD = 1.0 / 255.0
 T_THRESHOLD = 1e-4
@@ -364,6 +364,15 @@ def check_backend(backend: str, device: str) -> None:
         )
 
 
+def auto_backend(on_cuda: bool, warp_ok: bool) -> str:
+    """`auto`'s choice: gsplat for CUDA tensors once its one-time build is loaded (`warm_up.gsplat_ready`; the
+    torch rasterizer while it builds or after it failed), the Warp kernel where it can draw (`warp_ok`: CPU
+    float32/float64 tensors, no gradient), else the torch rasterizer."""
+    if on_cuda:
+        return "gsplat" if gsplat_ready() else "torch"
+    return "warp" if warp_ok else "torch"
+
+
 def render(
     means: Tensor,  # [N, 3] world positions
     covars: Tensor,  # [N, 3, 3] world covariances Σ = F Σ⁰ Fᵀ
@@ -379,9 +388,11 @@ def render(
 ) -> RenderOutput:
     """Render N Gaussians into camera.height × camera.width; see the module docstring for the math.
 
-    `auto` picks gsplat iff the tensors are on CUDA and CUDA is available; on the CPU the Warp kernel
-    for float32/float64 tensors when no gradient is needed; else the torch backend (which runs on any
-    device and dtype, with autograd). `torch` forces the torch backend everywhere."""
+    `auto` picks gsplat iff the tensors are on CUDA and CUDA is available, and gsplat's one-time build is not
+    running or failed in the background (`warm_up.gsplat_ready`: the torch backend draws meanwhile); on the CPU
+    the Warp kernel for float32/float64 tensors when no gradient is needed; else the torch backend (which runs on
+    any device and dtype, with autograd). `torch` forces the torch backend everywhere; `gsplat` waits for a
+    build that runs."""
     _check_mode(mode)
     if backend not in BACKENDS:
         raise RenderError(f"render: backend must be one of {BACKENDS}, got {backend!r}")
@@ -390,7 +401,7 @@ def render(
     grad = _needs_grad(means, covars, colors, opacities, camera.viewmat, camera.K)
     if backend == "auto":
         warp_ok = means.device.type == "cpu" and means.dtype in WARP_DTYPES and not grad
-        backend = "gsplat" if on_cuda else "warp" if warp_ok else "torch"
+        backend = auto_backend(on_cuda, warp_ok)
     if backend == "gsplat" and not on_cuda:
         raise RenderError(
             "render: backend='gsplat' needs CUDA tensors on a machine with a GPU; "

@@ -1,24 +1,32 @@
-"""gsplat's one-time CUDA compile, started in the background as a run starts, and waited for by the first render.
+"""gsplat's one-time CUDA compile, started in the background as a run starts; the run draws with the torch rasterizer
+until it is done.
 
 gsplat builds its CUDA code the first time it is used on a machine (torch's JIT extension build, run by importing
-`gsplat.cuda._backend`: about a minute, then cached). Left to the first render, the whole run stood still for it
-after setting up. A run instead starts it on a daemon thread at once (`start_gsplat_compile`): the scene's set-up,
-Warp's module loads and the first frames go on meanwhile, and the first gsplat render waits for the build
-(`wait_for_gsplat`, called by `render.splat`). A build that failed is raised there as one `RenderError`; Ctrl-C
-(the run's stop event) ends a wait at once, and the thread, a daemon, never keeps the process alive.
+`gsplat.cuda._backend`: about a minute and a half on a fresh H200, then cached). Left to the first render, the whole
+run stood still for it after setting up. A run instead starts it at once (`start_gsplat_compile`) in a process of
+its own (`build_gsplat_detached`: its own session, so neither Ctrl-C nor the run's exit stops it), watched by a
+daemon thread that loads the finished build into this process. Meanwhile the scene's set-up, Warp's module loads
+and the frames go on, and `render.splat`'s `auto` backend draws CUDA frames with the torch rasterizer (the same
+math, 98–136 dB from gsplat's images) until gsplat is loaded; a build that outlives the run goes on and is cached
+for the next one (`detached_notice` says so). A build that failed leaves the run on the torch rasterizer; only a
+run that asked for `render.backend = 'gsplat'` waits for the build (`wait_for_gsplat`) and gets its failure as one
+`RenderError`. Ctrl-C (the run's stop event) ends a wait at once.
 
 While it builds, the compile is a step of its own on the terminal (`CompileStep`: its own line, "elapsed Xs",
-below the variants' bars), and a variant's bar hides its ETA until the build is done, then leaves the wait out
-of its rate (`HeldEta`): frames held up by a compile say nothing about the frames still to come.
+below the variants' bars). A run that waits for it (`render.backend = 'gsplat'`) hides a variant's ETA until the
+build is done, then leaves the wait out of its rate (`HeldEta`): frames held up by a compile say nothing about
+the frames still to come.
 """
 
 from __future__ import annotations
 
 import contextlib
 import os
+import subprocess
 import sys
 import threading
 import time
+from pathlib import Path
 from typing import Callable, Optional
 
 from ..errors import RenderError
@@ -40,10 +48,11 @@ class CompileStep:
     below the variants' bars) that says "elapsed Xs" until `close`; in a log one line when it starts. `close`
     writes the outcome as one line above the bars."""
 
-    def __init__(self, what: str, file=None, position: int = 1, bar: Optional[bool] = None):
+    def __init__(self, what: str, file=None, position: int = 1, bar: Optional[bool] = None, meanwhile: str = ""):
         from tqdm import tqdm
 
         self.what, self.file = what, file if file is not None else sys.stderr
+        meanwhile = meanwhile or "the run goes on meanwhile and its first render waits for it"
         self.bar = None
         if bar if bar is not None else self.file.isatty():
             self.bar = tqdm(
@@ -56,7 +65,7 @@ class CompileStep:
                 mininterval=0.5,
             )
         else:
-            tqdm.write(f"{what}: started; the run goes on meanwhile and its first render waits for it", file=self.file)
+            tqdm.write(f"{what}: started; {meanwhile}", file=self.file)
 
     def tick(self) -> None:
         """Redraw the line (its elapsed time)."""
@@ -92,7 +101,10 @@ class BackgroundCompile:
         tick: float = 0.5,  # seconds between redraws of the step's line
     ):
         self.what, self.compile, self.cancel, self.step, self.tick = what, compile, cancel, step, tick
+        self.process: Optional[subprocess.Popen] = None  # the detached build, once started (`build_gsplat_detached`)
+        self.log: Optional[Path] = None  # its output
         self.error: Optional[BaseException] = None
+        self.detached = False  # the run ended while the build went on (`detached_notice`): its line goes
         self.seconds: Optional[float] = None  # the compile's duration, once done
         self._done = threading.Event()
         self._thread = threading.Thread(target=self._run, name="fgs-compile", daemon=True)
@@ -115,7 +127,7 @@ class BackgroundCompile:
 
     def _show(self) -> None:
         while not self._done.wait(self.tick):
-            if self.cancel is not None and self.cancel.is_set():  # the run was interrupted: the line goes
+            if self.detached or (self.cancel is not None and self.cancel.is_set()):  # the run ended: the line goes
                 self.step.close(None, None)
                 return
             self.step.tick()
@@ -154,12 +166,14 @@ def start_gsplat_compile(
     needs_compile: Optional[Callable[[], bool]] = None,
     compile: Optional[Callable[[], None]] = None,
     file=None,
+    waits: bool = False,
 ) -> Optional[BackgroundCompile]:
     """Start gsplat's one-time build for `device` in the background, if it needs one (`needs_compile`, default
     `gsplat_needs_compile`); returns it, or None when nothing was started (the CPU, or a build already
     there). One per process: a build still running is reused (with this run's `cancel`), a failed one retried.
     `show`: draw it as its own step (`CompileStep` at line `position`, on `file`, default stderr). `compile`
-    replaces `compile_gsplat` (tests)."""
+    replaces `build_gsplat_detached` (tests). `waits`: the run's frames wait for the build (`render.backend =
+    'gsplat'`); else they are drawn with the torch rasterizer meanwhile, and the step says which."""
     global _pending
     if not str(device).startswith("cuda"):
         return None
@@ -172,9 +186,12 @@ def start_gsplat_compile(
         _pending = None  # a finished one: a success needs no build now, a failure is tried again
         if not needs_compile():
             return None
-        step = CompileStep(GSPLAT_STEP, file=file, position=position) if show else None
-        job = compile if compile is not None else (lambda: compile_gsplat(device, spinner=False))
-        _pending = BackgroundCompile(GSPLAT_STEP, job, cancel=cancel, step=step).start()
+        meanwhile = "" if waits else "frames are drawn with the torch rasterizer until it is done"
+        step = CompileStep(GSPLAT_STEP, file=file, position=position, meanwhile=meanwhile) if show else None
+        job = BackgroundCompile(GSPLAT_STEP, compile, cancel=cancel, step=step)
+        if compile is None:
+            job.compile = lambda: build_gsplat_detached(device, job)
+        _pending = job.start()
         return _pending
 
 
@@ -194,10 +211,11 @@ def wait_for_gsplat() -> None:
 class HeldEta:
     """A variant's frame bar while a background compile may hold its frames up: no ETA until the compile is done
     (`WAITING_FORMAT`), then tqdm's own again, with the wait left out of the bar's rate and elapsed time
-    (`tqdm.unpause` from the last redraw). `held`: the seconds left out, for the caller's own rates."""
+    (`tqdm.unpause` from the last redraw). `held`: the seconds left out, for the caller's own rates. `waits`
+    False (a run that draws with the torch rasterizer meanwhile): nothing holds the frames, tqdm's own bar."""
 
-    def __init__(self, bar, compile: Optional[BackgroundCompile] = None):
-        self.bar, self.compile = bar, compile if compile is not None else pending_compile()
+    def __init__(self, bar, compile: Optional[BackgroundCompile] = None, waits: bool = True):
+        self.bar, self.compile = bar, compile if compile is not None else pending_compile() if waits else None
         self.held = 0.0
         if self.compile is not None:
             self._format = bar.bar_format
@@ -229,6 +247,74 @@ def _no_spinner():
         os.environ.pop("TTY_INTERACTIVE", None)
 
 
+NO_TOOLKIT = (
+    "gsplat found no CUDA toolkit (nvcc) to build its CUDA code with; install the CUDA toolkit "
+    "(or a gsplat wheel with prebuilt kernels), or render with render.backend = 'torch'"
+)
+NO_TOOLKIT_EXIT = 3  # the detached build's exit status when gsplat found no toolkit
+BUILD_SCRIPT = (
+    f"import sys\nfrom gsplat.cuda import _backend\nsys.exit(0 if _backend._C is not None else {NO_TOOLKIT_EXIT})\n"
+)
+"""The detached build: importing `gsplat.cuda._backend` is what builds gsplat's CUDA code (torch's JIT build)."""
+
+
+def build_log() -> Path:
+    """Where the detached build writes its output (one file per user, replaced by each build)."""
+    import tempfile
+
+    return Path(tempfile.gettempdir()) / f"fracture_gs_gsplat_build_{os.getuid()}.log"
+
+
+def build_gsplat_detached(
+    device: str, job: Optional[BackgroundCompile] = None, command: Optional[list] = None, log: Optional[Path] = None
+) -> None:
+    """gsplat's CUDA build run in a process of its own session (`command`, default `BUILD_SCRIPT`): neither Ctrl-C
+    (sent to the terminal's process group) nor this process's exit stops it, so a build that outlives a short run
+    is finished and cached for the next. Waits for it, then loads the build here (`compile_gsplat`, seconds once
+    built; skipped for a `command` of a test's). `job`: the BackgroundCompile to note the process and its `log` on.
+    Raises RenderError when gsplat found no toolkit, RuntimeError with the log's last line when the build failed."""
+    log = build_log() if log is None else log
+    env = dict(os.environ, TTY_INTERACTIVE="0")  # no rich spinner in the log (`_no_spinner`)
+    with open(log, "w") as out:
+        proc = subprocess.Popen(
+            command or [sys.executable, "-c", BUILD_SCRIPT],
+            stdin=subprocess.DEVNULL,
+            stdout=out,
+            stderr=subprocess.STDOUT,
+            env=env,
+            start_new_session=True,
+        )
+    if job is not None:
+        job.process, job.log = proc, log
+    code = proc.wait()
+    if code == NO_TOOLKIT_EXIT:
+        raise RenderError(NO_TOOLKIT)
+    if code != 0:
+        tail = [line.strip() for line in log.read_text(errors="replace").splitlines() if line.strip()]
+        raise RuntimeError(f"the build exited with status {code}: {tail[-1] if tail else 'no output'} (log: {log})")
+    if command is None:
+        compile_gsplat(device, spinner=False)
+
+
+def gsplat_ready() -> bool:
+    """False while a background build runs or after it failed: the `auto` backend then draws CUDA frames with the
+    torch rasterizer rather than wait (`render.splat.render`)."""
+    job = _pending
+    return job is None or (job.done and job.error is None)
+
+
+def detached_notice() -> Optional[str]:
+    """At a run's end, the sentence to print when its gsplat build still runs in its own process, else None."""
+    job = _pending
+    if job is None or job.done or job.process is None or job.process.poll() is not None:
+        return None
+    job.detached = True
+    return (
+        f"{GSPLAT_STEP}: still building in the background (pid {job.process.pid}, log {job.log}); this run drew "
+        "with the torch rasterizer, and the next run draws with gsplat once the build is done"
+    )
+
+
 def compile_gsplat(device: str, spinner: bool = True) -> None:
     """gsplat's CUDA code built (or loaded from its cache) and run once on `device`: importing
     `gsplat.cuda._backend` is what builds it; a rasterization of three Gaussians then loads its kernels on the
@@ -239,10 +325,7 @@ def compile_gsplat(device: str, spinner: bool = True) -> None:
     with contextlib.nullcontext() if spinner else _no_spinner():
         from gsplat.cuda import _backend
     if _backend._C is None:
-        raise RenderError(
-            "gsplat found no CUDA toolkit (nvcc) to build its CUDA code with; install the CUDA toolkit "
-            "(or a gsplat wheel with prebuilt kernels), or render with render.backend = 'torch'"
-        )
+        raise RenderError(NO_TOOLKIT)
     import gsplat
 
     from ..runtime import capture_lock, side_stream

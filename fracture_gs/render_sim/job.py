@@ -22,7 +22,7 @@ from ..io.video import ffmpeg
 from ..pipeline import prepare_scene
 from ..profiling import phases
 from ..render.splat import check_backend
-from ..render.warm_up import start_gsplat_compile
+from ..render.warm_up import detached_notice, start_gsplat_compile
 from ..runtime import usable_cores
 from ..viewer.record import start_record
 from .comparison import check_video_size, compose_comparison, frames_png_default
@@ -100,9 +100,13 @@ def run_render_sim(
     if profile:
         phases.enable(sync_device=device if device.startswith("cuda") else None)
     if cfg.render.backend != "torch" and not (devices and len(devices) > 1):  # (several devices: each worker builds)
-        # gsplat's one-time CUDA build (about a minute on a fresh machine) runs beside the set-up and the first
-        # frames; the first render waits for it (`render.warm_up`). Nothing starts on the CPU or once it is built.
-        start_gsplat_compile(device, cancel=stop, show=progress, position=len(variants) if schedule == "threads" else 1)
+        # gsplat's one-time CUDA build (about a minute and a half on a fresh machine) runs in a process of its own
+        # beside the run, which draws with the torch rasterizer until it is done (`render.backend = 'gsplat'`
+        # waits for it instead: `render.warm_up`). Nothing starts on the CPU or once it is built.
+        position = len(variants) if schedule == "threads" else 1
+        start_gsplat_compile(
+            device, cancel=stop, show=progress, position=position, waits=cfg.render.backend == "gsplat"
+        )
     # worker processes for a CPU run are forked now, before the scene is prepared: later, with torch's OpenMP
     # threads started, a forked child could hang (`forked`); a run that needs none ends them at once
     with _forked_workers(device, devices, schedule, len(variants)) as workers:
@@ -149,6 +153,9 @@ def run_render_sim(
         out_dir=str(out_dir),
     )
     _write_summary(summary, out_dir)
+    notice = detached_notice()  # a fresh machine's gsplat build that outlived the run goes on for the next one
+    if notice:
+        tqdm.write(notice)
     if profile:
         summary.profile = phases.report()
         (out_dir / "profile.md").write_text(f"# where the time went: {cfg.name} ({device})\n\n" + summary.profile)

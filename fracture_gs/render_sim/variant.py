@@ -124,7 +124,8 @@ def run_variant(
     sim = make_simulator(cfg, gs, variant, ctx.device, topology=topology, provider=provider)
     rows, status, t0 = [], "ok", time.perf_counter()
     bar = progress_bar(cfg.frames, f"{variant:>20s}", position)
-    eta = HeldEta(bar)  # no ETA while gsplat's one-time build holds the frames up, and its wait left out after
+    # no ETA while gsplat's one-time build holds the frames up (render.backend = 'gsplat'), its wait left out after
+    eta = HeldEta(bar, waits=cfg.render.backend == "gsplat")
     recorder = FrameRecorder(ctx.view, variant) if ctx.view is not None else None
     sink = FrameSink(painter.for_variant(), ctx.out_dir / f"{variant}.mp4", cfg.render.fps, frames_store, recorder)
     interrupted = False

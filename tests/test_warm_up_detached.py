@@ -1,0 +1,133 @@
+"""gsplat's one-time build in a process of its own, and the torch rasterizer drawing meanwhile (`render.warm_up`).
+
+On a fresh GPU machine the build takes about a minute and a half, longer than a warm run of the main job. A run
+therefore draws its CUDA frames with the torch rasterizer until gsplat is loaded, and the build runs detached
+(its own session) so that it outlives a short run and is cached for the next. No GPU here: the build is a
+stand-in command, and the backend choice is `splat.auto_backend`, the rule `render` applies for `auto`.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+import subprocess
+import sys
+import textwrap
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+from fracture_gs.errors import RenderError
+from fracture_gs.render import splat, warm_up
+from fracture_gs.render.warm_up import BackgroundCompile, build_gsplat_detached, start_gsplat_compile
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(autouse=True)
+def no_pending(monkeypatch):
+    """Each test starts with no background compile in the process (the registry is per process)."""
+    monkeypatch.setattr(warm_up, "_pending", None)
+
+
+def _until(predicate, seconds: float = 10.0) -> bool:
+    end = time.perf_counter() + seconds
+    while time.perf_counter() < end:
+        if predicate():
+            return True
+        time.sleep(0.02)
+    return False
+
+
+def test_auto_draws_cuda_frames_with_torch_while_gsplat_builds_and_with_gsplat_once_loaded():
+    """With no build running gsplat draws CUDA tensors; while the build runs, and after it failed, the torch
+    rasterizer does (the run never waits under `auto`); the CPU's choice does not depend on the build."""
+    assert splat.auto_backend(on_cuda=True, warp_ok=False) == "gsplat"
+    release = threading.Event()
+    job = start_gsplat_compile("cuda:0", show=False, needs_compile=lambda: True, compile=lambda: release.wait(10))
+    assert splat.auto_backend(on_cuda=True, warp_ok=False) == "torch"
+    assert splat.auto_backend(on_cuda=False, warp_ok=True) == "warp"
+    assert splat.auto_backend(on_cuda=False, warp_ok=False) == "torch"
+    release.set()
+    assert _until(lambda: job.done)
+    assert splat.auto_backend(on_cuda=True, warp_ok=False) == "gsplat"
+    start_gsplat_compile("cuda:0", show=False, needs_compile=lambda: True, compile=lambda: 1 / 0)
+    assert _until(lambda: warm_up._pending.done)
+    assert splat.auto_backend(on_cuda=True, warp_ok=False) == "torch"  # failed: the run goes on without gsplat
+
+
+def test_the_build_runs_in_a_session_of_its_own_and_its_failure_names_the_log(tmp_path):
+    """The build process is not in this process's session (Ctrl-C, sent to the terminal's foreground group, and
+    the run's exit leave it building); a build that exits non-zero is one RenderError at a wait that names its
+    last output line and the log; gsplat's no-toolkit exit is the no-toolkit sentence."""
+    log = tmp_path / "build.log"
+    cmd = [sys.executable, "-c", "import sys, time; time.sleep(0.5); print('nvcc fatal: no GPU arch'); sys.exit(1)"]
+    job = BackgroundCompile(warm_up.GSPLAT_STEP, None)
+    job.compile = lambda: build_gsplat_detached("cuda:0", job, command=cmd, log=log)
+    warm_up._pending = job.start()
+    assert _until(lambda: job.process is not None)
+    assert os.getsid(job.process.pid) != os.getsid(0) and job.log == log
+    with pytest.raises(RenderError) as caught:
+        warm_up.wait_for_gsplat()
+    message = str(caught.value)
+    assert "nvcc fatal: no GPU arch" in message and str(log) in message and "\n" not in message
+    toolkit = BackgroundCompile(warm_up.GSPLAT_STEP, None)
+    exit3 = [sys.executable, "-c", f"raise SystemExit({warm_up.NO_TOOLKIT_EXIT})"]
+    toolkit.compile = lambda: build_gsplat_detached("cuda:0", toolkit, command=exit3, log=log)
+    warm_up._pending = toolkit.start()
+    with pytest.raises(RenderError, match="found no CUDA toolkit"):
+        warm_up.wait_for_gsplat()
+
+
+@pytest.mark.slow
+def test_a_build_that_outlives_the_run_is_announced_and_finishes_after_the_process_exits(tmp_path):
+    """A run that ends while the build goes on prints one line naming the build's pid and log, exits at once,
+    and the build still finishes afterwards (what the next run loads)."""
+    done = tmp_path / "built"
+    build = f"import pathlib, time; time.sleep(3.0); pathlib.Path({str(done)!r}).write_text('ok')"
+    script = textwrap.dedent(
+        f"""
+        import sys, time
+        from pathlib import Path
+        from fracture_gs.render import warm_up as W
+        job = W.BackgroundCompile(W.GSPLAT_STEP, None)
+        cmd = [sys.executable, "-c", {build!r}]
+        job.compile = lambda: W.build_gsplat_detached("cuda:0", job, command=cmd, log=Path({str(tmp_path / "log")!r}))
+        W._pending = job.start()
+        while job.process is None:
+            time.sleep(0.01)
+        print(W.detached_notice())
+        """
+    )
+    out = subprocess.run([sys.executable, "-c", script], cwd=ROOT, capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stderr
+    line = out.stdout.strip()
+    assert line.startswith(f"{warm_up.GSPLAT_STEP}: still building in the background (pid ")
+    assert "torch rasterizer" in line and str(tmp_path / "log") in line
+    assert not done.exists()  # the run ended without waiting for the build (3 s)
+    assert _until(done.exists, 20.0), "the detached build died with the process that started it"
+
+
+def test_no_notice_once_the_build_is_done_or_when_none_ran(tmp_path):
+    """Nothing to say at the run's end when no build ran or it finished within the run."""
+    assert warm_up.detached_notice() is None
+    job = BackgroundCompile(warm_up.GSPLAT_STEP, None)
+    job.compile = lambda: build_gsplat_detached(
+        "cuda:0", job, command=[sys.executable, "-c", "pass"], log=tmp_path / "l"
+    )
+    warm_up._pending = job.start()
+    job.wait()
+    assert warm_up.detached_notice() is None and warm_up.gsplat_ready()
+
+
+def test_the_step_says_what_the_frames_do_meanwhile():
+    """Under `auto` the compile's line says the frames are drawn with the torch rasterizer meanwhile; a run that
+    asked for gsplat is told its first render waits."""
+    for waits, expected in ((False, "frames are drawn with the torch rasterizer"), (True, "first render waits")):
+        warm_up._pending = None
+        text = io.StringIO()
+        start_gsplat_compile("cuda:0", file=text, needs_compile=lambda: True, compile=lambda: None, waits=waits)
+        assert expected in text.getvalue().splitlines()[0], text.getvalue()
+        warm_up._pending.wait()
