@@ -131,3 +131,37 @@ def test_the_step_says_what_the_frames_do_meanwhile():
         start_gsplat_compile("cuda:0", file=text, needs_compile=lambda: True, compile=lambda: None, waits=waits)
         assert expected in text.getvalue().splitlines()[0], text.getvalue()
         warm_up._pending.wait()
+
+
+def test_the_runs_end_waits_for_a_load_in_progress_and_leaves_a_running_build_alone(tmp_path):
+    """A finished build being loaded into the run holds torch's build lock for a moment, so the run's end
+    (`settle`, also at exit) waits for that load; a build still running is left to its process, and the run does
+    not start loading it afterwards (an exit in the middle of a load would leave the lock file behind)."""
+    release, loaded = threading.Event(), []
+    job = BackgroundCompile(warm_up.GSPLAT_STEP, None)
+
+    def load():
+        job.process, job.loading = subprocess.Popen([sys.executable, "-c", "pass"]), True
+        job.process.wait()
+        release.wait(10)
+        loaded.append(True)
+
+    job.compile = load
+    warm_up._pending = job.start()
+    assert _until(lambda: job.loading)
+    settled = threading.Thread(target=warm_up.settle)
+    settled.start()
+    time.sleep(0.3)
+    assert settled.is_alive() and not loaded  # the end waits for the load
+    release.set()
+    settled.join(5)
+    assert loaded == [True] and not settled.is_alive()
+
+    running = BackgroundCompile(warm_up.GSPLAT_STEP, None)
+    cmd = [sys.executable, "-c", "import time; time.sleep(0.5)"]
+    running.compile = lambda: build_gsplat_detached("cuda:0", running, command=cmd, log=tmp_path / "l")
+    warm_up._pending = running.start()
+    assert _until(lambda: running.process is not None)
+    assert warm_up.settle() is running and running.detached
+    assert _until(lambda: running.done)
+    assert not running.loading and "the next run loads it" in str(running.error)

@@ -20,6 +20,7 @@ the frames still to come.
 
 from __future__ import annotations
 
+import atexit
 import contextlib
 import os
 import subprocess
@@ -104,7 +105,9 @@ class BackgroundCompile:
         self.process: Optional[subprocess.Popen] = None  # the detached build, once started (`build_gsplat_detached`)
         self.log: Optional[Path] = None  # its output
         self.error: Optional[BaseException] = None
-        self.detached = False  # the run ended while the build went on (`detached_notice`): its line goes
+        self.detached = False  # the run ended while the build went on (`settle`): the build is left to the next run
+        self.loading = False  # the finished build is being loaded into this process (torch's build lock held)
+        self._handoff = threading.Lock()  # between the watcher starting a load and the run's end leaving it
         self.seconds: Optional[float] = None  # the compile's duration, once done
         self._done = threading.Event()
         self._thread = threading.Thread(target=self._run, name="fgs-compile", daemon=True)
@@ -131,7 +134,7 @@ class BackgroundCompile:
                 self.step.close(None, None)
                 return
             self.step.tick()
-        self.step.close(self.seconds, self.error)
+        self.step.close(None if self.detached else self.seconds, self.error)  # a build left to the next run: no word
 
     @property
     def done(self) -> bool:
@@ -191,6 +194,7 @@ def start_gsplat_compile(
         job = BackgroundCompile(GSPLAT_STEP, compile, cancel=cancel, step=step)
         if compile is None:
             job.compile = lambda: build_gsplat_detached(device, job)
+            atexit.register(settle)  # any exit, not only a run's end: never cut a load short
         _pending = job.start()
         return _pending
 
@@ -292,6 +296,11 @@ def build_gsplat_detached(
     if code != 0:
         tail = [line.strip() for line in log.read_text(errors="replace").splitlines() if line.strip()]
         raise RuntimeError(f"the build exited with status {code}: {tail[-1] if tail else 'no output'} (log: {log})")
+    if job is not None:
+        with job._handoff:
+            if job.detached:  # the run is ending: a load cut short by the exit could leave torch's lock file behind
+                raise RuntimeError("the run ended before the finished build was loaded; the next run loads it")
+            job.loading = True
     if command is None:
         compile_gsplat(device, spinner=False)
 
@@ -303,12 +312,28 @@ def gsplat_ready() -> bool:
     return job is None or (job.done and job.error is None)
 
 
-def detached_notice() -> Optional[str]:
-    """At a run's end, the sentence to print when its gsplat build still runs in its own process, else None."""
+def settle(timeout: float = 60.0) -> Optional[BackgroundCompile]:
+    """At a run's end (and at exit): a build being loaded into this process is waited for (the load holds torch's
+    build lock for a moment, and a lock file left by an exit would stall every later run); a build still running
+    is left to its own process, and this process will not load it. Returns the job left running, else None."""
     job = _pending
-    if job is None or job.done or job.process is None or job.process.poll() is not None:
+    if job is None or job.done or job.process is None:
         return None
-    job.detached = True
+    with job._handoff:
+        if not job.loading:
+            job.detached = True
+    if job.loading:
+        job._done.wait(timeout)
+        return None
+    return job if job.process.poll() is None else None
+
+
+def detached_notice() -> Optional[str]:
+    """At a run's end, the sentence to print when its gsplat build still runs in its own process, else None
+    (`settle` first)."""
+    job = settle()
+    if job is None:
+        return None
     return (
         f"{GSPLAT_STEP}: still building in the background (pid {job.process.pid}, log {job.log}); this run drew "
         "with the torch rasterizer, and the next run draws with gsplat once the build is done"
