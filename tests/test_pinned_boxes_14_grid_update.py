@@ -21,9 +21,10 @@ import fracture_gs.sim.boxes.fragment_boxes as fb
 from fracture_gs.config import PlaneBoundary
 from fracture_gs.runtime import ensure_warp
 from fracture_gs.sim.boxes.fragment_boxes import FragmentBoxes
-from fracture_gs.sim.boxes.kernels import GRID_UPDATES, MAX_FIELDS
+from fracture_gs.sim.boxes.kernels import GRID_UPDATES, GRID_UPDATES_LATCHED, MAX_FIELDS, grid_update_kernel
 from fracture_gs.sim.clock import FrameClock
 from fracture_gs.sim.physics.boundary import Boundaries
+from fracture_gs.sim.physics.contact import NORMAL_LATCHED, NORMAL_MASS_GRADIENT
 from fracture_gs.sim.storage import COUNT_SLOT_OVERFLOW, N_COUNTS
 
 n, DX, DT, EPS_M = 16, 1.0 / 16, 2e-3, 1e-6
@@ -35,8 +36,10 @@ SENTINEL = 7.0
 def _boxes(K, seed):
     """Boxes fitted tight (slack 0) to a jittered lattice in the middle of a 16³ grid: K = 3, three slabs along x
     (the middle one 1.5 cells thick, so all three boxes overlap); K = 6, fragments assigned at random (every box
-    spans the block). Each buffer index of the boxes then gets m = 0 (a fifth), m = ε_m / 2 (a tenth) or
-    m ∈ [0.5, 1.5]·10⁻³ kg, and a random momentum; buffer index 1 gets mass; velocities start at a sentinel."""
+    spans the block). Each buffer index of the boxes then gets m = 0 (a fifth), m = ε_m / 2 (a tenth), m = ε_m
+    exactly (a tenth: inactive, the threshold is strict) or m ∈ [0.5, 1.5]·10⁻³ kg, and a random momentum; buffer
+    index 1 gets mass and index 0 (box 0's lowest node, inside every other box when K = 6) a mass below ε_m;
+    velocities start at a sentinel."""
     ensure_warp()
     g = torch.Generator().manual_seed(seed)
     ax = torch.arange(0.3, 0.7, 0.5 * DX, dtype=torch.float64)
@@ -54,8 +57,10 @@ def _boxes(K, seed):
     assert (starts[1:] - starts[:-1]).tolist() == [K - 1] * K, "every box overlaps every other"
     N = boxes.nodes
     u = torch.rand(N, generator=g)
-    m = torch.where(u < 0.2, 0.0, torch.where(u < 0.3, 0.5 * EPS_M, 1e-3 * (0.5 + torch.rand(N, generator=g))))
+    live = 1e-3 * (0.5 + torch.rand(N, generator=g))
+    m = torch.where(u < 0.2, 0.0, torch.where(u < 0.3, 0.5 * EPS_M, torch.where(u < 0.4, EPS_M, live)))
     m[1] = 1e-3
+    m[0] = 0.5 * EPS_M
     boxes.mp[:N, 3] = m
     boxes.mp[:N, :3] = 1e-3 * torch.randn(N, 3, generator=g)
     boxes.vel.fill_(SENTINEL)
@@ -80,9 +85,10 @@ def _expected(boxes, K, slots, point, normal):
     N = boxes.nodes
     mp = boxes.mp[:N].double()
     m = mp[:, 3]
+    eps = float(torch.tensor(EPS_M, dtype=torch.float32))  # ε_m as the kernel reads it (float32)
     want = torch.full((N, 3), SENTINEL, dtype=torch.float64)
-    want[(m > 0) & (m <= EPS_M)] = 0.0
-    live = m > EPS_M
+    want[(m > 0) & (m <= eps)] = 0.0
+    live = m > eps
     v = mp[:, :3] / m.clamp_min(1e-30)[:, None] + DT * torch.tensor(GRAVITY, dtype=torch.float64)
     nodes = torch.empty(N, 3, dtype=torch.long)
     fields = torch.zeros(n, n, n, dtype=torch.long)
@@ -148,9 +154,31 @@ def test_six_overlapping_boxes_under_index_checks(monkeypatch):
     boxes = _boxes(6, 141)
     slots = 4
     assert slots < MAX_FIELDS
+    lo0 = boxes.lo[0].long()
+    inside = (boxes.lo[1:6].long() <= lo0).all(1) & (lo0 < boxes.lo[1:6].long() + boxes.dims[1:6].long()).all(1)
+    assert bool(inside.all()), "box 0's buffer index 0 is a node of every other box"
     want, fields, _, _, overflow, counts = _update(boxes, 6, slots)
+    assert int(fields[tuple(lo0.tolist())]) >= 2, "other fields are active where box 0's inactive index 0 lies"
     assert int((fields >= 5).sum()) > 5, "nodes of five or six fields"
     got = boxes.vel[: boxes.nodes].double()
     err = (got - want).abs().max(1).values / want.abs().max(1).values.clamp_min(1.0)
     assert float(err.max()) < 1e-5
     assert int(counts[COUNT_SLOT_OVERFLOW]) == overflow > 0
+
+
+def test_a_launch_takes_the_exact_build_unless_fast_math_is_asked_for():
+    """`grid_update_kernel` picks the build a launch runs: without fast math (the CPU) the exact build of the
+    module, whatever the normals' mode, so CPU results stay bitwise the slot storage's; with fast math the
+    latched-normal build for the plane cut (mode compiled in) and the mode-reading fast build for mass-gradient
+    normals; the statistics compiled in exactly when asked for (`record`)."""
+    for record in (True, False):
+        for mode in (NORMAL_LATCHED, NORMAL_MASS_GRADIENT):
+            exact = grid_update_kernel(record, False, mode)
+            assert exact is GRID_UPDATES[record, False]
+            assert not exact.module.options.get("fast_math", False)
+        assert grid_update_kernel(record, True, NORMAL_LATCHED) is GRID_UPDATES_LATCHED[record]
+        assert grid_update_kernel(record, True, NORMAL_MASS_GRADIENT) is GRID_UPDATES[record, True]
+        for fast in (GRID_UPDATES_LATCHED[record], GRID_UPDATES[record, True]):
+            assert fast.module.options["fast_math"]
+        for kernel in (GRID_UPDATES[record, False], GRID_UPDATES[record, True], GRID_UPDATES_LATCHED[record]):
+            assert ("_quiet" in kernel.key) == (not record), "a quiet build is named so in profiles"
