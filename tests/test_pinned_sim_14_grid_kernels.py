@@ -9,6 +9,8 @@
   the pool (a valid row), so a band particle's band mass equals its mass deposit node by node;
 - a full pool counts one pool overflow per failed deposit (27 for one band particle), and the deposits still
   land in slot 0 (mass conserved);
+- a fragment that finds every slot of a node's row taken deposits into slot 0 (merged, mass kept) and counts one
+  slot overflow per such deposit; the owner of slot 0 itself, band particle or not, never counts one;
 - the paper's contact gate needs both fields' band mass strictly above ε_band: a field at exactly ε_band, in
   either slot, is not in contact.
 
@@ -25,7 +27,7 @@ from fracture_gs.sim.grid.kernels import clear_dense, clear_pool, grid_update_po
 from fracture_gs.sim.grid.layout import EMPTY_KEY
 from fracture_gs.sim.physics.boundary import Boundaries
 from fracture_gs.sim.physics.contact import NORMAL_LATCHED
-from fracture_gs.sim.storage import COUNT_ESCAPED, COUNT_POOL_OVERFLOW, N_COUNTS
+from fracture_gs.sim.storage import COUNT_ESCAPED, COUNT_POOL_OVERFLOW, COUNT_SLOT_OVERFLOW, N_COUNTS
 
 ensure_warp()
 DT = 1e-3
@@ -137,6 +139,23 @@ def test_a_full_pool_counts_one_overflow_per_failed_deposit_and_keeps_the_mass()
     counts = _p2g(g, torch.tensor([[0.3, 0.3, 0.3]]), [0], [1], 1, (0, 0, 0), (8, 8, 8))
     assert int(counts[COUNT_POOL_OVERFLOW]) == 27
     assert abs(float(g._mp[: g.n_nodes, 3].double().sum()) - 1.0) < 1e-6
+
+
+def test_a_third_fragment_on_two_slots_merges_into_slot_0_and_counts_each_deposit():
+    """Three particles of 1 kg at one point of an 8³ grid with 2 slots, fragments 0, 1, 2 in launch order (the CPU
+    runs threads in order): fragment 0 claims slot 0 at its 27 nodes, fragment 1 the pool slot, fragment 2 finds
+    none — 27 slot overflows, its mass in slot 0 (field 0 holds 2 kg, field 1 1 kg, field 2 nothing). A band
+    particle of fragment 0 then deposits into its own slot 0: no overflow, 3 kg in field 0."""
+    g = Grid((0.0, 0.0, 0.0), 1 / 8, (8, 8, 8), "cpu", slots=2)
+    g.ensure_pool(64)
+    g.n_fields = 3
+    x = torch.tensor([[0.3, 0.3, 0.3]] * 3)
+    counts = _p2g(g, x, [0, 1, 2], [0, 0, 0], 1, (0, 0, 0), (8, 8, 8))
+    assert counts.tolist()[COUNT_SLOT_OVERFLOW] == 27 and int(counts.abs().sum()) == 27
+    assert [round(float(f), 5) for f in g.mass.double().sum((1, 2, 3))] == [2.0, 1.0, 0.0]
+    counts = _p2g(g, x[:1], [0], [1], 1, (0, 0, 0), (8, 8, 8))
+    assert int(counts.abs().sum()) == 0
+    assert [round(float(f), 5) for f in g.mass.double().sum((1, 2, 3))] == [3.0, 1.0, 0.0]
 
 
 def test_the_band_gate_needs_both_fields_strictly_above_eps_band():
