@@ -7,7 +7,8 @@ slot by its claim, never by what happens to lie in it:
   and the shared support, but in no per-fragment array of length K (no out-of-range index);
 - slot 0 of a node without a claim (what a solo particle leaves: it deposits without claiming) counts in the
   total and makes its node active, but belongs to no fragment, is never "shared", and its band belongs to no
-  field.
+  field;
+- a node whose slot 0 is empty but whose pool slot holds an active field is active (counted once), not shared.
 
 A 5³ grid, 3 slots, two fields written by hand (`simutil.fill_slots`) plus three special nodes; every number
 below is a hand sum. The torch twins (`mass`, `band_mass`, `fragment_mass`, `mixing`) and the launches
@@ -22,7 +23,7 @@ from fracture_gs.sim.grid.layout import EMPTY_KEY, ROW_FLAG
 
 S = 5
 EPS = 1e-6
-A, B, C, D = 100, 106, 112, 118  # flat indices of (4, 0, 0), (4, 1, 1), (4, 2, 2), (4, 3, 3)
+A, B, C, D, E = 100, 106, 112, 118, 124  # flat indices of (4, 0, 0), (4, 1, 1), (4, 2, 2), (4, 3, 3), (4, 4, 4)
 
 
 def _row(g, n):
@@ -35,12 +36,14 @@ def _grid():
     A: pool slot 2 unowned, holding stale (p, m) = (3, 3, 3, 5) and band 7;
     B: pool slot 2 claimed by fragment 2 (= K), m = 4, v = (0, 0, 1), band 6;
     C: no claim and no row (a solo particle's deposit): slot 0 m = 1 as everywhere;
-    D: a row, but slot 0 unclaimed, with band 9 in slot 0."""
+    D: a row, but slot 0 unclaimed, with band 9 in slot 0;
+    E: slot 0 (fragment 0's) empty, field 1 holding m = 2 there."""
     g = Grid((0.0, 0.0, 0.0), 1.0 / S, (S, S, S), "cpu", slots=3)
     g.ensure_pool(S**3)
     m = torch.zeros(2, S, S, S, dtype=torch.float64)
     m[0] = 1.0
     m[1, 0] = 2.0
+    m[0, 4, 4, 4], m[1, 4, 4, 4] = 0.0, 2.0
     vel = torch.tensor([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], dtype=torch.float64)
     fill_slots(g, m, vel[:, None, None, None, :].expand(2, S, S, S, 3))
     n, s1 = g.n_nodes, g.slots - 1
@@ -63,16 +66,16 @@ def _grid():
     return g
 
 
-TOTAL = 125 * 1.0 + 25 * 2.0 + 4.0  # slot 0 everywhere, field 1, B's fragment-2 field; not A's stale 5
+TOTAL = 124 * 1.0 + 26 * 2.0 + 4.0  # slot 0 but at E, field 1, B's fragment-2 field; not A's stale 5
 MIXING = 25 * (1.0 * 2.0 / 3.0) * 2.0 + (1.0 * 4.0 / 5.0) * 2.0  # m₀m₁/(m₀+m₁)‖v₀ − v₁‖² at i = 0 and at B
-SHARED = 100.0 * 26 / 125  # i = 0 and B hold two active fields; every node holds at least one
+SHARED = 100.0 * 26 / 125  # i = 0 and B hold two active fields; every node holds at least one (E: field 1)
 
 
 def test_the_launches_count_slots_by_their_claims():
-    """field_sums: fragment masses (123 for fragment 0: C and D unclaimed; 50 for fragment 1; B's fragment 2
-    left out), mixing over the total 179 (A's stale mass nowhere), shared support 26 of 125 nodes."""
+    """field_sums: fragment masses (122 for fragment 0: C and D unclaimed, E empty; 52 for fragment 1; B's
+    fragment 2 left out), mixing over the total 180 (A's stale mass nowhere), shared support 26 of 125 nodes."""
     cf, shared, mass = _grid().field_sums(EPS, 2)
-    assert mass.tolist() == pytest.approx([123.0, 50.0], rel=1e-12)
+    assert mass.tolist() == pytest.approx([122.0, 52.0], rel=1e-12)
     assert float(shared) == pytest.approx(SHARED, rel=1e-12)
     assert float(cf) == pytest.approx(MIXING / TOTAL, rel=1e-6)
 
@@ -80,20 +83,21 @@ def test_the_launches_count_slots_by_their_claims():
 def test_the_torch_twins_count_slots_by_their_claims():
     """fragment_mass and mixing give the launches' hand values on the same slots."""
     g = _grid()
-    assert g.fragment_mass(2).tolist() == pytest.approx([123.0, 50.0], rel=1e-12)
+    assert g.fragment_mass(2).tolist() == pytest.approx([122.0, 52.0], rel=1e-12)
     cf, shared = g.mixing(EPS)
     assert float(shared) == pytest.approx(SHARED, rel=1e-12)
     assert float(cf) == pytest.approx(MIXING / TOTAL, rel=1e-6)
 
 
 def test_logical_fields_hold_claimed_slots_of_fragments_below_k_only():
-    """mass and band_mass [K = 2, X, Y, Z]: field 0 is 1 at every node but C and D (no claim: 0), field 1 is 2 at
-    i = 0 and 0 elsewhere; A's stale slot, B's fragment 2 and D's unclaimed band 9 appear nowhere. velocity:
-    field 0 moves at (1, 0, 0) wherever it is."""
+    """mass and band_mass [K = 2, X, Y, Z]: field 0 is 1 at every node but C and D (no claim: 0) and E (empty),
+    field 1 is 2 at i = 0 and E and 0 elsewhere; A's stale slot, B's fragment 2 and D's unclaimed band 9 appear
+    nowhere. momentum: field 0 carries (1, 0, 0) per kg wherever it is."""
     g = _grid()
     want = torch.zeros(2, S, S, S, dtype=torch.float64)
     want[0] = 1.0
     want[1, 0] = 2.0
+    want[0, 4, 4, 4], want[1, 4, 4, 4] = 0.0, 2.0
     for n in (C, D):
         want[0].view(-1)[n] = 0.0
     assert torch.equal(g.mass.double(), want)
