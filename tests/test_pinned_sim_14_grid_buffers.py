@@ -84,3 +84,18 @@ def test_reset_clear_and_zero_forget_exactly_what_they_promise():
     g = _filled()
     g.zero()
     assert not bool(g._mp.any()) and not bool(g._vel.any()) and int(g.rows_used()) == 0
+
+
+def test_contact_statistics_start_at_never_with_pair_rows_for_the_first_128_ids():
+    """A new grid's totals are 0 but the first-contact time, which reads 'never' (1e30); one row of pair statistics
+    per ordered pair of the first min(max_fragments, 128) ids, each 'never' in its time column and 0 elsewhere."""
+    from fracture_gs.sim.physics.contact import N_PAIR_STATS, N_STATS, NEVER, PAIR_FIRST_T, STAT_FIRST_T
+
+    never = float(torch.tensor(NEVER))
+    for max_fragments, rows in ((5, 5), (128, 128), (4096, 128)):
+        g = Grid((0.0, 0.0, 0.0), 0.2, (5, 5, 5), "cpu", slots=2, max_fragments=max_fragments)
+        assert g.pair_fragments == rows and g.pair_stats.numel() == rows * rows * N_PAIR_STATS
+        assert g.contact_stats.tolist() == [0.0] * STAT_FIRST_T + [never] + [0.0] * (N_STATS - STAT_FIRST_T - 1)
+        pairs = g.pair_stats.view(-1, N_PAIR_STATS)
+        assert bool((pairs[:, PAIR_FIRST_T] == never).all())
+        assert not bool(pairs[:, PAIR_FIRST_T + 1 :].any())
