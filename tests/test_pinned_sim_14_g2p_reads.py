@@ -3,8 +3,9 @@
 - a particle of the fragment holding slot 0 at its whole stencil reads slot 0 (the unrolled dense gather);
 - a particle of a fragment held in a pool slot reads that slot at every node, and an affine field a + B x comes
   back exactly (APIC): v_p = a + B x_p, C_p = B, F ← (I + Δt B) F, x ← x + Δt v_p;
-- a fragment with no slot at a node (its deposits merged into slot 0), a node without a pool row, a solo particle,
-  and every particle of a single-field transfer read slot 0;
+- a fragment with no slot at a node (its deposits merged into slot 0), a node without a pool row (also within a
+  stencil whose other nodes have rows: node by node), a solo particle, and every particle of a single-field
+  transfer read slot 0;
 - the per-fragment pass (`only_fragment`) moves that fragment's particles only.
 
 An 8³ grid (Δx = 1/8), three slots: field 0 (slot 0) moves at (1, 0, 0), field 1 (pool slot 1) at
@@ -29,7 +30,7 @@ SLOT0 = torch.tensor([1.0, 0.0, 0.0], dtype=torch.float64)
 # (position, fragment, solo): fragment 0, fragment 1, fragment 2 (no slot), fragment 1 where nodes have no row,
 # fragment 1 solo
 PARTICLES = [((0.3, 0.3, 0.3), 0, 0), ((0.3, 0.3, 0.3), 1, 0), ((0.3, 0.3, 0.3), 2, 0), ((0.8, 0.4, 0.4), 1, 0)]
-PARTICLES += [((0.3, 0.3, 0.3), 1, 1)]
+PARTICLES += [((0.3, 0.3, 0.3), 1, 1), ((0.5, 0.3, 0.3), 1, 0)]  # and fragment 1 across the row border
 
 
 def _grid():
@@ -89,6 +90,30 @@ def test_each_particle_reads_its_own_field_where_the_storage_keeps_it():
         _check(p, x, v, C, F, SLOT0, zero)
     xp = torch.tensor(PARTICLES[1][0], dtype=torch.float32).double()
     _check(1, x, v, C, F, A + B @ xp, B)
+
+
+def _spline(f):
+    """Quadratic B-spline weights of the three nodes base, base + 1, base + 2 at f = x/Δx − base."""
+    return [0.5 * (1.5 - f) ** 2, 0.75 - (f - 1.0) ** 2, 0.5 * (f - 0.5) ** 2]
+
+
+def test_a_stencil_across_the_row_border_reads_each_node_where_its_field_is():
+    """Fragment 1 at (0.5, 0.3, 0.3): stencil nodes i = 3, 4 have rows (its pool slot: the affine field) and i = 5
+    has none (slot 0: (1, 0, 0)), so v = Σ w_i v_i with v_i taken node by node (x weights 1/8, 3/4, 1/8)."""
+    x, v, _, _ = _g2p()
+    xp = torch.tensor(PARTICLES[5][0], dtype=torch.float64)
+    base = torch.floor(xp / DX - 0.5)
+    w = [_spline(float(xp[a] / DX - base[a])) for a in range(3)]
+    want = torch.zeros(3, dtype=torch.float64)
+    for i in range(3):
+        for j in range(3):
+            for k in range(3):
+                node = base + torch.tensor([i, j, k], dtype=torch.float64)
+                vi = SLOT0 if node[0] >= 5 else A + B @ (node * DX)
+                want += w[0][i] * w[1][j] * w[2][k] * vi
+    assert abs(float(want[0]) - float((A + B @ xp)[0])) > 0.05, "the two fields differ here"
+    torch.testing.assert_close(v[5], want, rtol=0, atol=2e-6)
+    torch.testing.assert_close(x[5], xp + DT * want, rtol=0, atol=1e-7)
 
 
 def test_a_single_field_transfer_reads_slot_0_for_everyone():
