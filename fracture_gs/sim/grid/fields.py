@@ -222,11 +222,11 @@ class Grid:
         if not self.multi:
             return zero, zero
         p = self._mp[:, :3].double()
-        total = m.sum()
         frag, index, used = self._pool_all()
         nodes = self.key.long().clamp_min(0)
-        on_pool = used[:, None] & (frag >= 0)
+        on_pool = used[:, None] & (frag >= 0)  # a claimed slot of a used row: an unclaimed one holds no field
         mm = torch.cat([torch.where(used, m[nodes], 0.0)[:, None], torch.where(on_pool, m[index], 0.0)], 1)  # [C, S]
+        total = m[: self.n_nodes].sum() + mm[:, 1:].sum()  # slot 0 and the claimed pool slots, as `pool_sums`
         pp = torch.cat(
             [torch.where(used[:, None], p[nodes], 0.0)[:, None], torch.where(on_pool[..., None], p[index], 0.0)], 1
         )  # [C, S, 3]

@@ -64,7 +64,7 @@ def mean_direction(d: torch.Tensor) -> tuple[torch.Tensor, float]:
     dominant = axes[:, -1]  # [3]
     sign = torch.where(d @ dominant >= 0, 1.0, -1.0).to(d.dtype)  # [M]
     mean = (d * sign[:, None]).sum(0)
-    mean = mean / mean.norm().clamp_min(1e-300)
+    mean = mean / mean.norm().clamp_min(torch.finfo(mean.dtype).tiny)  # 1e-300 would round to 0 in float32
     return mean, float((d @ mean).abs().mean())
 
 
