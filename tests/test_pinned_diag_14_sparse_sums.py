@@ -24,9 +24,9 @@ def _three_pressed(seed: int = 14):
 
 
 def test_sparse_sums_give_the_dense_depths_and_pieces(monkeypatch):
-    """Pressed blocks 0 | 1 | 2 (kernel radius 2.5 spacings, each piece's density one particle per spacing³): with the sums forced sparse every particle reads the same depth and the same piece
-    as with dense sums; block 1 lies behind both
-    neighbours, its ends behind different pieces."""
+    """Pressed blocks 0 | 1 | 2 (kernel radius 2.5 spacings, each piece's density one particle per spacing³):
+    with the sums forced sparse every particle reads the same depth and the same piece as with dense sums; block 1
+    lies behind both neighbours, its ends behind different pieces."""
     x, frag = _three_pressed()
     cal = {"radius": 0.05, "filled": torch.full((3,), 0.02**-3, dtype=torch.float64), "spacing": 0.05 / pen.SPACINGS}
     dense = pen.surface_depth(x, frag, cal, twin=True)
