@@ -71,3 +71,16 @@ def test_a_crossing_particle_whose_voxel_sits_in_the_first_table_slot_counts():
     assert int(vo.voxel_of[-1]) == 0, "the scene must put the intruder's voxel in slot 0 (hash changed?)"
     assert out.tolist() == [1.0, 1.0, 0.0, 0.0, 1.0, 0.0]
     assert fragment_overlap(x, fragment.long(), 1.0) == {"crossing": 1, "depth": 1.0, "pairs": {(1, 0): 1.0}}
+
+
+def test_erosion_stops_after_max_depth_steps():
+    """The depth is capped at max_depth·h: the intruder two layers deep reads h with max_depth = 1, 2h with 2 or
+    more, and no crossing at all with 0 (no erosion step: no voxel counts as interior) — in the twin and in Warp."""
+    x, fragment = _scene(intruders=1)
+    vo = VoxelOverlap(len(x), "cpu")
+    for steps, depth in ((0, 0.0), (1, 1.0), (2, 2.0), (5, 2.0)):
+        pairs = {(1, 0): depth} if depth else {}
+        want = {"crossing": int(depth > 0), "depth": depth, "pairs": pairs}
+        assert fragment_overlap(x, fragment, 1.0, max_depth=steps) == want, steps
+        packed = vo.packed(x.float(), fragment.int(), 1.0, 2, max_depth=steps).tolist()
+        assert packed == [float(depth > 0), depth, 0.0, 0.0, depth, 0.0], steps
