@@ -10,7 +10,7 @@ block in any direction) and for any number of fragments."""
 import torch
 
 from fracture_gs.sim.diagnostics.overlap_kernels import VoxelOverlap
-from fracture_gs.sim.diagnostics.penetration import fragment_overlap
+from fracture_gs.sim.diagnostics.penetration import fragment_overlap, overlap_packed
 
 NX, NY, NZ = 5, 11, 6  # voxels of the block: longer along y than along x
 
@@ -84,3 +84,15 @@ def test_erosion_stops_after_max_depth_steps():
         assert fragment_overlap(x, fragment, 1.0, max_depth=steps) == want, steps
         packed = vo.packed(x.float(), fragment.int(), 1.0, 2, max_depth=steps).tolist()
         assert packed == [float(depth > 0), depth, 0.0, 0.0, depth, 0.0], steps
+
+
+def test_a_non_finite_or_far_particle_changes_nothing_and_both_forms_agree():
+    """A particle of fragment 1 at NaN, +∞ or 10³⁰ along x is binned into an edge voxel of its own: the two
+    intruders still read 2h and h, no crossing is added, and the Warp tables give the twin's numbers bit for bit."""
+    x, fragment = _scene()
+    for bad in (float("nan"), float("inf"), 1e30):
+        xx = torch.cat([x, torch.tensor([[bad, 1.5, 1.5]], dtype=torch.float64)])
+        ff = torch.cat([fragment, torch.tensor([1])])
+        assert fragment_overlap(xx, ff, 1.0) == {"crossing": 2, "depth": 2.0, "pairs": {(1, 0): 2.0, (2, 0): 1.0}}
+        warp = VoxelOverlap(len(xx), "cpu").packed(xx.float(), ff.int(), 1.0, 3)
+        assert torch.equal(warp, overlap_packed(xx.float(), ff.int(), 1.0, 3)), bad
