@@ -165,3 +165,27 @@ def test_the_runs_end_waits_for_a_load_in_progress_and_leaves_a_running_build_al
     assert warm_up.settle() is running and running.detached
     assert _until(lambda: running.done)
     assert not running.loading and "the next run loads it" in str(running.error)
+
+
+def test_a_frame_bar_has_no_eta_until_its_first_frame_is_done_and_leaves_that_frame_out():
+    """The first frame loads (on a fresh machine compiles) the kernels: the bar shows no rate and no ETA until it
+    is done, then tqdm's own, with that frame's seconds left out of its elapsed time and rate; later frames count."""
+    from tqdm import tqdm
+
+    from fracture_gs.render.warm_up import HeldEta
+
+    bar = tqdm(total=10, file=io.StringIO(), mininterval=0)
+    eta = HeldEta(bar, waits=False, first_frame=True)
+    bar.refresh()
+    assert "ETA after the first frame" in str(bar) and "<" not in str(bar)
+    time.sleep(0.6)  # the first frame
+    eta.check()
+    bar.update(1)
+    first = eta.held
+    assert first >= 0.55 and bar.format_dict["elapsed"] < first, (first, bar.format_dict["elapsed"])
+    assert "ETA after" not in str(bar) and "<" in str(bar)
+    time.sleep(0.1)  # the second frame: counted
+    eta.check()
+    bar.update(1)
+    assert eta.held == first
+    bar.close()

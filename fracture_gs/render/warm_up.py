@@ -35,6 +35,8 @@ from ..errors import RenderError
 GSPLAT_STEP = "gsplat CUDA compile (one time)"
 WAITING_FORMAT = "{l_bar}{bar}| {n_fmt}/{total_fmt} [{elapsed}, ETA once gsplat's compile is done{postfix}]"
 """A frame bar's look while a compile may hold its frames up: no rate, no ETA (tqdm's default otherwise)."""
+FIRST_FORMAT = "{l_bar}{bar}| {n_fmt}/{total_fmt} [{elapsed}, ETA after the first frame{postfix}]"
+"""A frame bar's look until its first frame is done (kernel loads, graph captures): no rate, no ETA."""
 
 
 def _one_line(exc: BaseException) -> str:
@@ -213,27 +215,41 @@ def wait_for_gsplat() -> None:
 
 
 class HeldEta:
-    """A variant's frame bar while a background compile may hold its frames up: no ETA until the compile is done
-    (`WAITING_FORMAT`), then tqdm's own again, with the wait left out of the bar's rate and elapsed time
-    (`tqdm.unpause` from the last redraw). `held`: the seconds left out, for the caller's own rates. `waits`
-    False (a run that draws with the torch rasterizer meanwhile): nothing holds the frames, tqdm's own bar."""
+    """A variant's frame bar while something may hold its frames up: no ETA until it is over, then tqdm's own
+    again, with the wait left out of the bar's rate and elapsed time (`tqdm.unpause` from the last redraw).
+    `held`: the seconds left out, for the caller's own rates. What holds the frames:
 
-    def __init__(self, bar, compile: Optional[BackgroundCompile] = None, waits: bool = True):
+    * a background compile they wait for (`WAITING_FORMAT` until it is done); `waits` False (a run that draws with
+      the torch rasterizer meanwhile): no compile holds them;
+    * `first_frame`: the first frame, which loads (on a fresh machine compiles) the Warp modules and records the
+      CUDA graphs: its seconds say nothing about the frames to come (`FIRST_FORMAT` until it is done; a fresh
+      H200's first frame took 11 s and the next 0.1 s each, and tqdm read "16:44" left for a 50 s run)."""
+
+    def __init__(self, bar, compile: Optional[BackgroundCompile] = None, waits: bool = True, first_frame: bool = False):
         self.bar, self.compile = bar, compile if compile is not None else pending_compile() if waits else None
+        self.first = first_frame
         self.held = 0.0
-        if self.compile is not None:
+        if self.compile is not None or self.first:
             self._format = bar.bar_format
-            bar.bar_format = WAITING_FORMAT
+            bar.bar_format = WAITING_FORMAT if self.compile is not None else FIRST_FORMAT
 
     def check(self) -> None:
-        """Before each update: once the compile is done, give the bar its ETA back without the wait."""
-        if self.compile is None or not self.compile.done:
+        """Before each update: once the first frame is done (`first_frame`) and the compile is (if one holds the
+        frames), give the bar its ETA back without the wait."""
+        first, self.first = self.first, False
+        if self.compile is not None and not self.compile.done:
+            if first:
+                self._leave_out()  # the first frame's seconds go; the bar stays without an ETA for the compile
             return
+        if first or self.compile is not None:
+            self._leave_out()
+            self.bar.bar_format = self._format
+            self.compile = None
+
+    def _leave_out(self) -> None:
         before = self.bar.start_t
         self.bar.unpause()
         self.held += self.bar.start_t - before
-        self.bar.bar_format = self._format
-        self.compile = None
 
 
 @contextlib.contextmanager

@@ -125,7 +125,7 @@ def run_variant(
     rows, status, t0 = [], "ok", time.perf_counter()
     bar = progress_bar(cfg.frames, f"{variant:>20s}", position)
     # no ETA while gsplat's one-time build holds the frames up (render.backend = 'gsplat'), its wait left out after
-    eta = HeldEta(bar, waits=cfg.render.backend == "gsplat")
+    eta = HeldEta(bar, waits=cfg.render.backend == "gsplat", first_frame=True)  # and none from the first frame alone
     recorder = FrameRecorder(ctx.view, variant) if ctx.view is not None else None
     sink = FrameSink(painter.for_variant(), ctx.out_dir / f"{variant}.mp4", cfg.render.fps, frames_store, recorder)
     interrupted = False
