@@ -40,8 +40,8 @@ def test_the_default_wave_speed_is_zero_so_the_fastest_particle_alone_sets_the_s
 
 @pytest.mark.parametrize("c, n", [(5.0, 8), (19.0, 20), (1.0, 5)])
 def test_a_given_wave_speed_adds_to_the_particle_speed(c, n):
-    """|v| = 5 m/s plus c: Δt = 0.0125 / (5 + c), n = ⌈0.01 / Δt⌉ — c = 5 → 8, c = 19 → ⌈19.2⌉ = 20 (0.0125/24 = 0.52 ms, 19
-    substeps would be too long), c = 1 → ⌈4.8⌉ = 5."""
+    """|v| = 5 m/s plus c: Δt = 0.0125 / (5 + c), n = ⌈0.01 / Δt⌉ — c = 5 → 8, c = 19 → ⌈19.2⌉ = 20
+    (0.0125/24 = 0.52 ms: 19 substeps would be too long), c = 1 → ⌈4.8⌉ = 5."""
     plan = _sim(wave_speed=c).plan(0, _speed(5.0), T, 1.0)
     assert plan.n == n and plan.dt == pytest.approx(T / n, rel=1e-12)
 
