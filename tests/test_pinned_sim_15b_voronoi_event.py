@@ -76,3 +76,19 @@ def test_a_cell_split_into_pieces_joins_the_parents_once_after_the_unbroken_obje
     want = torch.cat([torch.full((len(b),), i, dtype=torch.int32) for i, b in enumerate((big, mid, small))])
     assert torch.equal(topo.fragment, want)
     assert isinstance(topo, Topology) and topo.n_fragments == 3
+
+
+def test_the_snapshot_carries_the_configs_pair_radius_and_release_with_or_without_splitting():
+    """The Voronoi snapshot's pair radius is `pair_radius`, its released events follow `release` (first → 1,
+    all → every event, none → 0) whether or not components are split, its normal is +x (a shatter has no single
+    plane) and its point the first site."""
+    x = _block(6, 0.5)
+    for split in (False, True):
+        for release, events in (("first", 1), ("all", 1 << 30), ("none", 0)):
+            cfg = TopologyConfig(
+                provider="voronoi", cells=4, seed=5, split_components=split, release=release, pair_radius=2.25
+            )
+            p = VoronoiProvider(cfg)
+            topo = p(_sim(x))
+            assert topo.pair_radius == 2.25 and topo.release_events == events, (split, release)
+            assert topo.normal == (1.0, 0.0, 0.0) and topo.point == tuple(p.sites[0].tolist())
