@@ -60,7 +60,8 @@ class DiffSimulator:
 
     `x0` [N, 3] fixes the grid (as the plain Simulator would fit it); `material` is a model name or
     [N] ids; `topologies` is a list of Topology snapshots (e.g. from a plain run) replayed at their
-    latch frames."""
+    latch frames. `wave_speed` [m/s]: the stiffest material's elastic wave speed √((λ + 2μ)/ρ), added to the
+    fastest particle's speed in the adaptive CFL bound (0, the default: the particles' speed alone)."""
 
     def __init__(
         self,
@@ -124,8 +125,9 @@ class DiffSimulator:
         cfg = self.cfg
         dt = cfg.dt
         if cfg.adaptive_dt:
-            vmax = float(v.detach().norm(dim=1).max())
-            dt = min(dt, cfg.cfl * self.dx / (vmax + self.wave_speed))
+            speed = float(v.detach().norm(dim=1).max()) + self.wave_speed  # [m/s]
+            if speed > 0:  # at rest with no wave speed given nothing bounds Δt but cfg.dt
+                dt = min(dt, cfg.cfl * self.dx / speed)
         n = max(1, math.ceil(frame_dt / dt - 1e-9))
         topo = self.topology_at(frame)
         N = v.shape[0]

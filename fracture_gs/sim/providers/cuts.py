@@ -121,7 +121,7 @@ def finish_event(sim, cfg, base, fragment: torch.Tensor, band: torch.Tensor, eve
         fragment, parents, children = split_components(
             sim.particles.x, fragment, sim.grid.dx, sim.cfg.max_fragments, cfg.min_fragment_particles
         )
-        event.parents = tuple(event.parents) + tuple(p for p in parents if p not in event.parents)
+        event.parents = tuple(dict.fromkeys((*event.parents, *parents)))  # each cut fragment once, in order
         event.children = tuple(event.children) + tuple(children)
     if isinstance(base, Topology):
         out = base.refined(fragment, band, event)
