@@ -105,7 +105,7 @@ def slot0_owned(g: GridView, base: wp.vec3i, k: int):
     """Fragment k already holds slot 0 at every node of the stencil (claimed earlier this frame), so
     P2G's deposits go to the dense slot: 27 independent loads (unrolled), no early exit."""
     owned = int(1)  # noqa: UP018 (a dynamic Warp variable)
-    for i in range(3):
+    for i in range(3):  # the stencil's 3 × 3 × 3 owner words (a test for the fast path only)
         for j in range(3):
             for l in range(3):  # noqa: E741
                 word = g.owner[flat(wp.vec3i(base[0] + i, base[1] + j, base[2] + l), wp.vec3i(0, 0, 0), g.shape)]
