@@ -291,16 +291,18 @@ class Diagnostics:
         """Fragment-conditioned P2G of the current state into the shadow grid (its pool at least the
         solver's), then the mixing and the per-fragment mass residual, all on the device."""
         sim = self.sim
+        keep = sim.can_keep_stress()  # τ into the solver's buffer: its next substep takes it (`Simulator.keep_stress`)
+        stress, stress_wp = (sim.stress, sim.wp["stress"]) if keep else (self.shadow_stress, self.shadow_stress_wp)
         with sim._stream_scope():
-            sim.compute_stress(self.shadow_stress, commit=False)
+            sim.compute_stress(stress, commit=False)
+            if keep:
+                sim.keep_stress()
             self.shadow.n_fields = sim.n_fragments
             # the shadow claims a row at every node two fragments reach (the solver's solo particles
             # claim none), so it sizes its pool from its own last frame, not only from the solver's
             self.shadow.ensure_pool(max(rows, sim.slots.pool_rows, self.shadow_rows, 256))
             self.shadow_counts.zero_()
-            sim.p2g(
-                sim.dt, target=self.shadow, multifield=True, stress=self.shadow_stress_wp, counts=self.shadow_counts_wp
-            )
+            sim.p2g(sim.dt, target=self.shadow, multifield=True, stress=stress_wp, counts=self.shadow_counts_wp)
             # the shadow: its fragment-conditioned P2G claims every slot (the solver's skips the claims at
             # nodes only one fragment reaches), and deposits exactly what the realized transfer does
             K = sim.n_fragments
