@@ -378,12 +378,13 @@ class Diagnostics:
 
     def _surface(self) -> dict:
         """Depth of particles behind another fragment's kernel-smoothed surface (`penetration.surface_penetration`),
-        scaled by the calibration taken at the latch, each particle weighted by its volume change det F;
-        `fragment_crossing` counts those deeper than CROSSING·Δx."""
+        scaled by the calibration taken at the latch, each particle weighted by its volume change det F (computed
+        only in a frame where some particle is near another piece); `fragment_crossing` counts those deeper than
+        CROSSING·Δx."""
         sim = self.sim
         P, dx = sim.particles, sim.grid.dx
         with torch.no_grad():
-            return surface_penetration(P.x, P.fragment, CROSSING * dx, self.surface_calibration, self._volume_ratio())
+            return surface_penetration(P.x, P.fragment, CROSSING * dx, self.surface_calibration, self._volume_ratio)
 
     def _volume_ratio(self) -> torch.Tensor:  # [N] det F: each particle's current over its rest volume
         return torch.linalg.det(self.sim.particles.F.double()).clamp_min(0.0)
