@@ -18,7 +18,10 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from .format import F16_CLIP, QUANT_STEPS, covariance_triu
+from ..runtime import device_constant
+from .format import F16_CLIP, QUANT_STEPS
+
+TRIU = (0, 1, 2, 4, 5, 8)  # xx, xy, xz, yy, yz, zz of a row-major 3×3 (`format.covariance_triu`)
 
 F16_MIN_NORMAL = 2.0**-14
 
@@ -36,7 +39,9 @@ def _half(x: torch.Tensor) -> torch.Tensor:  # float64 [...] -> float16 [...]
     """`half_exact` of x; on the CPU numpy's own float64 → float16 cast (the format's reference, one rounding),
     about ten times cheaper than `half_exact`'s frexp, ldexp and round passes."""
     if x.device.type == "cpu":
-        return torch.from_numpy(x.contiguous().numpy().astype(np.float16))
+        out = torch.empty(x.shape, dtype=torch.float16)
+        np.copyto(out.numpy(), x.numpy(), casting="same_kind")
+        return out
     return half_exact(x)
 
 
@@ -56,7 +61,8 @@ def frame_body(means: torch.Tensor, cov: torch.Tensor, cov_unit: float) -> tuple
     span = torch.where(hi > lo, hi - lo, torch.ones_like(hi))
     q = torch.round((m - lo) / span * QUANT_STEPS).clamp(0, QUANT_STEPS).to(torch.int32)  # [N,3] in 0 … 65535
     q16 = _bytes(q).view(-1, 4)[:, :2]  # [3N, 2]: each value's two low bytes, little-endian
-    c = covariance_triu(cov.detach()).to(torch.float64) / cov_unit  # [N,6]
+    triu = device_constant(TRIU, torch.int64, cov.device)  # `covariance_triu`'s columns, 4x faster than [:, list]
+    c = cov.detach().reshape(-1, 9).index_select(1, triu).to(torch.float64) / cov_unit  # [N,6]
     c = torch.nan_to_num(c, nan=0.0, posinf=0.0, neginf=0.0).clamp(-F16_CLIP, F16_CLIP)
     packed = torch.cat([_bytes(torch.cat([lo, hi]).to(torch.float32)), q16.reshape(-1), _bytes(_half(c))])
     host = packed.cpu().numpy().tobytes()
