@@ -7,8 +7,11 @@ CPU time (`time.thread_time`, unaffected by other processes' load) to: the frame
 per-frame diagnostics snapshot, drawing the frame (`Painter`) and recording it for the viewer. Followers replay
 the leader's topology, as the job does.
 
-    python benchmarks/cpu_phases.py                       # bread, its three variants, 90 frames
-    python benchmarks/cpu_phases.py --variants full --frames 40
+    PYTHONPATH=. python benchmarks/cpu_phases.py          # bread, its three variants, 90 frames
+    PYTHONPATH=. python benchmarks/cpu_phases.py --variants full --frames 40
+
+(`PYTHONPATH=.`: a script's folder, not the working directory, starts Python's path, so without it a checkout
+other than the installed one would time the installed package.)
 """
 
 from __future__ import annotations
