@@ -18,8 +18,8 @@ polled by the followers), so every variant uses the one topology the leader foun
 the sequential run, where the others replay the leader's saved history. Variants beyond the number of
 devices queue on them in order. Each worker writes its variant's video and metrics; its frames come
 back to the parent (for comparison.mp4) as one .npy per variant, or, on one CPU, one file per frame as it is
-drawn (`frame_files`), so the parent composes the comparison from the leader's first latch on while the workers
-run, as the threads schedule does. Ctrl-C or an error in one worker stops the others at their next frame; an
+drawn (`frame_files`), so the parent, once its own variants are done, composes the comparison while the workers
+finish. Ctrl-C or an error in one worker stops the others at their next frame; an
 error is raised here with the worker's traceback.
 """
 
@@ -196,10 +196,12 @@ def run_on_devices(
     local: queue.Queue = queue.Queue()
     stores = {v: [] for v in queues[0]}  # this process's variants draw into these
     readers = {v: FrameFiles(frame_dir / v) for v in order if v not in stores} if frame_dir is not None else {}
-    live = _LiveComparison(ctx, channel_dir, [stores.get(v, readers.get(v)) for v in ctx.variants]) if readers else None
+    live = None
     interrupted = False
     try:
         _worker(0, replace(ctx, device=devices[0]), queues[0], order[0], channel_dir, stop, local, setup, stores=stores)
+        if readers:  # this process led; while the workers finish, compose what they have drawn
+            live = _LiveComparison(ctx, channel_dir, [stores.get(v, readers.get(v)) for v in ctx.variants])
     except KeyboardInterrupt:
         interrupted = True
         stop.set()
@@ -255,9 +257,11 @@ def run_on_devices(
 
 
 class _LiveComparison:
-    """The comparison video composed in this process while the variants run (`ComparisonVideo.start_live`), from
-    the leader's first latch on (the insets need its interface: read from the topology channel): `panels` are the
-    variants' frame lists in the video's order, this process's own lists and the workers' `FrameFiles`."""
+    """The comparison video composed in this process while the workers still run (`ComparisonVideo.start_live`),
+    once the leader has latched (the insets need its interface: read from the topology channel): `panels` are the
+    variants' frame lists in the video's order, this process's own lists and the workers' `FrameFiles`. Started
+    when this process's own variants are done: this process runs the leader, which every follower waits for frame
+    by frame, so composing beside it would slow them all (the composer's threads share its interpreter lock)."""
 
     def __init__(self, ctx: RunContext, channel_dir, panels: list):
         self.ctx, self.panels, self.video = ctx, panels, None
