@@ -228,3 +228,16 @@ def test_surface_measure_asks_for_det_f_only_when_pieces_are_near(gap, asked):
     assert lazy == eager and bool(calls) is asked
     assert (eager["depth"] > 0) is asked
     np.testing.assert_equal(len(calls), int(asked))
+
+
+def test_inference_mode_particles_never_keep_a_stress(small_bread):
+    """Tensors made in `torch.inference_mode` keep no version counter, so a change to them could not void a kept
+    stress: particles with such an F never keep one (and checking costs no error)."""
+    from fracture_gs.pipeline import make_simulator
+
+    cfg, gs = small_bread
+    sim = make_simulator(cfg, gs, "full", "cpu")
+    assert sim.can_keep_stress()
+    with torch.inference_mode():
+        sim.particles.F = sim.particles.F.clone()
+    assert not sim.can_keep_stress()

@@ -344,8 +344,10 @@ class Simulator:
     def can_keep_stress(self) -> bool:
         """Whether τ computed with commit=False may stand for the next substep's (`keep_stress`): on the CPU, where
         the substeps are launched one by one (a recorded CUDA graph always computes τ), and with no plastic
-        particle (models 2, 3: the substep's commit writes their return into F)."""
-        return self.device == "cpu" and int(self.particles.material.max()) < 2
+        particle (models 2, 3: the substep's commit writes their return into F); not for particles made in
+        `torch.inference_mode` (their tensors keep no version to tell a change by)."""
+        P = self.particles
+        return self.device == "cpu" and not P.F.is_inference() and int(P.material.max()) < 2
 
     def keep_stress(self) -> None:
         """`stress` now holds τ of the current state, computed with commit=False by a caller that may
