@@ -59,6 +59,7 @@ class FrameOutput:
         self.metrics = metrics if metrics is not None else {}
         self.ready: Optional[torch.cuda.Event] = None  # after the copies above, for a consumer on another stream
         self.max_stretch: Optional[float] = None  # drawn covariances take at most this principal stretch of F
+        self.rotation64: Optional[torch.Tensor] = None  # [N, 3, 3] R(F) in float64 from the diagnostics, or None
 
     @functools.cached_property
     def covars(self) -> torch.Tensor:  # [N, 3, 3]
@@ -67,6 +68,11 @@ class FrameOutput:
 
     @functools.cached_property
     def rotations(self) -> torch.Tensor:  # [N, 3, 3] R(F)
+        """R(F) in F's dtype: the diagnostics' float64 R of this F when they computed it (`rotation64`; float32
+        `polar_rotation` converts each F to float64 and rounds its R once, so these are the same bits), else
+        computed now."""
+        if self.rotation64 is not None:
+            return self.rotation64.to(self.F.dtype)
         return polar_rotation(self.F)
 
 
@@ -228,6 +234,8 @@ def simulate(
     with phases.section("diagnostics"):
         first = tracker.snapshot() if tracker else {}
     out = frame_output(sim, cov0, first, carrier=carrier)
+    if tracker is not None and carrier is None:  # carried Gaussians rotate by their own F
+        out.rotation64 = tracker.take_rotation()
     trim = _CrackTrim(out, sim, cov0, carrier) if crack_faces else None
     out.max_stretch = max_stretch
     yield out
@@ -235,6 +243,8 @@ def simulate(
         with phases.section("simulate"):
             n = sim.advance(frame_dt)
             out = frame_output(sim, cov0, tracker.history[-1] if tracker else {}, n, carrier)
+            if tracker is not None and carrier is None:
+                out.rotation64 = tracker.take_rotation()
             if trim is not None:
                 out.cov0 = trim(out, sim)
             out.max_stretch = max_stretch

@@ -17,14 +17,17 @@ to the others as it happens through a folder of per-frame files (`FileChannel`: 
 polled by the followers), so every variant uses the one topology the leader found — the contract of
 the sequential run, where the others replay the leader's saved history. Variants beyond the number of
 devices queue on them in order. Each worker writes its variant's video and metrics; its frames come
-back to the parent (for comparison.mp4) as one .npy per variant. Ctrl-C or an error in one worker
-stops the others at their next frame; an error is raised here with the worker's traceback.
+back to the parent (for comparison.mp4) as one .npy per variant, or, on one CPU, one file per frame as it is
+drawn (`frame_files`), so the parent, once its own variants are done, composes the comparison while the workers
+finish. Ctrl-C or an error in one worker stops the others at their next frame; an
+error is raised here with the worker's traceback.
 """
 
 from __future__ import annotations
 
 import queue
 import shutil
+import threading
 import traceback
 from dataclasses import dataclass, replace
 from typing import Callable, Optional
@@ -38,8 +41,10 @@ from ..runtime import share_cpu, usable_cores
 from ..sim.providers import make_provider
 from ..sim.providers.broadcast import BroadcastProvider, FileChannel, LeaderProvider
 from ..sim.topology import save_history
+from .comparison import ComparisonVideo
 from .context import RunContext, ScheduleResult
 from .forked import READY_SECONDS, ForkedWorkers
+from .frame_files import FrameFiles
 from .painter import Painter
 from .variant import run_variant
 
@@ -57,9 +62,22 @@ class WorkerSetup:
     cores: Optional[int] = None
 
 
-def _worker(slot: int, ctx: RunContext, variants, leader, channel_dir, stop, results, setup: WorkerSetup) -> None:
+def _worker(
+    slot: int,
+    ctx: RunContext,
+    variants,
+    leader,
+    channel_dir,
+    stop,
+    results,
+    setup: WorkerSetup,
+    frame_dir=None,
+    stores=None,
+) -> None:
     """One device's variants (`ctx.device`), in order (in a spawned process, or in the caller for the first
-    device: then `results` is a plain queue.Queue and the frames travel in the message instead of a .npy file)."""
+    device: then `results` is a plain queue.Queue and the frames travel in the message instead of a .npy file).
+    `frame_dir`: a worker process writes each frame to frame_dir/<variant>/ as it is drawn (`FrameFiles`) instead
+    of one .npy at the end. `stores`: the caller's lists to draw its variants' frames into (variant → list)."""
     local = isinstance(results, queue.Queue)
     run, profile, cores = setup.run, setup.profile, setup.cores
     torch.set_num_threads(setup.threads)
@@ -81,7 +99,10 @@ def _worker(slot: int, ctx: RunContext, variants, leader, channel_dir, stop, res
                 if variant == leader
                 else BroadcastProvider(channel)
             )
-            frames: list = []
+            if local:
+                frames = stores[variant] if stores is not None else []
+            else:
+                frames = FrameFiles(frame_dir / variant) if frame_dir is not None else []
             metrics = out_dir / f".metrics_{variant}.jsonl"
             try:
                 with open(metrics, "w") as fh:
@@ -91,7 +112,7 @@ def _worker(slot: int, ctx: RunContext, variants, leader, channel_dir, stop, res
             finally:
                 if variant == leader:
                     channel.close()  # followers past the leader's last frame stop waiting
-            if not local:
+            if not local and frame_dir is None:
                 stacked = np.stack(frames) if frames else np.zeros((0, 1, 1, 3), np.uint8)
                 np.save(out_dir / f".frames_{variant}.npy", stacked)
             if variant == leader:  # through a file: tensors in a queue need their sender alive to be read
@@ -132,9 +153,13 @@ def run_on_devices(
         queues[i % len(devices)].append(v)
     bg = ctx.background
     on_cpu = replace(ctx, gaussians=ctx.gaussians.to("cpu"), background=bg.to("cpu") if bg is not None else None)
+    one_cpu = all(d == "cpu" for d in devices)
     # workers sharing one CPU split its cores: each kernel's ranges stay on its own share (bitwise the same)
-    cores = max(1, usable_cores() // len(devices)) if all(d == "cpu" for d in devices) else None
+    cores = max(1, usable_cores() // len(devices)) if one_cpu else None
     setup = WorkerSetup(torch.get_num_threads(), run, phases.enabled, cores)
+    frame_dir = out_dir / ".frames" if one_cpu else None  # the workers' frames, file by file (`FrameFiles`)
+    if frame_dir is not None:
+        shutil.rmtree(frame_dir, ignore_errors=True)
     jobs = [  # `_worker`'s leading arguments: the first device's variants run here, the others' in worker processes
         (i, replace(on_cpu, device=devices[i]), vs, order[0], channel_dir)
         for i, vs in enumerate(queues)
@@ -142,7 +167,9 @@ def run_on_devices(
     ]
     procs = None
     if workers is not None:
-        procs = workers.start(_worker, [(job[0], setup.threads, job, {"setup": setup}) for job in jobs])
+        procs = workers.start(
+            _worker, [(job[0], setup.threads, job, {"setup": setup, "frame_dir": frame_dir}) for job in jobs]
+        )
     if workers is not None and procs is not None:
         stop, results = workers.stop, workers.results
         tqdm.write(f"render-sim: {len(order)} variants in {len(procs) + 1} processes (forked at the start)")
@@ -158,7 +185,7 @@ def run_on_devices(
             mp.Process(
                 target=_worker,
                 args=job,
-                kwargs={"stop": stop, "results": results, "setup": setup},
+                kwargs={"stop": stop, "results": results, "setup": setup, "frame_dir": frame_dir},
                 name=f"fgs-{job[1].device}-{job[0]}",
                 daemon=True,
             )
@@ -167,9 +194,14 @@ def run_on_devices(
         for p in procs:
             p.start()
     local: queue.Queue = queue.Queue()
+    stores = {v: [] for v in queues[0]}  # this process's variants draw into these
+    readers = {v: FrameFiles(frame_dir / v) for v in order if v not in stores} if frame_dir is not None else {}
+    live = None
     interrupted = False
     try:
-        _worker(0, replace(ctx, device=devices[0]), queues[0], order[0], channel_dir, stop, local, setup)
+        _worker(0, replace(ctx, device=devices[0]), queues[0], order[0], channel_dir, stop, local, setup, stores=stores)
+        if readers:  # this process led; while the workers finish, compose what they have drawn
+            live = _LiveComparison(ctx, channel_dir, [stores.get(v, readers.get(v)) for v in ctx.variants])
     except KeyboardInterrupt:
         interrupted = True
         stop.set()
@@ -192,11 +224,12 @@ def run_on_devices(
     errors = [m for m in messages if m[0] == "error"]
     for p in procs:
         p.join()
+    video = live.stop() if live is not None else None
     frames = {m[1]: m[3] for m in messages if m[0] == "done" and m[3] is not None}
     for v in order:
         path = out_dir / f".frames_{v}.npy"
         if v not in frames:
-            frames[v] = list(np.load(path)) if path.exists() else []
+            frames[v] = list(readers[v]) if v in readers else list(np.load(path)) if path.exists() else []
         path.unlink(missing_ok=True)
         part = out_dir / f".metrics_{v}.jsonl"
         if part.exists():
@@ -204,16 +237,54 @@ def run_on_devices(
             part.unlink()
     metrics.flush()
     shutil.rmtree(channel_dir, ignore_errors=True)
+    if frame_dir is not None:
+        shutil.rmtree(frame_dir, ignore_errors=True)  # every frame was read above
     saved = out_dir / ".leader_history.pt"
     history = (torch.load(saved, weights_only=False) or None) if saved.exists() else None  # [] = nothing latched
     saved.unlink(missing_ok=True)
+    crashed = [p for p in procs if p.exitcode not in (0, None)] if not interrupted else []
+    if (errors or crashed) and video is not None:
+        video.abort()  # the run fails: what the workers drew is not a comparison to finish
     if errors:
         _, device, message, trace = errors[0]
         raise WorkerFailed(f"the worker on {device} failed: {message}\n{trace}")
-    crashed = [p for p in procs if p.exitcode not in (0, None)]
-    if crashed and not interrupted:
+    if crashed:
         raise WorkerFailed(f"worker process {crashed[0].name} exited with code {crashed[0].exitcode} before reporting")
     interrupted = interrupted or any(s.interrupted for s in summaries.values())
     if history is not None:
         save_history(out_dir / "topology.npz", history)
-    return ScheduleResult(frames, summaries, history, interrupted)
+    return ScheduleResult(frames, summaries, history, interrupted, video)
+
+
+class _LiveComparison:
+    """The comparison video composed in this process while the workers still run (`ComparisonVideo.start_live`),
+    once the leader has latched (the insets need its interface: read from the topology channel): `panels` are the
+    variants' frame lists in the video's order, this process's own lists and the workers' `FrameFiles`. Started
+    when this process's own variants are done: this process runs the leader, which every follower waits for frame
+    by frame, so composing beside it would slow them all (the composer's threads share its interpreter lock)."""
+
+    def __init__(self, ctx: RunContext, channel_dir, panels: list):
+        self.ctx, self.panels, self.video = ctx, panels, None
+        self.channel = FileChannel(channel_dir)
+        self.done = threading.Event()
+        self.thread = threading.Thread(target=self._wait_for_latch, name="fgs-live-compare", daemon=True)
+        self.thread.start()
+
+    def _wait_for_latch(self) -> None:
+        while not self.done.wait(0.05):
+            first = self.channel.first()
+            if first is not None:
+                ctx = self.ctx
+                statuses = ["ok"] * len(self.panels)
+                video = ComparisonVideo(
+                    ctx.cfg, ctx.variants, self.panels, first, ctx.out_dir, statuses, ctx.frames_png
+                )
+                video.start_live(*self.panels)
+                self.video = video
+                return
+
+    def stop(self) -> Optional[ComparisonVideo]:
+        """Stop waiting; the video if it started (the job finishes it with the variants' statuses), else None."""
+        self.done.set()
+        self.thread.join()
+        return self.video

@@ -145,7 +145,15 @@ class Painter:
         """The frame drawn, on the device it was drawn on."""
         cam = self.camera(out.frame)
         keep = self._visible(out)  # [M] indices
-        colors = sh_colors(self.sh, out.means, cam.campos.to(out.means), out.rotations)
+        # SH colours of the drawn Gaussians only (each row's numbers do not depend on the others; most of a solid's
+        # Gaussians are hidden interior): the rest stay 0 and are never drawn
+        colors = self.sh.new_zeros(len(self.sh), 3)  # [N, 3]
+        colors[keep] = sh_colors(
+            self.sh.index_select(0, keep),
+            out.means.index_select(0, keep),
+            cam.campos.to(out.means),
+            out.rotations.index_select(0, keep),
+        )
         if self.exposed_rgb is not None:
             colors[self.exposed_idx] = self.exposed_rgb
         if self.cfg.color_by == "fragment":

@@ -128,6 +128,7 @@ class Simulator:
         self.dt = float(cfg.dt)
         n = len(self.particles)
         self.stress = torch.zeros(n, 3, 3, dtype=torch.float32, device=self.device)
+        self._stress_of: Optional[tuple] = None  # `stress_state()` for which `stress` already holds τ (`keep_stress`)
         self.fork = StreamFork(self.device)  # CUDA: launches beside the current stream (`options.concurrent`)
         self.counts = torch.zeros(N_COUNTS, dtype=torch.int32, device=self.device)  # see storage.COUNT_*
         P = self.particles
@@ -293,7 +294,9 @@ class Simulator:
         active = None if on is None else on[step * R : (step + 1) * R]
         w = self.wp
         self.boundaries.apply_regions(w["x"], w["v"], len(self.particles), self.clock.view, self.device, active)
-        self.compute_stress(self.stress, commit=True)
+        kept, self._stress_of = self._stress_of, None
+        if kept is None or kept != self.stress_state():  # else `stress` holds this state's τ (`keep_stress`)
+            self.compute_stress(self.stress, commit=True)
         self.transfer()
         launch(tick, 1, [self.clock.view], self.device)
 
@@ -326,6 +329,31 @@ class Simulator:
             run_ranges(launch, self._ranges if self._ranges is not None else [(0, n)])
         else:
             launch(0, n)
+
+    def stress_state(self) -> tuple:
+        """What τ of the current state depends on: the frame, substep and latch counts, the band release, and each
+        input array's storage and torch version (every in-place torch write bumps it; the substeps' Warp writes
+        do not, but they come with a new substep count)."""
+        P = self.particles
+        arrays = (P.F, P.material, P.E, P.nu, P.yield_stress, P.hardening, P.alpha, P.band)
+        release = self.topology.release_events if self.release else 0
+        return (self.frame, self.substeps, len(self.topologies), release) + tuple(
+            (t.data_ptr(), t._version) for t in arrays
+        )
+
+    def can_keep_stress(self) -> bool:
+        """Whether τ computed with commit=False may stand for the next substep's (`keep_stress`): on the CPU, where
+        the substeps are launched one by one (a recorded CUDA graph always computes τ), and with no plastic
+        particle (models 2, 3: the substep's commit writes their return into F); not for particles made in
+        `torch.inference_mode` (their tensors keep no version to tell a change by)."""
+        P = self.particles
+        return self.device == "cpu" and not P.F.is_inference() and int(P.material.max()) < 2
+
+    def keep_stress(self) -> None:
+        """`stress` now holds τ of the current state, computed with commit=False by a caller that may
+        (`can_keep_stress`: the diagnostics' shadow transfer): the next substep takes it instead of computing the
+        same numbers again, unless the state changed first (`stress_state`)."""
+        self._stress_of = self.stress_state()
 
     def _grid_pass(self, only_fragment: int) -> None:
         """Grid reset, P2G, grid update, G2P over all particles or one fragment's (Δt from the clock)."""

@@ -15,9 +15,13 @@ is exact. Bytes are little-endian, as the format says (every device torch runs o
 
 from __future__ import annotations
 
+import numpy as np
 import torch
 
-from .format import F16_CLIP, QUANT_STEPS, covariance_triu
+from ..runtime import device_constant
+from .format import F16_CLIP, QUANT_STEPS
+
+TRIU = (0, 1, 2, 4, 5, 8)  # xx, xy, xz, yy, yz, zz of a row-major 3×3 (`format.covariance_triu`)
 
 F16_MIN_NORMAL = 2.0**-14
 
@@ -29,6 +33,16 @@ def half_exact(x: torch.Tensor) -> torch.Tensor:  # float64 [...] -> float16 [..
     normal = torch.ldexp(torch.round(torch.ldexp(mantissa, torch.full_like(exponent, 11))), exponent - 11)
     subnormal = torch.round(torch.ldexp(x, torch.full_like(exponent, 24))) * 2.0**-24
     return torch.where(x.abs() < F16_MIN_NORMAL, subnormal, normal).to(torch.float32).to(torch.float16)
+
+
+def _half(x: torch.Tensor) -> torch.Tensor:  # float64 [...] -> float16 [...]
+    """`half_exact` of x; on the CPU numpy's own float64 → float16 cast (the format's reference, one rounding),
+    about ten times cheaper than `half_exact`'s frexp, ldexp and round passes."""
+    if x.device.type == "cpu":
+        out = torch.empty(x.shape, dtype=torch.float16)
+        np.copyto(out.numpy(), x.numpy(), casting="same_kind")
+        return out
+    return half_exact(x)
 
 
 def _bytes(t: torch.Tensor) -> torch.Tensor:  # [...] -> [numel · itemsize] uint8, little-endian
@@ -47,9 +61,10 @@ def frame_body(means: torch.Tensor, cov: torch.Tensor, cov_unit: float) -> tuple
     span = torch.where(hi > lo, hi - lo, torch.ones_like(hi))
     q = torch.round((m - lo) / span * QUANT_STEPS).clamp(0, QUANT_STEPS).to(torch.int32)  # [N,3] in 0 … 65535
     q16 = _bytes(q).view(-1, 4)[:, :2]  # [3N, 2]: each value's two low bytes, little-endian
-    c = covariance_triu(cov.detach()).to(torch.float64) / cov_unit  # [N,6]
+    triu = device_constant(TRIU, torch.int64, cov.device)  # `covariance_triu`'s columns, 4x faster than [:, list]
+    c = cov.detach().reshape(-1, 9).index_select(1, triu).to(torch.float64) / cov_unit  # [N,6]
     c = torch.nan_to_num(c, nan=0.0, posinf=0.0, neginf=0.0).clamp(-F16_CLIP, F16_CLIP)
-    packed = torch.cat([_bytes(torch.cat([lo, hi]).to(torch.float32)), q16.reshape(-1), _bytes(half_exact(c))])
+    packed = torch.cat([_bytes(torch.cat([lo, hi]).to(torch.float32)), q16.reshape(-1), _bytes(_half(c))])
     host = packed.cpu().numpy().tobytes()
     return host[:24], host[24:]
 

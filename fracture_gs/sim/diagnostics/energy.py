@@ -73,11 +73,12 @@ def drucker_prager_elastic(eps, mu, lam, alpha):  # [N, 3] -> [N, 3]
     return torch.where(tr >= 0, torch.zeros_like(eps), out)
 
 
-def density(F, material, E, nu, yield_stress=None, alpha=None, models=None) -> torch.Tensor:  # -> [N] [J/m³]
-    """Strain energy per unit rest volume ψ of each particle's F ([N, 3, 3]) for its model (`MATERIAL_IDS`),
-    in float64. `models`: the model ids present (known on the host; None: read from `material`, a host
-    read), so only their decompositions run: a polar rotation for fixed-corotated, an SVD for the Hencky
-    models, nothing for neo-Hookean. `yield_stress` / `alpha` are needed for models 2 / 3."""
+def density(F, material, E, nu, yield_stress=None, alpha=None, models=None, rotation=None) -> torch.Tensor:
+    """Strain energy per unit rest volume ψ [J/m³] ([N]) of each particle's F ([N, 3, 3]) for its model
+    (`MATERIAL_IDS`), in float64. `models`: the model ids present (known on the host; None: read from `material`, a
+    host read), so only their decompositions run: a polar rotation for fixed-corotated, an SVD for the Hencky
+    models, nothing for neo-Hookean. `yield_stress` / `alpha` are needed for models 2 / 3. `rotation`: R of F in
+    float64 ([N, 3, 3], `polar_rotation(F.double())`) when the caller already has it, else computed here."""
     F = F.double()
     mu, lam = lame(E.double(), nu.double())
     if models is None:
@@ -85,7 +86,7 @@ def density(F, material, E, nu, yield_stress=None, alpha=None, models=None) -> t
     J = det3(F)
     psi = torch.zeros_like(J)
     if FIXED_COROTATED in models:
-        R = polar_rotation(F)  # float64 Warp kernel, the kernels' convention for inverted F
+        R = polar_rotation(F) if rotation is None else rotation  # float64 Warp kernel, the kernels' convention
         fc = mu * ((F - R) ** 2).sum((1, 2)) + 0.5 * lam * (J - 1) ** 2
         psi = torch.where(material == FIXED_COROTATED, fc, psi)
     if NEO_HOOKEAN in models:
@@ -115,10 +116,10 @@ def reference_point(origin, dx: float, shape, gravity) -> tuple:
     return tuple(max(corners, key=lambda c: sum(g * x for g, x in zip(gravity, c))))
 
 
-def energies(P, gravity, reference, release: int = 0, models=None) -> torch.Tensor:  # -> [3] [J]
+def energies(P, gravity, reference, release: int = 0, models=None, rotation=None) -> torch.Tensor:  # -> [3] [J]
     """(kinetic, gravitational, elastic) of particles `P` as a float64 tensor on their device. `gravity` and
     `reference` are 3-tuples (g [m/s²], the zero of E_g [m]); `release` > 0 zeroes ψ of band particles of
-    events 1 … release (their stress is released); `models` as in `density`."""
+    events 1 … release (their stress is released); `models` and `rotation` as in `density`."""
     dev = P.x.device
     m = P.mass.double()
     kinetic = kinetic_energy(P)
@@ -126,7 +127,7 @@ def energies(P, gravity, reference, release: int = 0, models=None) -> torch.Tens
     x0 = device_constant([float(a) for a in reference], torch.float64, dev)
     height = (P.x.double() - x0) @ (-g)  # [N] (−g)·(x − x_ref) [m²/s²]
     gravitational = (m * height).sum()
-    psi = density(P.F, P.material, P.E, P.nu, P.yield_stress, P.alpha, models)
+    psi = density(P.F, P.material, P.E, P.nu, P.yield_stress, P.alpha, models, rotation)
     if release > 0:
         psi = torch.where((P.band != 0) & (P.band <= release), torch.zeros_like(psi), psi)
     elastic = (P.volume.double() * psi).sum()

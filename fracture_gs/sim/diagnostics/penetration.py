@@ -26,7 +26,7 @@ face can give with no overlap at all. Kept as the cheap, graph-recordable occupa
 from __future__ import annotations
 
 import math
-from typing import Optional
+from typing import Callable, Optional, Union
 
 import torch
 
@@ -378,11 +378,15 @@ def calibrate(
     return out
 
 
+def _volume_ratio_now(volume_ratio):  # tensor, zero-argument function or None -> [N] tensor or None
+    return volume_ratio() if callable(volume_ratio) else volume_ratio
+
+
 def surface_depth(
     x: torch.Tensor,
     fragment: torch.Tensor,
     calibration: dict,
-    volume_ratio: Optional[torch.Tensor] = None,
+    volume_ratio: Union[torch.Tensor, Callable[[], torch.Tensor], None] = None,
     chunk: int = CHUNK,
     twin: bool = False,
 ) -> tuple[torch.Tensor, torch.Tensor]:
@@ -391,7 +395,8 @@ def surface_depth(
     x [N, 3], fragment [N] (−1: unlabelled, ignored), calibration from `calibrate` (radius R, each fragment's
     filled density; ids beyond it are not evaluated). Returns (depth [N] float64, 0 where no particle lies behind
     another piece's surface or none was evaluated; into [N] int64, −1 there). A depth saturates at R.
-    `volume_ratio` [N]: det F per particle, its weight (as in `calibrate`; default 1). The sums and depths run in
+    `volume_ratio` [N]: det F per particle, its weight (as in `calibrate`; default 1), or a function that returns it,
+    called only when some particle lies near another piece (most frames have none). The sums and depths run in
     Warp (`penetration_kernels`); `twin` runs the torch twin instead (`behind_surfaces_torch`, `chunk` queries at a
     time), for tests."""
     radius, filled = float(calibration["radius"]), calibration["filled"].to(x.device, torch.float64)
@@ -419,6 +424,7 @@ def surface_depth(
     else:
         query = query[near_another_piece_mask(xd, frag, small, query, NEAR * spacing, _BITS)]
     big = _Cells(xd, frag, lo, radius / 3)  # cells within 3 of the query's: every particle within R
+    volume_ratio = _volume_ratio_now(volume_ratio)
     J = torch.ones_like(xd[:, 0]) if volume_ratio is None else volume_ratio.double()  # [N] weights
     if twin:
         best, which = behind_surfaces_torch(xd, lo, frag, J, filled, radius, big, query, chunk)
@@ -479,15 +485,16 @@ def surface_penetration(
     fragment: torch.Tensor,
     crossing_at: float,
     calibration: Optional[dict] = None,
-    volume_ratio: Optional[torch.Tensor] = None,
+    volume_ratio: Union[torch.Tensor, Callable[[], torch.Tensor], None] = None,
 ) -> dict:
     """`surface_depth` summed up: {"depth": deepest [m] (0 if none), "crossing": particles deeper than
     `crossing_at` [m], "pairs": {(a, b): deepest depth [m] of a behind b's surface}, "radius": R [m]}.
     `calibration`: from `calibrate` at the latch, while no piece overlaps another (pieces overlapping then
     count their overlap as density); made from `x` now if None or short of a fragment id.
-    `volume_ratio` [N]: det F per particle (see `calibrate`)."""
+    `volume_ratio` [N]: det F per particle (see `calibrate`), or a function that returns it (`surface_depth`)."""
     K = int(fragment.max()) + 1 if fragment.numel() else 0
     if calibration is None or calibration["filled"].numel() < K:
+        volume_ratio = _volume_ratio_now(volume_ratio)
         calibration = calibrate(x, fragment, volume_ratio)
     depth, into = surface_depth(x, fragment, calibration, volume_ratio)
     out = {"depth": 0.0, "crossing": 0, "pairs": {}, "radius": float(calibration["radius"])}

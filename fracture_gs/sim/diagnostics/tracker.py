@@ -23,6 +23,7 @@ import torch
 import warp as wp
 
 from ...config import PlaneBoundary
+from ...linalg import polar_rotation
 from ...profiling import phases
 from ..grid.fields import Grid
 from ..physics.contact import (
@@ -117,6 +118,7 @@ class Diagnostics:
         self.energy_reference = E.reference_point(g.origin, g.dx, g.shape, self.gravity)  # the zero of E_g [m]
         self.models = frozenset(int(m) for m in P.material.unique().tolist())  # fixed for the run: one read
         self.t_prev = sim.time  # the previous frame's end: the window the drivers are checked in
+        self.rotation = None  # ((frame, substeps), R(F) [N, 3, 3] float64) of the last eager snapshot (`take_rotation`)
         if sim.latched:
             self.on_latch()
 
@@ -218,7 +220,7 @@ class Diagnostics:
         numbers."""
         sim = self.sim
         if not (sim.latched and sim.options.use_graphs and self.recorded.records):
-            return self._particle_numbers_now()
+            return self._particle_numbers_now(keep_rotation=sim.device == "cpu")
         P = sim.particles
         key = (len(sim.topologies), sim.n_fragments, sim.counts.data_ptr())
         buffers = ("x", "v", "F", "mass", "volume", "E", "nu", "material", "yield_stress", "alpha", "fragment", "band")
@@ -233,10 +235,17 @@ class Diagnostics:
         out = self.recorded(key, flat)
         return [(name, out[a:b]) for name, a, b in self.recorded_slices]
 
-    def _particle_numbers_now(self) -> list[tuple[str, torch.Tensor]]:
+    def _particle_numbers_now(self, keep_rotation: bool = False) -> list[tuple[str, torch.Tensor]]:
+        """The numbers of `_particle_numbers`, launched now. `keep_rotation`: the energy's float64 polar rotation of
+        F is kept for the frame drawn from this state (`take_rotation`); on the CPU only, where it is a tensor of
+        its own (a recorded CUDA graph's outputs are overwritten at its next replay)."""
         sim = self.sim
         P = sim.particles
-        energy = E.energies(P, self.gravity, self.energy_reference, self._release(), self.models)
+        rotation = None
+        if keep_rotation and E.FIXED_COROTATED in self.models:
+            rotation = polar_rotation(P.F.double())  # [N, 3, 3] float64: the energy's R, and the frame's SH rotation
+            self.rotation = ((sim.frame, sim.substeps), rotation)
+        energy = E.energies(P, self.gravity, self.energy_reference, self._release(), self.models, rotation)
         out = [("momentum", M.momentum(P)), ("energy", energy)]
         out.append(("clamped", sim.counts[COUNT_CLAMPED]))
         if sim.latched:
@@ -246,6 +255,18 @@ class Diagnostics:
             state = M.plane_state(P.x, P.v, frag, b, sim.grid.dx, max(2, sim.n_fragments))
             out += [("plane_" + k, t) for k, t in state.items()]
         return out
+
+    def take_rotation(self):  # -> [N, 3, 3] float64 or None
+        """R(F) of the particles' current F in float64, as this state's snapshot computed it for the elastic energy
+        (fixed-corotated particles, on the CPU), handed over once: the frame drawn from this state rotates its SH
+        by it (`pipeline.FrameOutput.rotations`: `polar_rotation` of float32 F is this float64 R rounded once, the
+        same bits), so the polar decomposition runs once per frame, not twice. None when no snapshot of this
+        state (frame, substeps) computed it."""
+        sim = self.sim
+        kept, self.rotation = self.rotation, None
+        if kept is None or kept[0] != (sim.frame, sim.substeps):
+            return None
+        return kept[1]
 
     def _release(self) -> int:
         """Band particles of events 1 … this carry no stress (0: none), as `Simulator.compute_stress`."""
@@ -270,16 +291,18 @@ class Diagnostics:
         """Fragment-conditioned P2G of the current state into the shadow grid (its pool at least the
         solver's), then the mixing and the per-fragment mass residual, all on the device."""
         sim = self.sim
+        keep = sim.can_keep_stress()  # τ into the solver's buffer: its next substep takes it (`Simulator.keep_stress`)
+        stress, stress_wp = (sim.stress, sim.wp["stress"]) if keep else (self.shadow_stress, self.shadow_stress_wp)
         with sim._stream_scope():
-            sim.compute_stress(self.shadow_stress, commit=False)
+            sim.compute_stress(stress, commit=False)
+            if keep:
+                sim.keep_stress()
             self.shadow.n_fields = sim.n_fragments
             # the shadow claims a row at every node two fragments reach (the solver's solo particles
             # claim none), so it sizes its pool from its own last frame, not only from the solver's
             self.shadow.ensure_pool(max(rows, sim.slots.pool_rows, self.shadow_rows, 256))
             self.shadow_counts.zero_()
-            sim.p2g(
-                sim.dt, target=self.shadow, multifield=True, stress=self.shadow_stress_wp, counts=self.shadow_counts_wp
-            )
+            sim.p2g(sim.dt, target=self.shadow, multifield=True, stress=stress_wp, counts=self.shadow_counts_wp)
             # the shadow: its fragment-conditioned P2G claims every slot (the solver's skips the claims at
             # nodes only one fragment reaches), and deposits exactly what the realized transfer does
             K = sim.n_fragments
@@ -355,12 +378,13 @@ class Diagnostics:
 
     def _surface(self) -> dict:
         """Depth of particles behind another fragment's kernel-smoothed surface (`penetration.surface_penetration`),
-        scaled by the calibration taken at the latch, each particle weighted by its volume change det F;
-        `fragment_crossing` counts those deeper than CROSSING·Δx."""
+        scaled by the calibration taken at the latch, each particle weighted by its volume change det F (computed
+        only in a frame where some particle is near another piece); `fragment_crossing` counts those deeper than
+        CROSSING·Δx."""
         sim = self.sim
         P, dx = sim.particles, sim.grid.dx
         with torch.no_grad():
-            return surface_penetration(P.x, P.fragment, CROSSING * dx, self.surface_calibration, self._volume_ratio())
+            return surface_penetration(P.x, P.fragment, CROSSING * dx, self.surface_calibration, self._volume_ratio)
 
     def _volume_ratio(self) -> torch.Tensor:  # [N] det F: each particle's current over its rest volume
         return torch.linalg.det(self.sim.particles.F.double()).clamp_min(0.0)

@@ -47,6 +47,18 @@ class FileChannel:
     def close(self) -> None:
         (self.folder / "closed").touch()
 
+    def first(self) -> Optional[Topology]:
+        """The first topology the leader latched so far (None before its first latch), without waiting."""
+        self._read()
+        return next((t for _, t in sorted(self.seen.items()) if t is not None), None)
+
+    def _read(self, frame: Optional[int] = None) -> None:
+        """Load the frames published so far (up to `frame`) that this reader has not seen."""
+        for path in sorted(self.folder.glob("frame_*.pt")):
+            f = int(path.stem[6:])
+            if (frame is None or f <= frame) and f not in self.seen:
+                self.seen[f] = torch.load(path, weights_only=False)
+
     def up_to(self, frame: int) -> list[Topology]:
         """Everything the leader latched at frames ≤ `frame`, once it has finished that frame."""
         deadline = time.monotonic() + self.timeout
@@ -54,10 +66,7 @@ class FileChannel:
             if time.monotonic() > deadline:
                 raise TimeoutError(f"the leading variant did not reach frame {frame} within {self.timeout:.0f} s")
             time.sleep(self.poll)
-        for path in sorted(self.folder.glob("frame_*.pt")):
-            f = int(path.stem[6:])
-            if f <= frame and f not in self.seen:
-                self.seen[f] = torch.load(path, weights_only=False)
+        self._read(frame)
         return [t for f, t in sorted(self.seen.items()) if t is not None and f <= frame and t.latch_frame <= frame]
 
 
