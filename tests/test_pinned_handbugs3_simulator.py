@@ -25,7 +25,9 @@ def _topology(n, top):
     """Fragment ids 0 … top spread over n particles (id `top` on the last one)."""
     fragment = (torch.arange(n) % top).to(torch.int32)
     fragment[-1] = top
-    return Topology(fragment=fragment, band=torch.zeros(n, dtype=torch.int32), normal=(1.0, 0.0, 0.0), point=(0.45,) * 3)
+    return Topology(
+        fragment=fragment, band=torch.zeros(n, dtype=torch.int32), normal=(1.0, 0.0, 0.0), point=(0.45,) * 3
+    )
 
 
 @pytest.mark.parametrize("max_fragments", [2, 5])
