@@ -1,0 +1,48 @@
+"""Hand-written bug campaign, round three: config validation, building and key combinations (`io.config`).
+
+- With adaptive Δt a frame needs n = ⌈frame_dt / min(Δt, cfl·Δx/c)⌉ substeps, c = √((λ + 2μ)/ρ) the P-wave speed of
+  each material (the default and every material_map entry, with the entry's own E, ν and density, ν = 0
+  included); n = sim.max_substeps_per_frame loads, one more is refused naming the entry's key.
+"""
+
+import pytest
+from badinput import one_line
+
+from fracture_gs.errors import ConfigError
+from fracture_gs.io.config import config_from_dict
+
+pytestmark = pytest.mark.usefixtures("one_thread")
+
+
+def _refused(doc: dict, key: str) -> str:
+    with pytest.raises(ConfigError) as info:
+        config_from_dict(doc, "probe.toml")
+    msg = one_line(info.value)
+    assert key in msg, msg
+    return msg
+
+
+def _wave_doc(cap: int, nu: float, E: float, density: float = 1000.0) -> dict:
+    """Δx = 1/64, cfl = 0.5, Δt = 1e-3, frame_dt = 0.01; the default material soft (E = 1e3 Pa, ν = 0.45); one map
+    entry (label 1) with its own E, ν and density."""
+    return {
+        "extends": "bread",
+        "frame_dt": 0.01,
+        "sim": {"adaptive_dt": True, "dx": 1 / 64, "cfl": 0.5, "dt": 1e-3, "max_substeps_per_frame": cap},
+        "material": {"E": 1e3, "nu": 0.45, "density": 1000.0},
+        "material_map": [{"label": 1, "E": E, "nu": nu, "density": density}],
+    }
+
+
+@pytest.mark.parametrize(
+    "nu,E,density",
+    [(0.0, 1e7, 1000.0), (0.25, 1e7 * 5 / 6, 1000.0), (0.0, 4e7, 4000.0)],
+    ids=["nu0", "nu_quarter", "dense"],
+)
+def test_a_map_entrys_substeps_come_from_its_own_poisson_ratio_and_density(nu, E, density):
+    """Each entry's P-wave modulus λ + 2μ = E(1 − ν)/((1 + ν)(1 − 2ν)) is 1e7 Pa at ρ = 1000 (E = 1e7 at ν = 0;
+    E = 1e7·5/6 at ν = 1/4; 4e7 at ν = 0 with ρ = 4000): c = 100 m/s, cfl·Δx/c = 0.5/64/100 s, so a 0.01 s frame
+    needs exactly 128 substeps. A cap of 128 loads; 127 is refused naming material_map[0].E."""
+    assert config_from_dict(_wave_doc(128, nu, E, density)).sim.max_substeps_per_frame == 128
+    msg = _refused(_wave_doc(127, nu, E, density), "material_map[0].E")
+    assert "128" in msg and "max_substeps_per_frame" in msg
