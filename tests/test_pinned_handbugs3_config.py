@@ -3,6 +3,8 @@
 - With adaptive Δt a frame needs n = ⌈frame_dt / min(Δt, cfl·Δx/c)⌉ substeps, c = √((λ + 2μ)/ρ) the P-wave speed of
   each material (the default and every material_map entry, with the entry's own E, ν and density, ν = 0
   included); n = sim.max_substeps_per_frame loads, one more is refused naming the entry's key.
+- Every normal a config gives is a unit vector once loaded: topology.normal, each oracle plane's
+  (`[[topology.planes]]`, whose events record it as the plane's unit normal) and each plane boundary's.
 """
 
 import pytest
@@ -46,3 +48,27 @@ def test_a_map_entrys_substeps_come_from_its_own_poisson_ratio_and_density(nu, E
     assert config_from_dict(_wave_doc(128, nu, E, density)).sim.max_substeps_per_frame == 128
     msg = _refused(_wave_doc(127, nu, E, density), "material_map[0].E")
     assert "128" in msg and "max_substeps_per_frame" in msg
+
+
+def test_every_normal_a_config_gives_is_unit_after_loading():
+    """topology.normal (0, 3, 4) → (0, 0.6, 0.8); oracle planes (2, 0, 0) → (1, 0, 0) and (0, 0, −5) → (0, 0, −1);
+    a plane boundary (0, 0, 7) → (0, 0, 1); a normal that is already unit is kept as written."""
+    doc = {
+        "extends": "bread",
+        "topology": {
+            "provider": "oracle",
+            "normal": [0.0, 3.0, 4.0],
+            "planes": [
+                {"point": [0.5, 0.5, 0.2], "normal": [2.0, 0.0, 0.0], "latch_frame": 1},
+                {"point": [0.5, 0.5, 0.2], "normal": [0.0, 0.0, -5.0], "latch_frame": 2},
+                {"point": [0.5, 0.5, 0.2], "normal": [0.6, 0.0, 0.8], "latch_frame": 3},
+            ],
+        },
+        "sim": {"boundaries": [{"type": "plane", "point": [0.0, 0.0, 0.1], "normal": [0.0, 0.0, 7.0]}]},
+    }
+    cfg = config_from_dict(doc)
+    assert cfg.topology.normal == pytest.approx((0.0, 0.6, 0.8), abs=1e-15)
+    got = [p.normal for p in cfg.topology.planes]
+    for have, want in zip(got, [(1.0, 0.0, 0.0), (0.0, 0.0, -1.0), (0.6, 0.0, 0.8)]):
+        assert have == pytest.approx(want, abs=1e-15)
+    assert cfg.sim.boundaries[0].normal == pytest.approx((0.0, 0.0, 1.0), abs=1e-15)
