@@ -5,6 +5,8 @@
   included); n = sim.max_substeps_per_frame loads, one more is refused naming the entry's key.
 - Every normal a config gives is a unit vector once loaded: topology.normal, each oracle plane's
   (`[[topology.planes]]`, whose events record it as the plane's unit normal) and each plane boundary's.
+- An oracle plane latches at a frame of the run, the last one (`frames`) included, like topology.latch_frame; one
+  past it is refused (it was accepted silently and never cut; fixed with this round).
 """
 
 import pytest
@@ -72,3 +74,18 @@ def test_every_normal_a_config_gives_is_unit_after_loading():
     for have, want in zip(got, [(1.0, 0.0, 0.0), (0.0, 0.0, -1.0), (0.6, 0.0, 0.8)]):
         assert have == pytest.approx(want, abs=1e-15)
     assert cfg.sim.boundaries[0].normal == pytest.approx((0.0, 0.0, 1.0), abs=1e-15)
+
+
+def test_an_oracle_plane_may_latch_at_the_last_frame_and_not_one_past_it():
+    """frames = 10: [[topology.planes]] latch_frame = 10 loads (as topology.latch_frame may), 11 is refused naming
+    topology.planes[1].latch_frame (the plane would never cut); a plane timed by latch_time ignores latch_frame."""
+    plane = {"point": [0.5, 0.5, 0.2], "normal": [1.0, 0.0, 0.0]}
+    doc = {"extends": "bread", "frames": 10, "topology": {"provider": "oracle"}}
+    ok = [{**plane, "latch_frame": 3}, {**plane, "latch_frame": 10}]
+    cfg = config_from_dict({**doc, "topology": {"provider": "oracle", "planes": ok}})
+    assert [p.latch_frame for p in cfg.topology.planes] == [3, 10]
+    late = [{**plane, "latch_frame": 3}, {**plane, "latch_frame": 11}]
+    msg = _refused({**doc, "topology": {"provider": "oracle", "planes": late}}, "topology.planes[1].latch_frame")
+    assert "11" in msg and "frames" in msg
+    timed = [{**plane, "latch_frame": 11, "latch_time": 0.05}]
+    assert config_from_dict({**doc, "topology": {"provider": "oracle", "planes": timed}}).topology.planes[0].latch_time
