@@ -3,12 +3,14 @@ hand computation.
 
 - `penetration` and `interface_pairs` walk fragment 0's band members in chunks (memory bound); the result is the
   same for every chunk size, so a member in the last chunk counts as much as one in the first.
+- `per_fragment_sum` adds each value to its fragment's row for ids 0 … K − 1 and drops ids outside (−1, K), the
+  same on every row count.
 """
 
 import pytest
 import torch
 
-from fracture_gs.sim.diagnostics.metrics import band_members, interface_pairs, penetration
+from fracture_gs.sim.diagnostics.metrics import band_members, interface_pairs, penetration, per_fragment_sum
 
 
 def _interface():
@@ -43,3 +45,11 @@ def test_interface_pairs_pair_every_member_whatever_the_chunk(chunk):
     p, q = interface_pairs(x, fragment, band, 0.5, chunk=chunk)
     assert p.tolist() == [0, 1, 2, 3, 4]
     assert q.tolist() == [5, 6, 7, 8, 9]
+
+
+def test_per_fragment_sum_keeps_ids_below_k_and_drops_the_rest():
+    """K = 3: values 1, 2, 4, 8, 16, 32 of fragments 0, 1, 2, 3, −1, 2 sum to [1, 2, 36]; 8 (id K) and 16 (id −1)
+    are dropped, not clamped into the last or the first row."""
+    values = torch.tensor([1.0, 2.0, 4.0, 8.0, 16.0, 32.0], dtype=torch.float64)
+    fragment = torch.tensor([0, 1, 2, 3, -1, 2])
+    assert per_fragment_sum(values, fragment, 3).tolist() == [1.0, 2.0, 36.0]
