@@ -539,6 +539,12 @@ def _check_topology(c: _Checker, t: TopologyConfig, frames: int) -> None:
         p = f"topology.planes[{i}]"
         c.nonzero(f"{p}.normal", plane.normal, "give the plane normal, e.g. normal = [1, 0, 0]")
         c.at_least(f"{p}.latch_frame", plane.latch_frame, 0, "use a frame index >= 0")
+        if plane.latch_time is None and plane.latch_frame > frames:  # a timed plane ignores its latch_frame
+            c.fail(
+                f"{p}.latch_frame",
+                f"{p}.latch_frame = {plane.latch_frame} is after the last frame ({frames}), so the plane never cuts",
+                "latch within the run or raise frames",
+            )
         if plane.latch_time is not None:
             c.at_least(f"{p}.latch_time", plane.latch_time, 0.0, "use a time in seconds >= 0")
 
