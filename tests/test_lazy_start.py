@@ -240,9 +240,10 @@ def test_startup_rows_come_before_the_phases_and_outside_the_wall():
     rows = [line for line in lines if line.startswith("| ") and not line.startswith("| phase")]
     assert rows[0] == "| imports | 2.25 | before the run | 1 |"
     assert rows[1] == "| warp init | 0.25 | before the run | 1 |"
-    # the section slept 10 ms; a loaded machine wakes it late, so its row says at least that (the value is timed)
+    # the section slept 10 ms; a loaded machine wakes it late, so its row says at least that (the value is timed).
+    # Its share of the wall is most of it (the start-up is outside the wall: inside, it would be 0.4 %)
     name, seconds, share, count = [cell.strip() for cell in rows[2].strip("|").split("|")]
-    assert name == "simulate" and float(seconds) >= 0.01 and share == "100" and count == "1", rows[2]
+    assert name == "simulate" and float(seconds) >= 0.01 and int(share) >= 50 and count == "1", rows[2]
 
 
 RUN_TWICE = """

@@ -194,7 +194,7 @@ def run_on_devices(
         for p in procs:
             p.start()
     local: queue.Queue = queue.Queue()
-    stores = {v: [] for v in queues[0]}  # this process's variants draw into these
+    stores: dict[str, list] = {v: [] for v in queues[0]}  # this process's variants draw into these
     readers = {v: FrameFiles(frame_dir / v) for v in order if v not in stores} if frame_dir is not None else {}
     live = None
     interrupted = False
@@ -264,7 +264,8 @@ class _LiveComparison:
     by frame, so composing beside it would slow them all (the composer's threads share its interpreter lock)."""
 
     def __init__(self, ctx: RunContext, channel_dir, panels: list):
-        self.ctx, self.panels, self.video = ctx, panels, None
+        self.ctx, self.panels = ctx, panels
+        self.video: Optional[ComparisonVideo] = None
         self.channel = FileChannel(channel_dir)
         self.done = threading.Event()
         self.thread = threading.Thread(target=self._wait_for_latch, name="fgs-live-compare", daemon=True)
