@@ -14,3 +14,17 @@ def one_line(err: BaseException) -> str:
 def capture_doc(scene: str = "scene.ply", **capture) -> dict:
     """A config document of a captured scene `scene` with these [capture] keys."""
     return {"extends": "capture", "scene": scene, "capture": capture}
+
+
+def refused(doc: dict, key: str) -> str:
+    """The one-sentence ConfigError that loading `doc` raises, which must name `key`."""
+    import pytest
+
+    from fracture_gs.errors import ConfigError
+    from fracture_gs.io.config import config_from_dict
+
+    with pytest.raises(ConfigError) as info:
+        config_from_dict(doc, "probe.toml")
+    msg = one_line(info.value)
+    assert key in msg, msg
+    return msg

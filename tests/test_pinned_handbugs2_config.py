@@ -9,7 +9,7 @@
 """
 
 import pytest
-from badinput import capture_doc, one_line
+from badinput import capture_doc, refused
 
 from fracture_gs.errors import ConfigError
 from fracture_gs.io.config import config_from_dict
@@ -20,20 +20,12 @@ from fracture_gs.io.config.validate import MAX_IMAGE_SIDE
 pytestmark = pytest.mark.usefixtures("one_thread")
 
 
-def _refused(doc: dict, key: str) -> str:
-    with pytest.raises(ConfigError) as info:
-        config_from_dict(doc, "probe.toml")
-    msg = one_line(info.value)
-    assert key in msg, msg
-    return msg
-
-
 @pytest.mark.parametrize("i", [0, 1, 2])
 def test_each_background_component_is_range_checked(i):
     """A background of (1/2, 1/2, 1/2) with component i at 1.5 is refused naming render.background[i]; at 1 it loads."""
     bad = [0.5, 0.5, 0.5]
     bad[i] = 1.5
-    _refused({"extends": "bread", "render": {"background": bad}}, f"render.background[{i}]")
+    refused({"extends": "bread", "render": {"background": bad}}, f"render.background[{i}]")
     bad[i] = 1.0
     assert config_from_dict({"extends": "bread", "render": {"background": bad}}).render.background[i] == 1.0
 
@@ -49,7 +41,7 @@ def test_each_background_component_is_range_checked(i):
 )
 def test_a_rotation_needs_unit_columns_every_one(rotation):
     """RᵀR differs from I on one diagonal entry only: refused naming capture.rotation."""
-    _refused(capture_doc(rotation=rotation), "capture.rotation")
+    refused(capture_doc(rotation=rotation), "capture.rotation")
 
 
 def test_latch_frame_may_be_the_last_frame_and_not_one_past_it():
@@ -57,7 +49,7 @@ def test_latch_frame_may_be_the_last_frame_and_not_one_past_it():
     doc = {"extends": "bread", "frames": 10, "topology": {"provider": "oracle", "latch_frame": 10}}
     assert config_from_dict(doc).topology.latch_frame == 10
     doc["topology"]["latch_frame"] = 11
-    _refused(doc, "topology.latch_frame")
+    refused(doc, "topology.latch_frame")
 
 
 @pytest.mark.parametrize("text", [f"{MAX_IMAGE_SIDE + 1}x64", f"64x{MAX_IMAGE_SIDE + 1}"])

@@ -10,20 +10,11 @@
 """
 
 import pytest
-from badinput import one_line
+from badinput import refused
 
-from fracture_gs.errors import ConfigError
 from fracture_gs.io.config import config_from_dict
 
 pytestmark = pytest.mark.usefixtures("one_thread")
-
-
-def _refused(doc: dict, key: str) -> str:
-    with pytest.raises(ConfigError) as info:
-        config_from_dict(doc, "probe.toml")
-    msg = one_line(info.value)
-    assert key in msg, msg
-    return msg
 
 
 def _wave_doc(cap: int, nu: float, E: float, density: float = 1000.0) -> dict:
@@ -48,7 +39,7 @@ def test_a_map_entrys_substeps_come_from_its_own_poisson_ratio_and_density(nu, E
     E = 1e7·5/6 at ν = 1/4; 4e7 at ν = 0 with ρ = 4000): c = 100 m/s, cfl·Δx/c = 0.5/64/100 s, so a 0.01 s frame
     needs exactly 128 substeps. A cap of 128 loads; 127 is refused naming material_map[0].E."""
     assert config_from_dict(_wave_doc(128, nu, E, density)).sim.max_substeps_per_frame == 128
-    msg = _refused(_wave_doc(127, nu, E, density), "material_map[0].E")
+    msg = refused(_wave_doc(127, nu, E, density), "material_map[0].E")
     assert "128" in msg and "max_substeps_per_frame" in msg
 
 
@@ -85,7 +76,7 @@ def test_an_oracle_plane_may_latch_at_the_last_frame_and_not_one_past_it():
     cfg = config_from_dict({**doc, "topology": {"provider": "oracle", "planes": ok}})
     assert [p.latch_frame for p in cfg.topology.planes] == [3, 10]
     late = [{**plane, "latch_frame": 3}, {**plane, "latch_frame": 11}]
-    msg = _refused({**doc, "topology": {"provider": "oracle", "planes": late}}, "topology.planes[1].latch_frame")
+    msg = refused({**doc, "topology": {"provider": "oracle", "planes": late}}, "topology.planes[1].latch_frame")
     assert "11" in msg and "frames" in msg
     timed = [{**plane, "latch_frame": 11, "latch_time": 0.05}]
     assert config_from_dict({**doc, "topology": {"provider": "oracle", "planes": timed}}).topology.planes[0].latch_time
