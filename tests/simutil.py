@@ -6,6 +6,7 @@ import warp as wp
 from fracture_gs import sim as S
 from fracture_gs.io.gaussian_set import quat_to_matrix
 from fracture_gs.sim.boxes.kernels import BoxView, box_mass_gradient
+from fracture_gs.sim.physics.boundary import Boundaries, Colliders, apply_boundaries
 
 
 def block(lo, hi, spacing, jitter=0.0, generator=None):
@@ -170,4 +171,27 @@ def box_gradient(boxes, k):
     d = [int(v) for v in boxes.dims[k]]
     out = wp.zeros(d[0] * d[1] * d[2], dtype=wp.vec3, device="cpu")
     wp.launch(_box_gradients, dim=out.shape[0], inputs=[boxes.view, k, out], device="cpu")
+    return wp.to_torch(out).double()
+
+
+@wp.kernel
+def _boundaries_at(
+    v: wp.array(dtype=wp.vec3),  # [M]
+    x: wp.array(dtype=wp.vec3),  # [M]
+    t: float,
+    c: Colliders,
+    out: wp.array(dtype=wp.vec3),  # [M]
+):
+    i = wp.tid()
+    out[i] = apply_boundaries(v[i], wp.vec3i(8, 8, 8), x[i], t, c)
+
+
+def boundaries_applied(items, v, x, t, shape=(64, 64, 64)) -> torch.Tensor:  # [M, 3] float64
+    """`apply_boundaries` (the grid update's operator) on nodes at x [M, 3] with velocities v [M, 3] at time t, for
+    the boundary `items` of a grid of `shape` without domain walls."""
+    b = Boundaries(items, "cpu", shape, 0)
+    out = wp.zeros(len(v), dtype=wp.vec3, device="cpu")
+    vw = wp.from_torch(torch.tensor(v, dtype=torch.float32).contiguous(), dtype=wp.vec3)
+    xw = wp.from_torch(torch.tensor(x, dtype=torch.float32).contiguous(), dtype=wp.vec3)
+    wp.launch(_boundaries_at, dim=len(v), inputs=[vw, xw, float(t), b.colliders], outputs=[out], device="cpu")
     return wp.to_torch(out).double()

@@ -17,35 +17,19 @@ Coordinates and times are powers of two where float32 holds them, so the compari
 import pytest
 import torch
 import warp as wp
+from simutil import boundaries_applied
 
 from fracture_gs.config import ParticleRegion, PlaneBoundary, SphereBoundary
 from fracture_gs.runtime import ensure_warp
 from fracture_gs.sim.clock import FrameClock
-from fracture_gs.sim.physics.boundary import Boundaries, Colliders, apply_boundaries, apply_particle_region
+from fracture_gs.sim.physics.boundary import Boundaries, apply_particle_region
 
 ensure_warp()
 
 
-@wp.kernel
-def _apply(
-    v: wp.array(dtype=wp.vec3),  # [M]
-    x: wp.array(dtype=wp.vec3),  # [M]
-    t: float,
-    c: Colliders,
-    out: wp.array(dtype=wp.vec3),  # [M]
-):
-    i = wp.tid()
-    out[i] = apply_boundaries(v[i], wp.vec3i(8, 8, 8), x[i], t, c)
-
-
 def _after(items, v, x, t=0.0) -> list:
     """`apply_boundaries` on nodes at x [M, 3] with velocities v [M, 3] at time t (no domain walls)."""
-    b = Boundaries(items, "cpu", (16, 16, 16), 0)
-    out = wp.zeros(len(v), dtype=wp.vec3, device="cpu")
-    vw = wp.from_torch(torch.tensor(v, dtype=torch.float32).contiguous(), dtype=wp.vec3)
-    xw = wp.from_torch(torch.tensor(x, dtype=torch.float32).contiguous(), dtype=wp.vec3)
-    wp.launch(_apply, dim=len(v), inputs=[vw, xw, float(t), b.colliders, out], device="cpu")
-    return out.numpy().tolist()
+    return boundaries_applied(items, v, x, t, (16, 16, 16)).tolist()
 
 
 def test_a_sphere_acts_from_its_start_to_its_end_both_included():

@@ -14,38 +14,17 @@ import tomllib
 import torch
 import warp as wp
 from simutil import block, config, particles
+from simutil import boundaries_applied as applied
 
 from fracture_gs import sim as S
 from fracture_gs.config import CuboidBoundary, PlaneBoundary, SphereBoundary
 from fracture_gs.errors import ConfigError, SimulationError
 from fracture_gs.io.config import config_from_dict, dump_config, load_config, validate
-from fracture_gs.sim.physics.boundary import Boundaries, Colliders, apply_boundaries
+from fracture_gs.sim.physics.boundary import Boundaries
 
 wp.set_module_options({"enable_backward": False})
 
 pytestmark = pytest.mark.usefixtures("one_thread")
-
-
-@wp.kernel
-def _apply(
-    v: wp.array(dtype=wp.vec3),  # [M]
-    x: wp.array(dtype=wp.vec3),  # [M]
-    t: float,
-    c: Colliders,
-    out: wp.array(dtype=wp.vec3),  # [M]
-):
-    i = wp.tid()
-    out[i] = apply_boundaries(v[i], wp.vec3i(8, 8, 8), x[i], t, c)
-
-
-def applied(items, v, x, t):
-    """`apply_boundaries` (the grid update's operator) on nodes at x [M, 3] with velocities v [M, 3] at time t."""
-    b = Boundaries(items, "cpu", (64, 64, 64), 0)
-    out = wp.zeros(len(v), dtype=wp.vec3, device="cpu")
-    vw = wp.from_torch(torch.tensor(v, dtype=torch.float32).contiguous(), dtype=wp.vec3)
-    xw = wp.from_torch(torch.tensor(x, dtype=torch.float32).contiguous(), dtype=wp.vec3)
-    wp.launch(_apply, dim=len(v), inputs=[vw, xw, float(t), b.colliders], outputs=[out], device="cpu")
-    return wp.to_torch(out).double()
 
 
 # a ball of radius 0.1 at (0.5, 0.5, 0.5) at t = 0.1 s, moving +x at 2 m/s: at t = 0.15 its centre is at x = 0.6
