@@ -196,6 +196,7 @@ def start_gsplat_compile(
         job = BackgroundCompile(GSPLAT_STEP, compile, cancel=cancel, step=step)
         if compile is None:
             job.compile = lambda: build_gsplat_detached(device, job)
+            atexit.unregister(settle)  # once per process, however many runs start a build
             atexit.register(settle)  # any exit, not only a run's end: never cut a load short
         _pending = job.start()
         return _pending
