@@ -75,7 +75,7 @@ def two_gpus(monkeypatch):
     from fracture_gs.cli import devices
 
     monkeypatch.setattr(devices, "_cuda_devices", lambda: (True, 2, "pretended"))
-    monkeypatch.setattr(devices, "_prepare_warp", lambda: None)
+    monkeypatch.setattr(devices, "_prepare_warp", lambda init=True: None)
 
 
 REFUSED = [

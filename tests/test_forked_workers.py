@@ -37,7 +37,7 @@ def test_cpu_slots_give_forked_workers_one_variant_each_up_to_two_per_core(varia
     assert cpu_slots(variants, cores, forked_) == expected
 
 
-def _never_ready(jobs, ready, stop, results):  # a child whose fork broke OpenMP: it takes its job and hangs
+def _never_ready(jobs, ready, stop, results, device):  # a child whose fork broke OpenMP: it takes its job and hangs
     jobs.get()
     time.sleep(60)
 
@@ -69,11 +69,11 @@ def test_a_healthy_child_reports_ready_with_the_parents_thread_count():
     code = (
         "import torch\n"
         "from fracture_gs.render_sim import forked\n"
-        "def probe(jobs, ready, stop, results):  # the real child's first steps, then its thread count\n"
+        "def probe(jobs, ready, stop, results, device):  # the real child's first steps, then its thread count\n"
         "    fn, slot, threads, args, kwargs = jobs.get()\n"
         "    torch.set_num_threads(threads)\n"
         "    torch.ones(1 << 16, dtype=torch.float64).sum()\n"
-        "    ready.put(slot)\n"
+        "    ready.put((slot, None))\n"
         "    results.put(('threads', torch.get_num_threads()))\n"
         "forked._child = probe\n"
         "w = forked.ForkedWorkers(1)\n"

@@ -388,7 +388,7 @@ def recorders(monkeypatch, tmp_path):
         (out_dir / "accuracy.md").write_text("table")
 
     monkeypatch.setattr(devices, "_cuda_devices", lambda: (True, 2, "pretended"))
-    monkeypatch.setattr(devices, "_prepare_warp", lambda: None)
+    monkeypatch.setattr(devices, "_prepare_warp", lambda init=True: None)
     monkeypatch.setattr(
         runner,
         "run_render_sim",

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 import re
 import sys
@@ -9,6 +10,27 @@ import sys
 from . import CliError, held_interrupts
 
 DEVICE_RE = re.compile(r"^(auto|cpu|cuda(:\d+)?)$")
+
+
+FORK_SAFE_CHECK = "PYTORCH_NVML_BASED_CUDA_CHECK"
+"""torch's switch that makes `torch.cuda.is_available()` ask NVML instead of the CUDA driver (whose start-up in a
+process leaves CUDA unusable in the children it forks later; `device_count` asks NVML already)."""
+
+
+@contextlib.contextmanager
+def fork_safe_cuda_checks(on: bool = True):
+    """Inside, `_cuda_devices` (so `resolve_device`) leaves the CUDA driver unstarted (`FORK_SAFE_CHECK`): for a
+    run that forks CUDA workers after its device checks (`render-sim --schedule processes` on a GPU)."""
+    before = os.environ.get(FORK_SAFE_CHECK)
+    if on:
+        os.environ[FORK_SAFE_CHECK] = "1"
+    try:
+        yield
+    finally:
+        if on and before is None:
+            os.environ.pop(FORK_SAFE_CHECK, None)
+        elif on:
+            os.environ[FORK_SAFE_CHECK] = before
 
 
 def _cuda_devices() -> tuple[bool, int, str]:
@@ -76,17 +98,21 @@ class _QuietWarpLogger:
         self.inner.error(message)
 
 
-def _prepare_warp() -> None:
+def _prepare_warp(init: bool = True) -> None:
     """The CLI is an application, so it gives Warp the application's logger (`wp.set_logger`, Warp's hook
     for host applications; `wp.config` is left alone): no per-module load lines, and on a machine without
     a CUDA driver Warp's native start-up warning is kept off stderr so user errors stay one line
-    (`fracture-gs info` reports devices). The library itself never does this (`fracture_gs.runtime`)."""
+    (`fracture-gs info` reports devices). The library itself never does this (`fracture_gs.runtime`).
+    Without `init` only the logger: Warp starts at its first use, after a run has forked its CUDA workers
+    (Warp's start-up starts the CUDA driver, which a forked child cannot use after its parent did)."""
     import warp as wp
 
     from ..runtime import ensure_warp
 
     if not isinstance(wp.get_logger(), _QuietWarpLogger):
         wp.set_logger(_QuietWarpLogger(wp.get_logger()))
+    if not init:
+        return
     available, _, _ = _cuda_devices()
     if available:
         ensure_warp()

@@ -44,13 +44,13 @@ def sigint_event():
         signal.signal(signal.SIGINT, previous)
 
 
-def _prepare_warp() -> None:
+def _prepare_warp(init: bool = True) -> None:
     """Warp set up for the CLI (`devices._prepare_warp`), called once a command's flags and config are checked,
     so that a refused flag or a bad config costs no torch or Warp import. Looked up when called: tests
     replace it."""
     from . import devices
 
-    devices._prepare_warp()
+    devices._prepare_warp(init)
 
 
 def _seconds_since_start(args: argparse.Namespace) -> float:
@@ -91,7 +91,11 @@ def cmd_render_sim(args: argparse.Namespace) -> int:
         source=f"{path} with command-line overrides",
         keys={"particles": getattr(args, "particles", None), **_key_flags(args)},
     )
-    device, devices = run_devices(args)  # after the config's checks: `auto` asks torch, which takes seconds to load
+    schedule = (getattr(args, "schedule", None) or "auto").replace("-", "_")
+    from .devices import fork_safe_cuda_checks
+
+    with fork_safe_cuda_checks(schedule == "processes"):  # its CUDA workers fork after these checks
+        device, devices = run_devices(args)  # after the config's checks: `auto` asks torch, which takes seconds
     refuse_render_sim(cfg, args, devices)
     view = getattr(args, "view", False)
     if view:
@@ -104,7 +108,8 @@ def cmd_render_sim(args: argparse.Namespace) -> int:
     from ..profiling import phases
 
     warp_init = phases.startup.get("warp init", [0.0])[0]
-    _prepare_warp()  # the flags and the config are checked: only now torch and Warp load
+    forks_cuda = schedule == "processes" and device.startswith("cuda") and not (devices and len(devices) > 1)
+    _prepare_warp(init=not forks_cuda)  # the flags and the config are checked: only now torch and Warp load
     from ..render_sim import run_render_sim as run
 
     if args.profile:  # the "imports" row: from the process's start (or main()'s, called in a process) to the run
@@ -122,7 +127,7 @@ def cmd_render_sim(args: argparse.Namespace) -> int:
     if devices and len(devices) > 1:
         extra["devices"] = devices
     else:
-        extra["schedule"] = (getattr(args, "schedule", None) or "auto").replace("-", "_")
+        extra["schedule"] = schedule
     if getattr(args, "no_view_record", False):
         extra["record_view"] = False
     if getattr(args, "frames_png", None) is not None:

@@ -35,9 +35,20 @@ def can_fork() -> bool:
     return "fork" in multiprocessing.get_all_start_methods() and sys.platform.startswith("linux")
 
 
-def _child(jobs, ready, stop, results) -> None:
+def cuda_untouched() -> bool:
+    """Whether this process has left the CUDA driver unstarted, as far as torch and Warp can tell, so children
+    forked now may use CUDA (`torch.cuda.is_available()` without NVML starts it unseen: the children check)."""
+    if torch.cuda.is_initialized():
+        return False
+    from warp._src import context  # Warp 1.19 has no public `is_initialized`
+
+    return context.runtime is None or not context.runtime.cuda_devices
+
+
+def _child(jobs, ready, stop, results, device: str) -> None:
     """A forked worker: wait for a job (fn, slot, threads, args, kwargs), prove OpenMP works here on `threads`
-    torch threads, then run fn(*args, stop=stop, results=results, **kwargs)."""
+    torch threads (and, for a CUDA run, that CUDA does), then run fn(*args, stop=stop, results=results,
+    **kwargs)."""
     signal.signal(signal.SIGINT, signal.default_int_handler)  # not the parent's handler, which sets its own event
     parent = os.getppid()
     try:
@@ -53,7 +64,13 @@ def _child(jobs, ready, stop, results) -> None:
         fn, slot, threads, args, kwargs = job
         torch.set_num_threads(threads)
         torch.ones(1 << 16, dtype=torch.float64).sum()  # a parallel region: hangs here if the fork broke OpenMP
-        ready.put(slot)
+        if device.startswith("cuda"):
+            try:  # the parent started the CUDA driver after all (a library caller): this child cannot use it
+                torch.ones(1, device=device).sum().item()
+            except Exception as exc:  # noqa: BLE001 - any failure means no CUDA here: the parent spawns instead
+                ready.put((slot, f"CUDA does not work in a forked worker ({str(exc).splitlines()[0]})"))
+                return
+        ready.put((slot, None))
     except KeyboardInterrupt:  # Ctrl-C before the run began: the parent reports it
         return
     fn(*args, stop=stop, results=results, **kwargs)
@@ -63,7 +80,7 @@ class ForkedWorkers:
     """`n` worker processes forked now, each waiting for one job (`start`); `close` ends the unused ones. The
     `stop` event and `results` queue are the ones `multi_device.run_on_devices` reads."""
 
-    def __init__(self, n: int):
+    def __init__(self, n: int, device: str = "cpu"):
         mp = torch.multiprocessing.get_context("fork")
         self.stop, self.results, self.ready = mp.Event(), mp.Queue(), mp.Queue()
         self.jobs = [mp.Queue() for _ in range(n)]
@@ -71,13 +88,17 @@ class ForkedWorkers:
         sys.stderr.flush()
         self.procs = [
             mp.Process(
-                target=_child, args=(q, self.ready, self.stop, self.results), name=f"fgs-cpu-{i + 1}", daemon=True
+                target=_child,
+                args=(q, self.ready, self.stop, self.results, str(device)),
+                name=f"fgs-{str(device).replace(':', '')}-{i + 1}",
+                daemon=True,
             )
             for i, q in enumerate(self.jobs)
         ]
         for p in self.procs:
             p.start()
         self.used: list = []
+        self.broken: Optional[str] = None  # why `start` gave up on the children, if it did
 
     def __len__(self) -> int:
         return len(self.procs)
@@ -94,10 +115,17 @@ class ForkedWorkers:
         self.used = self.procs[: len(jobs)]
         self.close()
         waiting = {job[0] for job in jobs}
+        self.broken = None
         try:
             while waiting:
-                waiting.discard(self.ready.get(timeout=READY_SECONDS))
+                slot, broken = self.ready.get(timeout=READY_SECONDS)
+                if broken is not None:
+                    self.broken = broken
+                    break
+                waiting.discard(slot)
         except queue.Empty:
+            self.broken = f"the forked workers did not start within {READY_SECONDS:.0f} s (OpenMP in a forked process)"
+        if self.broken is not None:
             self.terminate()
             return None
         return self.used

@@ -175,18 +175,22 @@ def cpu_slots(variants: int, cores: int, forked: bool) -> int:
 
 @contextlib.contextmanager
 def _forked_workers(device: str, devices, schedule: str, variants: int):
-    """Worker processes forked now for a CPU run that may take the processes schedule (`forked.ForkedWorkers`), or
-    None; on the way out every one still running is stopped (the run failed, or was interrupted)."""
+    """Worker processes forked now for a run that may take the processes schedule (`forked.ForkedWorkers`), or
+    None; on the way out every one still running is stopped (the run failed, or was interrupted). A CPU run
+    forks them for `auto` too; a GPU run only when asked (`schedule="processes"`) and while this process has not
+    started the CUDA driver (`forked.cuda_untouched`): a forked child cannot use CUDA after its parent did."""
     cores = usable_cores()
-    if device != "cpu" or (devices and len(devices) > 1) or schedule not in ("auto", "processes") or variants < 2:
+    on_cuda = device.startswith("cuda")
+    asked = schedule == "processes" or (schedule == "auto" and not on_cuda)
+    if (devices and len(devices) > 1) or not asked or variants < 2:
         yield None
         return
-    from .forked import ForkedWorkers, can_fork
+    from .forked import ForkedWorkers, can_fork, cuda_untouched
 
-    if cores < 2 or not can_fork():
+    if (cores < 2 and not on_cuda) or not can_fork() or (on_cuda and not cuda_untouched()):
         yield None
         return
-    workers = ForkedWorkers(cpu_slots(variants, cores, forked=True) - 1)
+    workers = ForkedWorkers(cpu_slots(variants, cores, forked=True) - 1, device)
     try:
         yield workers
     finally:

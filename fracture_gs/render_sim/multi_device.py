@@ -43,7 +43,7 @@ from ..sim.providers.broadcast import BroadcastProvider, FileChannel, LeaderProv
 from ..sim.topology import save_history
 from .comparison import ComparisonVideo
 from .context import RunContext, ScheduleResult
-from .forked import READY_SECONDS, ForkedWorkers
+from .forked import ForkedWorkers
 from .frame_files import FrameFiles
 from .painter import Painter
 from .variant import run_variant
@@ -175,10 +175,7 @@ def run_on_devices(
         tqdm.write(f"render-sim: {len(order)} variants in {len(procs) + 1} processes (forked at the start)")
     else:
         if workers is not None:
-            tqdm.write(
-                f"render-sim: the forked workers did not start within {READY_SECONDS:.0f} s (OpenMP in a forked "
-                "process); spawning fresh ones, which import torch and Warp again"
-            )
+            tqdm.write(f"render-sim: {workers.broken}; spawning fresh workers, which import torch and Warp again")
         mp = torch.multiprocessing.get_context("spawn")
         stop, results = mp.Event(), mp.Queue()
         procs = [

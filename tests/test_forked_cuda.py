@@ -1,0 +1,139 @@
+"""Worker processes forked for a GPU run (`render-sim --schedule processes --device cuda:N`).
+
+A child forked after its parent started the CUDA driver cannot use CUDA. So a GPU run that asks for processes checks
+its device without starting the driver (torch's NVML check), leaves Warp unstarted until the workers are forked, forks
+only while neither torch nor Warp has started CUDA, and each child proves CUDA works in it before the parent counts on
+it: one that cannot says why at once, and the run spawns fresh workers instead. This machine has no GPU, which is the
+case of a child whose CUDA does not work.
+"""
+
+from __future__ import annotations
+
+import os
+import queue
+import time
+from types import SimpleNamespace
+
+import pytest
+
+from fracture_gs.cli import devices, main
+from fracture_gs.render_sim import forked, job
+
+
+def _broken_cuda(jobs, ready, stop, results, device):  # a child whose CUDA does not work: it says so at once
+    fn, slot, threads, args, kwargs = jobs.get()
+    ready.put((slot, f"CUDA does not work in a forked worker (on {device})"))
+
+
+def _job(*args, stop, results):  # a job: says it ran
+    results.put(("ran", args))
+
+
+def test_a_child_without_cuda_is_given_up_at_once_with_its_reason(monkeypatch):
+    """A child that reports CUDA broken makes `start` give up without waiting out READY_SECONDS: it returns None,
+    keeps the child's reason for the run's message, and leaves no child running."""
+    monkeypatch.setattr(forked, "_child", _broken_cuda)
+    monkeypatch.setattr(forked, "READY_SECONDS", 60.0)
+    workers = forked.ForkedWorkers(2, "cuda:0")
+    t0 = time.perf_counter()
+    assert workers.start(print, [(1, 1, (), {}), (2, 1, (), {})]) is None
+    assert time.perf_counter() - t0 < 20
+    assert workers.broken == "CUDA does not work in a forked worker (on cuda:0)"
+    assert not any(p.is_alive() for p in workers.procs)
+
+
+def test_the_real_child_proves_cuda_before_it_reports_ready(monkeypatch):
+    """The package's own child, forked for a CUDA device on a machine whose CUDA cannot work (this one), reports
+    that instead of ready, naming the error, and never runs its job."""
+    monkeypatch.setattr(forked, "READY_SECONDS", 60.0)
+    workers = forked.ForkedWorkers(1, "cuda:0")
+    t0 = time.perf_counter()
+    assert workers.start(_job, [(1, 1, ("cuda",), {})]) is None
+    assert time.perf_counter() - t0 < 30
+    assert workers.broken.startswith("CUDA does not work in a forked worker (")
+    with pytest.raises(queue.Empty):  # the child returned before its job
+        workers.results.get(timeout=0.5)
+
+
+def test_the_cpu_child_does_not_touch_cuda():
+    """A CPU run's child reports ready without trying CUDA (a CUDA-less machine's CPU run forks as before)."""
+    workers = forked.ForkedWorkers(1, "cpu")
+    procs = workers.start(_job, [(1, 1, ("cpu",), {})])
+    assert procs is not None and workers.broken is None
+    assert workers.results.get(timeout=30) == ("ran", ("cpu",))
+    for p in procs:
+        p.join(30)
+    assert all(p.exitcode == 0 for p in procs)
+
+
+@pytest.mark.parametrize(
+    "device, schedule, untouched, forks",
+    [
+        ("cuda:0", "processes", True, 2),  # asked for, CUDA unstarted: one worker per variant beyond this process
+        ("cuda:0", "auto", True, 0),  # a GPU's auto runs in turn: nothing forked
+        ("cuda:0", "in_turn", True, 0),
+        ("cuda:0", "processes", False, 0),  # this process started CUDA already: its children could not use it
+        ("cpu", "auto", True, 2),  # a CPU run forks for auto (two cores here)
+        ("cpu", "threads", True, 0),
+    ],
+)
+def test_workers_are_forked_only_where_they_can_work(monkeypatch, device, schedule, untouched, forks):
+    """`_forked_workers`: a CPU run forks for auto and processes, a GPU run only for processes and only while this
+    process has not started the CUDA driver."""
+    monkeypatch.setattr(forked, "cuda_untouched", lambda: untouched)
+    monkeypatch.setattr(job, "usable_cores", lambda: 2)
+    with job._forked_workers(device, None, schedule, 3) as workers:
+        got = 0 if workers is None else len(workers)
+        if workers is not None:
+            workers.close()
+    assert got == forks
+
+
+def test_this_process_has_not_started_cuda():
+    """On a machine without CUDA neither torch nor Warp has a CUDA device started: forking stays allowed."""
+    assert forked.cuda_untouched()
+
+
+@pytest.mark.parametrize("before", [None, "0"])
+def test_fork_safe_checks_ask_nvml_and_restore_the_environment(monkeypatch, before):
+    """Inside `fork_safe_cuda_checks`, torch's availability check goes through NVML (which does not start the CUDA
+    driver); outside, the variable is as it was, set or not."""
+    if before is None:
+        monkeypatch.delenv(devices.FORK_SAFE_CHECK, raising=False)
+    else:
+        monkeypatch.setenv(devices.FORK_SAFE_CHECK, before)
+    with devices.fork_safe_cuda_checks():
+        assert os.environ[devices.FORK_SAFE_CHECK] == "1"
+    assert os.environ.get(devices.FORK_SAFE_CHECK) == before
+    with devices.fork_safe_cuda_checks(False):
+        assert os.environ.get(devices.FORK_SAFE_CHECK) == before
+
+
+@pytest.mark.parametrize("schedule, fork_safe, init", [("processes", "1", False), ("in-turn", None, True)])
+def test_a_gpu_processes_run_checks_its_device_and_leaves_warp_for_after_the_fork(
+    monkeypatch, tmp_path, schedule, fork_safe, init
+):
+    """`render-sim --device cuda:0 --schedule processes`: the device is checked the fork-safe way and Warp is not
+    started before the run (it starts at its first use, after the workers are forked); any other schedule checks
+    and starts as before."""
+    seen: dict = {}
+    monkeypatch.delenv(devices.FORK_SAFE_CHECK, raising=False)
+
+    def run_devices(args):
+        seen["fork_safe"] = os.environ.get(devices.FORK_SAFE_CHECK)
+        return "cuda:0", None
+
+    def run(cfg, variants, device, out_dir, **kw):
+        seen["run"] = (device, kw.get("schedule"))
+        return SimpleNamespace(as_dict=lambda: {}, profile=None, variants=[])
+
+    import fracture_gs.cli.run as cli_run
+    import fracture_gs.render_sim as render_sim
+
+    monkeypatch.setattr(cli_run, "run_devices", run_devices)
+    monkeypatch.setattr(cli_run, "refuse_render_sim", lambda *a: None)
+    monkeypatch.setattr(devices, "_prepare_warp", lambda init=True: seen.__setitem__("init", init))
+    monkeypatch.setattr(render_sim, "run_render_sim", run)
+    argv = ["render-sim", "bread", "--device", "cuda:0", "--schedule", schedule, "--out", str(tmp_path / "r")]
+    assert main(argv) == 0
+    assert seen == {"fork_safe": fork_safe, "init": init, "run": ("cuda:0", schedule.replace("-", "_"))}
