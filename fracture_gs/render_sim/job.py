@@ -99,17 +99,18 @@ def run_render_sim(
     ffmpeg()  # a missing video encoder is one sentence now, not after the scene is prepared and simulated
     if profile:
         phases.enable(sync_device=device if device.startswith("cuda") else None)
-    if cfg.render.backend != "torch" and not (devices and len(devices) > 1):  # (several devices: each worker builds)
-        # gsplat's one-time CUDA build (about a minute and a half on a fresh machine) runs in a process of its own
-        # beside the run, which draws with the torch rasterizer until it is done (`render.backend = 'gsplat'`
-        # waits for it instead: `render.warm_up`). Nothing starts on the CPU or once it is built.
-        position = len(variants) if schedule == "threads" else 1
-        start_gsplat_compile(
-            device, cancel=stop, show=progress, position=position, waits=cfg.render.backend == "gsplat"
-        )
-    # worker processes for a CPU run are forked now, before the scene is prepared: later, with torch's OpenMP
-    # threads started, a forked child could hang (`forked`); a run that needs none ends them at once
+    # worker processes are forked now, before the scene is prepared and before gsplat is looked for: later, with
+    # torch's OpenMP threads started, a forked child could hang, and once gsplat's build was looked up (torch's
+    # CUDA device query) a forked child cannot use CUDA (`forked`); a run that needs none ends them at once
     with _forked_workers(device, devices, schedule, len(variants)) as workers:
+        if cfg.render.backend != "torch" and not (devices and len(devices) > 1):  # (several devices: each builds)
+            # gsplat's one-time CUDA build (about a minute and a half on a fresh machine) runs in a process of its
+            # own beside the run, which draws with the torch rasterizer until it is done (`render.backend =
+            # 'gsplat'` waits for it instead: `render.warm_up`). Nothing starts on the CPU or once it is built.
+            position = len(variants) if schedule == "threads" else 1
+            start_gsplat_compile(
+                device, cancel=stop, show=progress, position=position, waits=cfg.render.backend == "gsplat"
+            )
         with phases.section("setup"):
             scene = prepare_scene(cfg, device)
             cfg, gs = scene.cfg, scene.gaussians

@@ -157,7 +157,9 @@ def run_on_devices(
     # workers sharing one CPU split its cores: each kernel's ranges stay on its own share (bitwise the same)
     cores = max(1, usable_cores() // len(devices)) if one_cpu else None
     setup = WorkerSetup(torch.get_num_threads(), run, phases.enabled, cores)
-    frame_dir = out_dir / ".frames" if one_cpu else None  # the workers' frames, file by file (`FrameFiles`)
+    # one device shared by processes: the workers' frames come file by file (`FrameFiles`), so this process composes
+    # the comparison while they finish; several devices: one .npy per variant at its end
+    frame_dir = out_dir / ".frames" if len(set(devices)) == 1 else None
     if frame_dir is not None:
         shutil.rmtree(frame_dir, ignore_errors=True)
     jobs = [  # `_worker`'s leading arguments: the first device's variants run here, the others' in worker processes
