@@ -54,7 +54,7 @@ def test_a_different_entry_is_its_own_axis(tmp_path, key, value):
 
 
 def test_a_key_of_another_table_is_judged_by_the_config_not_called_a_duplicate(tmp_path):
-    """"topology.E" (topology has no E) is refused when the cells are made, naming that key as the config's
+    """ "topology.E" (topology has no E) is refused when the cells are made, naming that key as the config's
     unknown entry, not as a second setter of material.E."""
     spec = load_spec(spec_with_set(tmp_path, "topology.E", "[7.0]"))
     with pytest.raises(ConfigError) as info:

@@ -15,8 +15,8 @@ import threading
 
 import pytest
 
-from fracture_gs.sweep import driver
 from fracture_gs.sweep import distributed as D
+from fracture_gs.sweep import driver
 
 SPEC = '[[accuracy]]\nlabel = "dx"\ncase = ["bar"]\ncells = [16, 32]\ncfl = 0.4\n'
 DONE = {"dt": 1e-4, "particles": 8, "substeps": 10, "wall_s": 1.0, "error": 0.25, "unit": "%"}
