@@ -1,4 +1,4 @@
-"""Worker processes for `render-sim`'s processes schedule on a CPU, forked at the run's start.
+"""Worker processes for `render-sim`'s processes schedule on one device, forked at the run's start.
 
 A spawned worker starts a new interpreter: it imports torch, Warp and the package again (about 3.5 s of one
 core on a 2-core machine, as long as the parent's own imports), which a CPU run of a few tens of seconds
@@ -12,6 +12,12 @@ child's word (`READY_SECONDS`) before it runs its own variants. A child that doe
 broken fork: the workers are stopped and the schedule spawns fresh ones instead (`multi_device`), so the run
 goes on, slower, and says why. A job names the function the child runs (`multi_device._worker`), so this module
 imports nothing of the scheduler's.
+
+On a GPU a child cannot use CUDA once its parent started the driver (torch's device query does, Warp's start-up
+does, and so does looking up gsplat's build). The CLI checks a processes run's device through NVML and leaves Warp
+unstarted (`cli.devices.fork_safe_cuda_checks`), the run forks before it looks for gsplat, `cuda_untouched` refuses
+to fork where torch or Warp has started CUDA, and each child proves CUDA works in it before it reports ready; one
+that cannot says why at once (`ForkedWorkers.broken`), and the run spawns fresh workers instead.
 """
 
 from __future__ import annotations
