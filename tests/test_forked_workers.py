@@ -37,7 +37,9 @@ def test_cpu_slots_give_forked_workers_one_variant_each_up_to_two_per_core(varia
     assert cpu_slots(variants, cores, forked_) == expected
 
 
-def _never_ready(jobs, ready, stop, results, device):  # a child whose fork broke OpenMP: it takes its job and hangs
+def _never_ready(
+    jobs, ready, stop, results, device, gsplat
+):  # a child whose fork broke OpenMP: it takes its job and hangs
     jobs.get()
     time.sleep(60)
 
@@ -69,7 +71,7 @@ def test_a_healthy_child_reports_ready_with_the_parents_thread_count():
     code = (
         "import torch\n"
         "from fracture_gs.render_sim import forked\n"
-        "def probe(jobs, ready, stop, results, device):  # the real child's first steps, then its thread count\n"
+        "def probe(jobs, ready, stop, results, device, gsplat):  # the real child's first steps, then its threads\n"
         "    fn, slot, threads, args, kwargs = jobs.get()\n"
         "    torch.set_num_threads(threads)\n"
         "    torch.ones(1 << 16, dtype=torch.float64).sum()\n"

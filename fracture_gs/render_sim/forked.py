@@ -51,13 +51,36 @@ def cuda_untouched() -> bool:
     return context.runtime is None or not context.runtime.cuda_devices
 
 
-def _child(jobs, ready, stop, results, device: str) -> None:
-    """A forked worker: wait for a job (fn, slot, threads, args, kwargs), prove OpenMP works here on `threads`
-    torch threads (and, for a CUDA run, that CUDA does), then run fn(*args, stop=stop, results=results,
-    **kwargs)."""
+def _start_cuda(device: str, gsplat: bool) -> Optional[str]:
+    """Start CUDA and Warp on `device` in this child (seconds on a GPU host), and with `gsplat` load gsplat's CUDA
+    code where it is built already (never a build here); returns the sentence why CUDA does not work here, or None
+    (the parent started the CUDA driver before the fork after all: a library caller)."""
+    try:
+        torch.ones(1, device=device).sum().item()
+        from ..runtime import ensure_warp
+
+        ensure_warp()
+    except Exception as exc:  # noqa: BLE001 - any failure means no CUDA here: the parent spawns instead
+        return f"CUDA does not work in a forked worker ({str(exc).splitlines()[0]})"
+    if gsplat:
+        from ..render.warm_up import gsplat_needs_compile
+
+        if not gsplat_needs_compile():
+            try:
+                from gsplat.cuda import _backend  # noqa: F401 - loads the build; the first frame would anyway
+            except Exception:  # noqa: BLE001 - the first frame meets it again and reports it there
+                pass
+    return None
+
+
+def _child(jobs, ready, stop, results, device: str, gsplat: bool = False) -> None:
+    """A forked worker: for a CUDA run start CUDA and Warp at once (beside the parent's scene preparation), wait
+    for a job (fn, slot, threads, args, kwargs), prove OpenMP works here on `threads` torch threads (and, for a
+    CUDA run, that CUDA did start), then run fn(*args, stop=stop, results=results, **kwargs)."""
     signal.signal(signal.SIGINT, signal.default_int_handler)  # not the parent's handler, which sets its own event
     parent = os.getppid()
     try:
+        broken = _start_cuda(device, gsplat) if device.startswith("cuda") else None
         while True:  # a parent killed before it sent the job (SIGKILL, out of memory) leaves no child waiting
             try:
                 job = jobs.get(timeout=1.0)
@@ -70,13 +93,9 @@ def _child(jobs, ready, stop, results, device: str) -> None:
         fn, slot, threads, args, kwargs = job
         torch.set_num_threads(threads)
         torch.ones(1 << 16, dtype=torch.float64).sum()  # a parallel region: hangs here if the fork broke OpenMP
-        if device.startswith("cuda"):
-            try:  # the parent started the CUDA driver after all (a library caller): this child cannot use it
-                torch.ones(1, device=device).sum().item()
-            except Exception as exc:  # noqa: BLE001 - any failure means no CUDA here: the parent spawns instead
-                ready.put((slot, f"CUDA does not work in a forked worker ({str(exc).splitlines()[0]})"))
-                return
-        ready.put((slot, None))
+        ready.put((slot, broken))
+        if broken is not None:
+            return
     except KeyboardInterrupt:  # Ctrl-C before the run began: the parent reports it
         return
     fn(*args, stop=stop, results=results, **kwargs)
@@ -86,7 +105,7 @@ class ForkedWorkers:
     """`n` worker processes forked now, each waiting for one job (`start`); `close` ends the unused ones. The
     `stop` event and `results` queue are the ones `multi_device.run_on_devices` reads."""
 
-    def __init__(self, n: int, device: str = "cpu"):
+    def __init__(self, n: int, device: str = "cpu", gsplat: bool = False):
         mp = torch.multiprocessing.get_context("fork")
         self.stop, self.results, self.ready = mp.Event(), mp.Queue(), mp.Queue()
         self.jobs = [mp.Queue() for _ in range(n)]
@@ -95,7 +114,7 @@ class ForkedWorkers:
         self.procs = [
             mp.Process(
                 target=_child,
-                args=(q, self.ready, self.stop, self.results, str(device)),
+                args=(q, self.ready, self.stop, self.results, str(device), gsplat),
                 name=f"fgs-{str(device).replace(':', '')}-{i + 1}",
                 daemon=True,
             )
