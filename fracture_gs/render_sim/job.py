@@ -174,14 +174,6 @@ def cpu_slots(variants: int, cores: int, forked: bool) -> int:
     return max(1, min(variants, 2 * cores if forked else cores))
 
 
-def composes_apart(device: str) -> bool:
-    """Whether a processes run with forked workers on `device` gives every variant a worker and leaves this process
-    to compose the comparison from the start (`multi_device.run_on_devices(compose_only)`): on a GPU, whose host
-    has cores to spare. On a CPU this process runs the leader and composes after it, as a composer beside the
-    variants took their cores (measured slower on the 2-core machine)."""
-    return str(device).startswith("cuda")
-
-
 @contextlib.contextmanager
 def _forked_workers(device: str, devices, schedule: str, variants: int, gsplat: bool = False):
     """Worker processes forked now for a run that may take the processes schedule (`forked.ForkedWorkers`), or
@@ -200,8 +192,7 @@ def _forked_workers(device: str, devices, schedule: str, variants: int, gsplat: 
     if (cores < 2 and not on_cuda) or not can_fork() or (on_cuda and not cuda_untouched()):
         yield None
         return
-    n = variants if composes_apart(device) else cpu_slots(variants, cores, forked=True) - 1
-    workers = ForkedWorkers(n, device, gsplat=gsplat)
+    workers = ForkedWorkers(cpu_slots(variants, cores, forked=True) - 1, device, gsplat=gsplat)
     try:
         yield workers
     finally:
@@ -220,8 +211,6 @@ def _schedule(
     if schedule == "processes" and len(ctx.order) > 1:
         from .multi_device import run_on_devices
 
-        if composes_apart(ctx.device) and workers is not None:
-            return run_on_devices(ctx, [ctx.device] * len(ctx.order), metrics_file, workers=workers, compose_only=True)
         slots = cpu_slots(len(ctx.order), usable_cores(), forked=workers is not None)
         return run_on_devices(ctx, [ctx.device] * slots, metrics_file, workers=workers)
     if workers is not None:

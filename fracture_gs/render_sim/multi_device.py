@@ -138,31 +138,19 @@ class WorkerFailed(RuntimeError):
 
 
 def run_on_devices(
-    ctx: RunContext,
-    devices: list[str],
-    metrics,
-    run=run_variant,
-    workers: Optional[ForkedWorkers] = None,
-    compose_only: bool = False,
+    ctx: RunContext, devices: list[str], metrics, run=run_variant, workers: Optional[ForkedWorkers] = None
 ) -> ScheduleResult:
     """Run `ctx.order` (leader first) over `devices` (one worker process per entry; an entry may repeat); the
     variants' metrics lines are appended to `metrics` in that order, and the leader's history to topology.npz.
     `run` runs one variant (`variant.run_variant`; a test passes a stand-in defined at module level, which the
     spawned workers import). `workers`: processes forked at the run's start (`forked.ForkedWorkers`, the CPU's
-    processes schedule), used instead of spawning new ones. `compose_only` (one GPU shared by forked workers): every
-    entry of `devices` is a worker's and this process runs no variant: it composes the comparison from the start,
-    as the workers draw (a GPU host has cores to spare; on a CPU that composer took the cores from the variants)."""
+    processes schedule), used instead of spawning new ones."""
     order, out_dir = list(ctx.order), ctx.out_dir
     channel_dir = out_dir / ".topology_channel"
     shutil.rmtree(channel_dir, ignore_errors=True)
-    if compose_only:
-        devices = devices[:1] + list(devices)  # entry 0, this process's, gets no variant
     queues: list[list[str]] = [[] for _ in devices]
     for i, v in enumerate(order):
-        if compose_only:
-            queues[1 + i % (len(devices) - 1)].append(v)
-        else:
-            queues[i % len(devices)].append(v)
+        queues[i % len(devices)].append(v)
     bg = ctx.background
     on_cpu = replace(ctx, gaussians=ctx.gaussians.to("cpu"), background=bg.to("cpu") if bg is not None else None)
     one_cpu = all(d == "cpu" for d in devices)
@@ -211,7 +199,7 @@ def run_on_devices(
     interrupted = False
     try:
         _worker(0, replace(ctx, device=devices[0]), queues[0], order[0], channel_dir, stop, local, setup, stores=stores)
-        if readers:  # this process led (or ran none); while the workers finish, compose what they have drawn
+        if readers:  # this process led; while the workers finish, compose what they have drawn
             live = _LiveComparison(ctx, channel_dir, [stores.get(v, readers.get(v)) for v in ctx.variants])
     except KeyboardInterrupt:
         interrupted = True
