@@ -213,7 +213,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="on one device: simulate the variants one after another (in-turn), at once in a thread each (threads: "
         "not faster on a GPU, whose frames are Python-bound), or at once in worker processes (processes: Warp runs a "
         "kernel on one core, so on a CPU this is what uses a second core; forked at the start, one per variant up "
-        "to two per core; on a GPU one per variant, each with an interpreter of its own, about 10%% faster on the "
+        "to two per core; on a GPU one per variant, each with an interpreter of its own: 0.5-1.5 s faster on the "
         "bread paper preset). Default auto: processes on a CPU with two or more cores when the run is long enough "
         "to pay for them, else in-turn. The outputs are the same byte for byte; with threads metrics.jsonl's rows "
         "interleave",
