@@ -137,3 +137,51 @@ def test_a_gpu_processes_run_checks_its_device_and_leaves_warp_for_after_the_for
     argv = ["render-sim", "bread", "--device", "cuda:0", "--schedule", schedule, "--out", str(tmp_path / "r")]
     assert main(argv) == 0
     assert seen == {"fork_safe": fork_safe, "init": init, "run": ("cuda:0", schedule.replace("-", "_"))}
+
+
+class _Scalar:  # what `torch.ones(1, device=...).sum()` gives, without a GPU
+    def sum(self):
+        return self
+
+    def item(self):
+        return 1.0
+
+
+@pytest.mark.parametrize("built, loads", [(True, True), (False, False)])
+def test_a_cuda_child_loads_gsplat_at_the_fork_only_where_it_is_built(monkeypatch, built, loads):
+    """`_start_cuda` with gsplat asked for: CUDA and Warp start, and gsplat's CUDA code is imported only when its
+    build exists (importing it unbuilt would start a minute-long compile in every child)."""
+    import builtins
+
+    import fracture_gs.render.warm_up as warm_up
+    import fracture_gs.runtime as runtime
+
+    imported, started = [], []
+    real_import = builtins.__import__
+
+    def spy(name, *args, **kwargs):
+        if name.startswith("gsplat"):
+            imported.append(name)
+            raise ImportError("no gsplat here")  # the child goes on without it: the first frame meets it again
+        return real_import(name, *args, **kwargs)
+
+    monkeypatch.setattr(forked.torch, "ones", lambda *a, **k: _Scalar())
+    monkeypatch.setattr(runtime, "ensure_warp", lambda: started.append("warp"))
+    monkeypatch.setattr(warm_up, "gsplat_needs_compile", lambda: not built)
+    monkeypatch.setattr(builtins, "__import__", spy)
+    assert forked._start_cuda("cuda:0", gsplat=True) is None
+    assert started == ["warp"]
+    assert (imported == ["gsplat.cuda"]) == loads and (imported == []) == (not loads)
+
+
+def test_a_cuda_child_that_cannot_start_cuda_says_why_and_loads_nothing(monkeypatch):
+    """A failing first CUDA op is the child's report, its first line quoted; Warp and gsplat are not touched."""
+    import fracture_gs.runtime as runtime
+
+    def no_cuda(*a, **k):
+        raise RuntimeError("Cannot re-initialize CUDA in forked subprocess.\nmore detail")
+
+    monkeypatch.setattr(forked.torch, "ones", no_cuda)
+    monkeypatch.setattr(runtime, "ensure_warp", lambda: pytest.fail("Warp started without CUDA"))
+    got = forked._start_cuda("cuda:0", gsplat=True)
+    assert got == "CUDA does not work in a forked worker (Cannot re-initialize CUDA in forked subprocess.)"
