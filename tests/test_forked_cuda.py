@@ -43,10 +43,10 @@ def test_a_child_without_cuda_is_given_up_at_once_with_its_reason(monkeypatch):
 
 
 def test_the_real_child_proves_cuda_before_it_reports_ready(monkeypatch):
-    """The package's own child, forked for a CUDA device on a machine whose CUDA cannot work (this one), reports
-    that instead of ready, naming the error, and never runs its job."""
+    """The package's own child, forked for a CUDA device that cannot work in it (cuda:99: no machine has it, and
+    this one has no CUDA at all), reports that instead of ready, naming the error, and never runs its job."""
     monkeypatch.setattr(forked, "READY_SECONDS", 60.0)
-    workers = forked.ForkedWorkers(1, "cuda:0")
+    workers = forked.ForkedWorkers(1, "cuda:99")
     t0 = time.perf_counter()
     assert workers.start(_job, [(1, 1, ("cuda",), {})]) is None
     assert time.perf_counter() - t0 < 30
@@ -89,9 +89,23 @@ def test_workers_are_forked_only_where_they_can_work(monkeypatch, device, schedu
     assert got == forks
 
 
-def test_this_process_has_not_started_cuda():
-    """On a machine without CUDA neither torch nor Warp has a CUDA device started: forking stays allowed."""
-    assert forked.cuda_untouched()
+@pytest.mark.parametrize(
+    "torch_started, warp_runtime, untouched",
+    [
+        (False, None, True),  # neither has started: fork
+        (False, SimpleNamespace(cuda_devices=[]), True),  # Warp started on a machine without CUDA: fork
+        (False, SimpleNamespace(cuda_devices=["cuda:0"]), False),  # Warp started the CUDA driver
+        (True, None, False),  # torch did
+    ],
+)
+def test_cuda_counts_as_touched_once_torch_or_warp_started_it(monkeypatch, torch_started, warp_runtime, untouched):
+    """`cuda_untouched`: a fork is allowed only while neither torch's CUDA nor a Warp runtime with CUDA devices
+    exists in this process."""
+    from warp._src import context
+
+    monkeypatch.setattr(forked.torch.cuda, "is_initialized", lambda: torch_started)
+    monkeypatch.setattr(context, "runtime", warp_runtime)
+    assert forked.cuda_untouched() is untouched
 
 
 @pytest.mark.parametrize("before", [None, "0"])
@@ -185,3 +199,26 @@ def test_a_cuda_child_that_cannot_start_cuda_says_why_and_loads_nothing(monkeypa
     monkeypatch.setattr(runtime, "ensure_warp", lambda: pytest.fail("Warp started without CUDA"))
     got = forked._start_cuda("cuda:0", gsplat=True)
     assert got == "CUDA does not work in a forked worker (Cannot re-initialize CUDA in forked subprocess.)"
+
+
+@pytest.mark.slow
+def test_the_cli_runs_forked_workers_on_the_test_device(tmp_path, device):
+    """`render-sim --schedule processes` on the tests' device (`--device cuda` on a GPU machine, the CPU here) forks
+    its workers at the start and never falls back to spawning; every variant writes every frame's row and latches
+    at the leader's frame (on a GPU too, where the fork must come before anything starts CUDA)."""
+    import json
+    import subprocess
+    import sys
+
+    argv = [sys.executable, "-m", "fracture_gs.cli", "render-sim", "bread", "--device", device, "--frames", "14"]
+    argv += ["--particles", "2500", "--resolution", "64x48", "--no-view-record", "--schedule", "processes"]
+    out = subprocess.run(argv + ["--out", str(tmp_path / "r")], capture_output=True, text=True, timeout=900)
+    text = out.stdout + out.stderr
+    assert out.returncode == 0, text[-3000:]
+    assert "3 variants in 3 processes (forked at the start)" in text and "spawning" not in text, text[-3000:]
+    rows = [json.loads(line) for line in (tmp_path / "r" / "metrics.jsonl").read_text().splitlines()]
+    assert sorted((r["variant"], r["frame"]) for r in rows) == sorted(
+        (v, f) for v in ("baseline", "stress_zero", "full") for f in range(15)
+    )
+    latches = {v["variant"]: v["latch"] for v in json.loads((tmp_path / "r" / "summary.json").read_text())["variants"]}
+    assert len(set(map(json.dumps, latches.values()))) == 1 and latches["full"] is not None, latches
