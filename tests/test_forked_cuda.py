@@ -67,22 +67,25 @@ def test_the_cpu_child_does_not_touch_cuda():
 
 
 @pytest.mark.parametrize(
-    "device, schedule, untouched, forks",
+    "device, schedule, untouched, backend, forks",
     [
-        ("cuda:0", "processes", True, 2),  # asked for, CUDA unstarted: one worker per variant beyond this process
-        ("cuda:0", "auto", True, 0),  # a GPU's auto runs in turn: nothing forked
-        ("cuda:0", "in_turn", True, 0),
-        ("cuda:0", "processes", False, 0),  # this process started CUDA already: its children could not use it
-        ("cpu", "auto", True, 2),  # a CPU run forks for auto (two cores here)
-        ("cpu", "threads", True, 0),
+        ("cuda:0", "processes", True, "auto", 2),  # asked for, CUDA unstarted: a worker per variant beyond this one
+        ("cuda:0", "processes", True, "torch", 2),
+        ("cuda:0", "processes", True, "gsplat", 0),  # waits for gsplat's build: spawned workers wait themselves
+        ("cuda:0", "auto", True, "auto", 0),  # a GPU's auto runs in turn: nothing forked
+        ("cuda:0", "in_turn", True, "auto", 0),
+        ("cuda:0", "processes", False, "auto", 0),  # this process started CUDA already: its children could not use it
+        ("cpu", "auto", True, "auto", 2),  # a CPU run forks for auto (two cores here)
+        ("cpu", "processes", True, "torch", 2),
+        ("cpu", "threads", True, "auto", 0),
     ],
 )
-def test_workers_are_forked_only_where_they_can_work(monkeypatch, device, schedule, untouched, forks):
-    """`_forked_workers`: a CPU run forks for auto and processes, a GPU run only for processes and only while this
-    process has not started the CUDA driver."""
+def test_workers_are_forked_only_where_they_can_work(monkeypatch, device, schedule, untouched, backend, forks):
+    """`_forked_workers`: a CPU run forks for auto and processes, a GPU run only for processes, only while this
+    process has not started the CUDA driver, and not when it must wait for gsplat's build."""
     monkeypatch.setattr(forked, "cuda_untouched", lambda: untouched)
     monkeypatch.setattr(job, "usable_cores", lambda: 2)
-    with job._forked_workers(device, None, schedule, 3) as workers:
+    with job._forked_workers(device, None, schedule, 3, backend) as workers:
         got = 0 if workers is None else len(workers)
         if workers is not None:
             workers.close()
@@ -163,8 +166,9 @@ class _Scalar:  # what `torch.ones(1, device=...).sum()` gives, without a GPU
 
 @pytest.mark.parametrize("built, loads", [(True, True), (False, False)])
 def test_a_cuda_child_loads_gsplat_at_the_fork_only_where_it_is_built(monkeypatch, built, loads):
-    """`_start_cuda` with gsplat asked for: CUDA and Warp start, and gsplat's CUDA code is imported only when its
-    build exists (importing it unbuilt would start a minute-long compile in every child)."""
+    """`_start_cuda` under the auto backend: CUDA and Warp start; gsplat's CUDA code is imported only when its
+    build exists (importing it unbuilt would start a minute-long compile in every child, or load a build the parent
+    is still writing), and where it does not the child draws with the torch rasterizer (`gsplat_ready()` False)."""
     import builtins
 
     import fracture_gs.render.warm_up as warm_up
@@ -182,10 +186,18 @@ def test_a_cuda_child_loads_gsplat_at_the_fork_only_where_it_is_built(monkeypatc
     monkeypatch.setattr(forked.torch, "ones", lambda *a, **k: _Scalar())
     monkeypatch.setattr(runtime, "ensure_warp", lambda: started.append("warp"))
     monkeypatch.setattr(warm_up, "gsplat_needs_compile", lambda: not built)
+    monkeypatch.setattr(warm_up, "_pending", None)
+    assert warm_up.gsplat_ready()
     monkeypatch.setattr(builtins, "__import__", spy)
     assert forked._start_cuda("cuda:0", gsplat=True) is None
+    monkeypatch.setattr(builtins, "__import__", real_import)
     assert started == ["warp"]
     assert (imported == ["gsplat.cuda"]) == loads and (imported == []) == (not loads)
+    # unbuilt, the build is the parent's (started after the fork): this child draws with the torch rasterizer
+    assert warm_up.gsplat_ready() is built
+    from fracture_gs.render.splat import auto_backend
+
+    assert auto_backend(on_cuda=True, warp_ok=False) == ("gsplat" if built else "torch")
 
 
 def test_a_cuda_child_that_cannot_start_cuda_says_why_and_loads_nothing(monkeypatch):

@@ -322,6 +322,18 @@ def build_gsplat_detached(
         compile_gsplat(device, spinner=False)
 
 
+def draw_without_gsplat(why: str) -> None:
+    """From now on `gsplat_ready()` is False in this process, so `auto` draws CUDA frames with the torch rasterizer:
+    for a worker forked before its parent started gsplat's build (the build is the parent's; loading it here while
+    it is written would fail). `why`: the reason, kept as the job's error."""
+    global _pending
+    job = BackgroundCompile(GSPLAT_STEP, lambda: None)
+    job.error = RenderError(why)
+    job._done.set()
+    with _pending_lock:
+        _pending = job
+
+
 def gsplat_ready() -> bool:
     """False while a background build runs or after it failed: the `auto` backend then draws CUDA frames with the
     torch rasterizer rather than wait (`render.splat.render`)."""

@@ -52,9 +52,10 @@ def cuda_untouched() -> bool:
 
 
 def _start_cuda(device: str, gsplat: bool) -> Optional[str]:
-    """Start CUDA and Warp on `device` in this child (seconds on a GPU host), and with `gsplat` load gsplat's CUDA
-    code where it is built already (never a build here); returns the sentence why CUDA does not work here, or None
-    (the parent started the CUDA driver before the fork after all: a library caller)."""
+    """Start CUDA and Warp on `device` in this child (seconds on a GPU host), and with `gsplat` (the `auto` backend)
+    load gsplat's CUDA code where it is built already, or, where it is not (the parent starts its build after the
+    fork), draw this child's frames with the torch rasterizer; returns the sentence why CUDA does not work here, or
+    None (the parent started the CUDA driver before the fork after all: a library caller)."""
     try:
         torch.ones(1, device=device).sum().item()
         from ..runtime import ensure_warp
@@ -63,13 +64,15 @@ def _start_cuda(device: str, gsplat: bool) -> Optional[str]:
     except Exception as exc:  # noqa: BLE001 - any failure means no CUDA here: the parent spawns instead
         return f"CUDA does not work in a forked worker ({str(exc).splitlines()[0]})"
     if gsplat:
-        from ..render.warm_up import gsplat_needs_compile
+        from ..render.warm_up import draw_without_gsplat, gsplat_needs_compile
 
-        if not gsplat_needs_compile():
-            try:
-                from gsplat.cuda import _backend  # noqa: F401 - loads the build; the first frame would anyway
-            except Exception:  # noqa: BLE001 - the first frame meets it again and reports it there
-                pass
+        if gsplat_needs_compile():  # the parent builds it now, beside the run: this worker draws with torch
+            draw_without_gsplat("gsplat was being built when this worker started")
+            return None
+        try:
+            from gsplat.cuda import _backend  # noqa: F401 - loads the build; the first frame would anyway
+        except Exception:  # noqa: BLE001 - the first frame meets it again and reports it there
+            pass
     return None
 
 

@@ -102,7 +102,7 @@ def run_render_sim(
     # worker processes are forked now, before the scene is prepared and before gsplat is looked for: later, with
     # torch's OpenMP threads started, a forked child could hang, and once gsplat's build was looked up (torch's
     # CUDA device query) a forked child cannot use CUDA (`forked`); a run that needs none ends them at once
-    with _forked_workers(device, devices, schedule, len(variants), cfg.render.backend != "torch") as workers:
+    with _forked_workers(device, devices, schedule, len(variants), cfg.render.backend) as workers:
         if cfg.render.backend != "torch" and not (devices and len(devices) > 1):  # (several devices: each builds)
             # gsplat's one-time CUDA build (about a minute and a half on a fresh machine) runs in a process of its
             # own beside the run, which draws with the torch rasterizer until it is done (`render.backend =
@@ -175,12 +175,14 @@ def cpu_slots(variants: int, cores: int, forked: bool) -> int:
 
 
 @contextlib.contextmanager
-def _forked_workers(device: str, devices, schedule: str, variants: int, gsplat: bool = False):
+def _forked_workers(device: str, devices, schedule: str, variants: int, backend: str = "auto"):
     """Worker processes forked now for a run that may take the processes schedule (`forked.ForkedWorkers`), or
     None; on the way out every one still running is stopped (the run failed, or was interrupted). A CPU run
     forks them for `auto` too; a GPU run only when asked (`schedule="processes"`) and while this process has not
     started the CUDA driver (`forked.cuda_untouched`): a forked child cannot use CUDA after its parent did.
-    `gsplat`: the run may draw with gsplat, so a CUDA child loads its build while this process prepares the scene."""
+    `backend` (`render.backend`): under `auto` a CUDA child loads gsplat's build while this process prepares the
+    scene, or draws with the torch rasterizer where the build is missing (this process starts it after the fork);
+    `gsplat`, which waits for the build, is given spawned workers instead (they wait for it themselves)."""
     cores = usable_cores()
     on_cuda = device.startswith("cuda")
     asked = schedule == "processes" or (schedule == "auto" and not on_cuda)
@@ -189,10 +191,10 @@ def _forked_workers(device: str, devices, schedule: str, variants: int, gsplat: 
         return
     from .forked import ForkedWorkers, can_fork, cuda_untouched
 
-    if (cores < 2 and not on_cuda) or not can_fork() or (on_cuda and not cuda_untouched()):
+    if (cores < 2 and not on_cuda) or not can_fork() or (on_cuda and (backend == "gsplat" or not cuda_untouched())):
         yield None
         return
-    workers = ForkedWorkers(cpu_slots(variants, cores, forked=True) - 1, device, gsplat=gsplat)
+    workers = ForkedWorkers(cpu_slots(variants, cores, forked=True) - 1, device, gsplat=backend == "auto")
     try:
         yield workers
     finally:
