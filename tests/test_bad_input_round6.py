@@ -1,0 +1,118 @@
+"""Bad input, round six (issue 34, item 5): what a new user's probes still found (docs/probes-round6.md). Each
+refusal is one sentence naming the argument or flag and the fix; each test fails on the code before the fix, and
+the "still" tests guard the refusals against being wider than the bad value."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+from badinput import one_line
+
+from fracture_gs.errors import ArgumentError, ConfigError, OutputError, PlyError, RenderError
+from fracture_gs.io.config import load_config
+from fracture_gs.io.config.overrides import apply_overrides
+from fracture_gs.io.detect import detect_format
+from fracture_gs.io.outputs import output_dir
+
+
+@pytest.mark.parametrize("byte", [b"\x01", b"\x7f"])
+def test_a_splat_of_control_bytes_is_named_a_splat_not_text(tmp_path, byte):
+    """Rule: bytes 0x01-0x1f and 0x7f are binary data; a .splat of them was called "text (first line '\\x01...')".
+    A cut .splat now gets the .splat sentence (32-byte rows)."""
+    p = tmp_path / "a.splat"
+    p.write_bytes(byte * 100)
+    with pytest.raises(PlyError) as info:
+        detect_format(p)
+    msg = one_line(info.value)
+    assert "is text" not in msg and "32-byte rows" in msg, msg
+
+
+def test_still_a_text_file_is_called_text(tmp_path):
+    """The neighbouring good case: a real text file (tabs and newlines) is still named text."""
+    p = tmp_path / "notes.splat"
+    p.write_bytes(b"hello\tworld\n" * 9)
+    with pytest.raises(PlyError) as info:
+        detect_format(p)
+    assert "is text" in one_line(info.value)
+
+
+def test_read_cameras_of_none_is_an_argument_error():
+    """Rule: read_cameras takes a path; None raised pathlib's TypeError."""
+    from fracture_gs.capture.fit import read_cameras
+
+    with pytest.raises(ArgumentError) as info:
+        read_cameras(None)
+    assert "read_cameras: path" in one_line(info.value)
+
+
+@pytest.mark.parametrize("resolution", [(64,), (64, 48, 3), (64.5, 48), (True, 48)])
+def test_apply_overrides_refuses_a_resolution_that_is_not_a_pair_of_ints(resolution):
+    """Rule: a resolution pair is two whole numbers: (64,) raised a bare ValueError and (64.5, 48) was cut to 64."""
+    with pytest.raises(ConfigError) as info:
+        apply_overrides(load_config("bread"), resolution=resolution)
+    assert "resolution" in one_line(info.value)
+
+
+def test_still_apply_overrides_takes_a_resolution_pair():
+    """The neighbouring good value: a (w, h) list or tuple of ints still sets the image size."""
+    cfg = apply_overrides(load_config("bread"), resolution=[64, 48])
+    assert (cfg.render.width, cfg.render.height) == (64, 48)
+
+
+def test_apply_overrides_of_a_name_is_an_argument_error():
+    """Rule: apply_overrides takes a SceneConfig; a name raised AttributeError from inside."""
+    with pytest.raises(ArgumentError) as info:
+        apply_overrides("bread", frames=2)
+    assert "apply_overrides: cfg" in one_line(info.value)
+
+
+def _img(h=4, w=4):
+    return np.zeros((h, w, 3), np.uint8)
+
+
+@pytest.mark.parametrize(
+    "call",
+    [
+        lambda R: R.side_by_side([]),
+        lambda R: R.side_by_side([_img()], captions=["a", "b"]),
+        lambda R: R.grid([[]]),
+        lambda R: R.caption(_img(), 5),
+        lambda R: R.caption(_img(), "x", position="left"),
+        lambda R: R.deform_covariances(torch.eye(2).repeat(3, 1, 1), torch.eye(3).repeat(3, 1, 1)),
+        lambda R: R.deform_covariances(torch.eye(3).repeat(2, 1, 1), torch.eye(3).repeat(3, 1, 1)),
+    ],
+    ids=["no-images", "captions", "empty-grid", "caption-int", "caption-left", "F-2x2", "F-count"],
+)
+def test_render_helpers_refuse_bad_arguments_with_a_render_error(call):
+    """Rule: the composing helpers and deform_covariances raise RenderError naming the argument; before they raised
+    a bare ValueError, OpenCV's error, torch's RuntimeError, or (position='left') drew the bar below."""
+    import fracture_gs.render as R
+
+    with pytest.raises(RenderError) as info:
+        call(R)
+    one_line(info.value)
+
+
+def test_still_render_helpers_work_on_good_arguments():
+    """The neighbouring good values: captions top and bottom, Σ = F Σ⁰ Fᵀ of a uniform stretch by 2 is 4 Σ⁰."""
+    import fracture_gs.render as R
+
+    top, bottom = R.caption(_img(8, 8), "x", position="top"), R.caption(_img(8, 8), "x", position="bottom")
+    assert top.shape == bottom.shape and not np.array_equal(top, bottom)
+    cov = R.deform_covariances(2.0 * torch.eye(3).repeat(2, 1, 1), torch.eye(3).repeat(2, 1, 1))
+    assert torch.allclose(cov, 4.0 * torch.eye(3).repeat(2, 1, 1))
+
+
+def test_an_uncreatable_out_folder_is_refused_in_one_ended_sentence(tmp_path):
+    """Rule: every --out refusal is one sentence ending in a full stop (it had none)."""
+    blocker = tmp_path / "f"
+    blocker.write_text("x")
+    with pytest.raises(OutputError) as info:
+        output_dir(Path("/proc/no/such"))
+    one_line(info.value)
+    with pytest.raises(OutputError) as info:
+        output_dir(blocker)
+    one_line(info.value)
