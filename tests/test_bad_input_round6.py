@@ -12,10 +12,12 @@ import torch
 from badinput import one_line
 
 from fracture_gs.errors import ArgumentError, ConfigError, OutputError, PlyError, RenderError
-from fracture_gs.io.config import load_config
+from fracture_gs.io.config import config_from_dict, load_config
 from fracture_gs.io.config.overrides import apply_overrides
 from fracture_gs.io.detect import detect_format
+from fracture_gs.io.formats import write_gaussians
 from fracture_gs.io.outputs import output_dir
+from fracture_gs.io.ply import save_ply
 
 
 @pytest.mark.parametrize("byte", [b"\x01", b"\x7f"])
@@ -116,3 +118,65 @@ def test_an_uncreatable_out_folder_is_refused_in_one_ended_sentence(tmp_path):
     with pytest.raises(OutputError) as info:
         output_dir(blocker)
     one_line(info.value)
+
+
+def _gs(n: int = 20):
+    from fracture_gs.io.gaussian_set import GaussianSet
+
+    g = torch.Generator().manual_seed(0)
+    return GaussianSet(
+        means=torch.rand(n, 3, generator=g),
+        quats=torch.nn.functional.normalize(torch.randn(n, 4, generator=g), dim=1),
+        scales=torch.full((n, 3), 0.02),
+        opacities=torch.full((n,), 0.5),
+        sh=torch.zeros(n, 1, 3),
+    )
+
+
+@pytest.mark.parametrize("name", ["x.spz", "x.splat", "x.compressed.ply", "x.ksplat"])
+def test_save_ply_refuses_a_name_of_another_format(tmp_path, name):
+    """Rule: save_ply writes a 3DGS PLY; under an .spz (or .splat, .compressed.ply, .ksplat) name, viewers that go
+    by the name misread it. Before, the file was written without a word."""
+    with pytest.raises(PlyError) as info:
+        save_ply(_gs(), tmp_path / name)
+    assert "save_ply" in one_line(info.value) and "write_gaussians" in str(info.value)
+    assert not (tmp_path / name).exists()
+
+
+@pytest.mark.parametrize(("name", "fmt"), [("y.ply", "spz"), ("y.spz", "splat"), ("y.compressed.ply", "ply")])
+def test_write_gaussians_refuses_a_name_that_names_another_format(tmp_path, name, fmt):
+    """Rule: a file name whose suffix names one format and fmt another is refused (an SPZ was written as y.ply)."""
+    with pytest.raises(PlyError) as info:
+        write_gaussians(_gs(), tmp_path / name, fmt)
+    assert "fmt" in one_line(info.value)
+    assert not (tmp_path / name).exists()
+
+
+@pytest.mark.parametrize(
+    ("name", "fmt"), [("a.ply", "ply"), ("b.ply", "compressed-ply"), ("c", "spz"), ("d.bin", "splat")]
+)
+def test_still_writers_take_matching_or_neutral_names(tmp_path, name, fmt):
+    """The neighbouring good values: a matching suffix, a compressed PLY under .ply (a PLY still), or a name with no
+    splat suffix are written and read back with all their Gaussians."""
+    from fracture_gs.io.formats import read_gaussians
+
+    path = write_gaussians(_gs(), tmp_path / name, fmt)
+    assert len(read_gaussians(path)[0]) == 20
+
+
+def test_save_ply_refuses_normals_that_are_not_a_bool(tmp_path):
+    """Rule: normals is True, False or None; 'yes' (truthy) was taken as True without a word."""
+    with pytest.raises(ArgumentError) as info:
+        save_ply(_gs(), tmp_path / "n.ply", normals="yes")
+    assert "normals" in one_line(info.value)
+
+
+@pytest.mark.parametrize(("value", "meant"), [("y", "+y"), ("+Y", "+y"), ("Z", "+z"), ("PULL", "pull")])
+def test_a_choice_in_another_case_or_without_its_sign_suggests_the_one_meant(value, meant):
+    """Rule: capture.up = 'y' suggested '-y' (difflib's nearest); a choice typed in capitals or without its '+'
+    now suggests the choice it spells."""
+    key = "capture.load" if meant == "pull" else "capture.up"
+    doc = {"extends": "capture", "scene": "scene.ply", "capture": {key.split(".")[1]: value}}
+    with pytest.raises(ConfigError) as info:
+        config_from_dict(doc, "probe.toml")
+    assert f"did you mean {meant!r}?" in str(info.value) and key in str(info.value), str(info.value)
