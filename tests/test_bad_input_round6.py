@@ -180,3 +180,60 @@ def test_a_choice_in_another_case_or_without_its_sign_suggests_the_one_meant(val
     with pytest.raises(ConfigError) as info:
         config_from_dict(doc, "probe.toml")
     assert f"did you mean {meant!r}?" in str(info.value) and key in str(info.value), str(info.value)
+
+
+def test_fuzz_writer_names_and_formats(tmp_path_factory):
+    """Property over the writers' family of name rules: for any file stem, splat suffix (or none) and fmt,
+    write_gaussians writes exactly when the suffix names no format, the same one, or `.ply` for a compressed PLY
+    (a PLY still), and the file then reads back with every Gaussian; otherwise it is one PlyError sentence naming
+    fmt and nothing is written."""
+    from fuzzutil import fuzz_settings
+    from hypothesis import given
+    from hypothesis import strategies as st
+
+    from fracture_gs.io.formats import FORMATS, read_gaussians
+
+    gs = _gs(12)
+    root = tmp_path_factory.mktemp("names")
+    suffixes = ["", ".ply", ".compressed.ply", ".splat", ".spz", ".ksplat", ".bin", ".PLY", ".Spz"]
+    named = {".ply": "ply", ".compressed.ply": "compressed-ply", ".splat": "splat", ".spz": "spz", ".ksplat": "ksplat"}
+
+    @fuzz_settings(40)
+    @given(
+        stem=st.text(alphabet="abcxyz_-0", min_size=1, max_size=8),
+        suffix=st.sampled_from(suffixes),
+        fmt=st.sampled_from(FORMATS),
+    )
+    def check(stem, suffix, fmt):
+        path = root / f"{stem}{suffix}"
+        path.unlink(missing_ok=True)
+        says = named.get(suffix.lower())
+        if says in (None, fmt) or (fmt == "compressed-ply" and says == "ply"):
+            assert len(read_gaussians(write_gaussians(gs, path, fmt))[0]) == 12
+        else:
+            with pytest.raises(PlyError) as info:
+                write_gaussians(gs, path, fmt)
+            assert "fmt" in one_line(info.value) and not path.exists()
+
+    check()
+
+
+@pytest.mark.parametrize(
+    ("flag", "value"), [("--steps", 10**9), ("--warmup", 100_001), ("--trials", 1_001), ("--placements", 5_000)]
+)
+def test_bench_refuses_a_sample_size_no_run_can_finish(capsys, flag, value):
+    """Rule: bench --steps 10**9 ran for ever (a hang, no word); the substeps and sample counts now have a ceiling,
+    refused by the parser (exit 2) before any device is looked at."""
+    from fracture_gs.cli import main
+
+    assert main(["bench", flag, str(value), "--device", "tpu"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert f"argument {flag}" in err and "is more than" in err, err
+
+
+def test_still_bench_takes_its_ceiling(capsys):
+    """The neighbouring good value: --steps 100000 passes the parser (the run then stops at the bad --device)."""
+    from fracture_gs.cli import main
+
+    assert main(["bench", "--steps", "100000", "--device", "tpu"]) == 2
+    assert "--device 'tpu'" in capsys.readouterr().err
