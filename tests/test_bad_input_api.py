@@ -346,7 +346,7 @@ def test_writers_refuse_a_non_gaussian_set_and_report_unwritable_paths(tmp_path)
         save_ply({}, tmp_path / "x.ply")
     with pytest.raises(ArgumentError, match="write_gaussians: gs must be a GaussianSet, got str"):
         write_gaussians("gs", tmp_path / "x.spz", "spz")
-    for write in (lambda p: save_ply(_gs(), p), lambda p: write_gaussians(_gs(), p, "splat")):
+    for write in (lambda p: save_ply(_gs(), p), lambda p: write_gaussians(_gs(), p.with_suffix(".splat"), "splat")):
         with pytest.raises(FractureGSError, match="cannot write the file"):
             write(tmp_path / "missing" / "x.ply")
         assert not (tmp_path / "missing").exists()

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional
@@ -19,7 +20,7 @@ import numpy as np
 import torch
 
 from ..config import CaptureConfig
-from ..errors import SceneError
+from ..errors import ArgumentError, SceneError
 from ..io.config.combinations import UP_AXES
 from ..io.config.validate import ROTATION_TOLERANCE, is_finite_number
 from .transform import SceneTransform
@@ -78,6 +79,11 @@ def read_cameras(path: Path) -> list[TrainerCamera]:
     """The views of a cameras.json written by the reference 3DGS trainer; a view with a missing key, a value
     of the wrong type, NaN or inf, a non-positive focal length or image size, or a rotation that is not a
     proper rotation raises SceneError naming the file, the view and the key."""
+    if not isinstance(path, (str, os.PathLike)) or not str(path):
+        raise ArgumentError(
+            f"read_cameras: path must be the path of a cameras.json (str or pathlib.Path), not {path!r:.40}; pass "
+            "e.g. Path('model/cameras.json')."
+        )
     try:
         data = json.loads(Path(path).read_text(encoding="utf-8-sig"))  # a BOM (Windows editors) is not an error
     except RecursionError:

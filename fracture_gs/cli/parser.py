@@ -282,18 +282,27 @@ def build_parser() -> argparse.ArgumentParser:
         help="ficus particle count (default: the paper's 171,553)",
     )
     p.add_argument(
-        "--steps", metavar="N", type=_positive_int("--steps", 200), help="substeps per timing sample (default 200)"
+        "--steps",
+        metavar="N",
+        type=_positive_int("--steps", 200, MAX_BENCH_STEPS),
+        help="substeps per timing sample (default 200)",
     )
     p.add_argument(
-        "--warmup", metavar="N", type=_positive_int("--warmup", 20), help="untimed substeps first (default 20)"
+        "--warmup",
+        metavar="N",
+        type=_positive_int("--warmup", 20, MAX_BENCH_STEPS),
+        help="untimed substeps first (default 20)",
     )
     p.add_argument(
-        "--trials", metavar="N", type=_positive_int("--trials", 3), help="timing samples per build (default 3)"
+        "--trials",
+        metavar="N",
+        type=_positive_int("--trials", 3, MAX_BENCH_TRIALS),
+        help="timing samples per build (default 3)",
     )
     p.add_argument(
         "--placements",
         metavar="N",
-        type=_positive_int("--placements", 5),
+        type=_positive_int("--placements", 5, MAX_BENCH_TRIALS),
         help="fresh-memory builds per branch (default: 5 on CUDA, 1 on the CPU)",
     )
     p.add_argument(
@@ -455,6 +464,13 @@ def add_capture_options(p: argparse.ArgumentParser) -> None:
         help="captured scenes: the resolution budget for the device (default: default; fine resolves thinner parts, "
         "slower)",
     )
+
+
+MAX_BENCH_STEPS = 100_000
+"""Substeps: the most `bench --steps` / `--warmup` take (at ~1 ms a substep on a GPU, 100 s per sample; 10**9 ran
+for ever without a word)."""
+MAX_BENCH_TRIALS = 1_000
+"""The most timing samples (`--trials`) and fresh-memory builds (`--placements`) bench takes."""
 
 
 def _positive_int(flag: str, example: int, most: int | None = None):

@@ -156,6 +156,8 @@ def _text_kind(head: bytes, path) -> str | None:
             continue
     else:
         return None
+    if any(ord(ch) < 32 and ch not in "\t\n\r\f\v" or ord(ch) == 127 for ch in text[:4096]):
+        return None  # control bytes (0x01-0x1f, 0x7f) are binary data, not text a user wrote
     try:
         tomllib.loads(Path(path).read_text("utf-8-sig") if len(head) < 65536 else text)
         return "TOML text (a config?)"

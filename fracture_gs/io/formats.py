@@ -215,12 +215,27 @@ def _checked(gs: GaussianSet, path) -> dict:
     return a
 
 
+def named_format(path) -> str | None:
+    """The splat format a file name's suffix names ("compressed-ply" for `.compressed.ply`, "ksplat" too), or None."""
+    name = str(path).lower()
+    if name.endswith(".compressed.ply"):
+        return "compressed-ply"
+    return {".ply": "ply", ".splat": "splat", ".spz": "spz", ".ksplat": "ksplat"}.get(Path(name).suffix)
+
+
 def write_gaussians(gs: GaussianSet, path, fmt: str = "ply") -> Path:
     """Write `gs` to `path` in one of FORMATS (what each keeps: the module doc); returns the path."""
     gs = as_gaussians("write_gaussians", gs)
     path = Path(as_path("write_gaussians", path))
     if not isinstance(fmt, str) or fmt not in FORMATS:
         raise PlyError(f"write_gaussians: format {fmt!r} is not written; choose one of {', '.join(FORMATS)}.")
+    named = named_format(path)
+    if named is not None and named != fmt and not (fmt == "compressed-ply" and named == "ply"):
+        raise PlyError(
+            f"write_gaussians: {path.name} names a {named} file, but fmt = {fmt!r} writes {fmt}, which viewers "
+            f"going by the name would misread; name it {path.name[: -len(SUFFIX.get(named, path.suffix))]}"
+            f"{SUFFIX[fmt]} or pass fmt={named!r}."
+        )
     if fmt == "ply":
         save_ply(gs if gs.device.type == "cpu" else gs.to("cpu"), path)  # a CPU set keeps load_ply's raw values
         return path

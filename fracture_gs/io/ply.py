@@ -471,6 +471,19 @@ def save_ply(gs: GaussianSet, path, normals: bool | None = None) -> None:
     for a set from `load_ply`, else yes (the INRIA layout that fixed-layout viewers expect)."""
     gs = as_gaussians("save_ply", gs)
     path = as_path("save_ply", path)
+    if normals is not None and not isinstance(normals, bool):
+        raise ArgumentError(
+            f"save_ply: normals = {normals!r:.40} is not True, False or None; pass normals=True to write nx ny nz, "
+            "False to leave them out, or None (as in the source file)."
+        )
+    lower = str(path).lower()
+    other = next((s for s in (".compressed.ply", ".splat", ".spz", ".ksplat") if lower.endswith(s)), None)
+    if other is not None:
+        raise PlyError(
+            f"save_ply: {os.path.basename(path)} ends in {other}, but save_ply writes a 3DGS .ply, which viewers "
+            f"going by the name would misread; name it {os.path.basename(path)[: -len(other)]}.ply, or use "
+            "fracture_gs.io.write_gaussians(gs, path, fmt) for that format."
+        )
     _check_writable(gs, path)
     cols = _columns(gs, normals)
     cols = {name: _ply_column(c) for name, c in cols.items()}

@@ -13,6 +13,7 @@ from typing import Optional, Sequence
 import cv2
 import numpy as np
 
+from ..errors import RenderError
 from ..io.video import as_uint8_rgb, pad_even
 from ..variants import VARIANT_SPECS
 
@@ -67,6 +68,10 @@ def caption(
 ) -> np.ndarray:
     """The image with a label bar (dark, centred white text) above (or below) it. The font scale
     is the largest that fits (capped by `scale`, so panels can share one size)."""
+    if not isinstance(text, str):
+        raise RenderError(f"caption: text must be a string, not {type(text).__name__}; pass e.g. str({text!r:.20}).")
+    if position not in ("top", "bottom"):
+        raise RenderError(f"caption: position = {position!r} is not 'top' or 'bottom'; pass one of those.")
     img = as_uint8_rgb(img)
     h, w = img.shape[:2]
     bar = caption_bar(text, w, bar_height or _bar_height(w), scale)
@@ -84,10 +89,13 @@ def side_by_side(images: Sequence, captions: Optional[Sequence[str]] = None, gap
     """Images in one row (shorter ones padded with white), each under its caption if given."""
     imgs = [as_uint8_rgb(i) for i in images]
     if not imgs:
-        raise ValueError("side_by_side: no images")
+        raise RenderError("side_by_side: images is empty; pass at least one image (an [H, W, 3] array).")
     if captions is not None:
         if len(captions) != len(imgs):
-            raise ValueError(f"side_by_side: {len(imgs)} images but {len(captions)} captions")
+            raise RenderError(
+                f"side_by_side: {len(imgs)} images but {len(captions)} captions; pass one caption per image, or "
+                "captions=None."
+            )
         bh, scale = caption_layout([i.shape[1] for i in imgs], captions)
         imgs = [caption(i, c, bh, scale=scale) for i, c in zip(imgs, captions)]
     h = max(i.shape[0] for i in imgs)
@@ -115,7 +123,7 @@ def grid(
     Cells are padded (white) to the largest cell."""
     rows = [[as_uint8_rgb(i) for i in r] for r in rows_of_images]
     if not rows or not rows[0]:
-        raise ValueError("grid: no images")
+        raise RenderError("grid: rows_of_images holds no image; pass rows of [H, W, 3] arrays, e.g. [[a, b]].")
     ncol = max(len(r) for r in rows)
     ch = max(i.shape[0] for r in rows for i in r)
     cw = max(i.shape[1] for r in rows for i in r)

@@ -23,6 +23,16 @@ from ..sh import SH_C0, SH_C1, SH_C2, SH_C3
 
 def deform_covariances(F: Tensor, cov0: Tensor) -> Tensor:  # [N,3,3], [N,3,3] -> [N,3,3]
     """Σ = F Σ⁰ Fᵀ, symmetrized so the result is exactly symmetric (SPD when det F ≠ 0)."""
+    for name, t in (("F", F), ("cov0", cov0)):
+        if not isinstance(t, Tensor) or t.ndim != 3 or tuple(t.shape[1:]) != (3, 3):
+            what = f"shape {list(t.shape)}" if isinstance(t, Tensor) else f"type {type(t).__name__}"
+            raise RenderError(
+                f"deform_covariances: {name} has {what}, not [N, 3, 3]; pass one 3×3 matrix per Gaussian."
+            )
+    if F.shape[0] != cov0.shape[0]:
+        raise RenderError(
+            f"deform_covariances: F has {F.shape[0]} matrices but cov0 {cov0.shape[0]}; pass one of each per Gaussian."
+        )
     S = F @ cov0 @ F.transpose(-1, -2)
     return 0.5 * (S + S.transpose(-1, -2))
 

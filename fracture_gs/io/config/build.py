@@ -115,7 +115,8 @@ def _convert(value: Any, tp: Any, dotted: str, src: str, cls: type, key: str) ->
         if not isinstance(value, str):
             raise _type_error(src, dotted, tp, value, cls, key)
         if value not in args:
-            close = difflib.get_close_matches(value, [str(a) for a in args], n=1)
+            same = [str(a) for a in args if str(a).lower() in (value.strip().lower(), "+" + value.strip().lower())]
+            close = same or difflib.get_close_matches(value, [str(a) for a in args], n=1)  # 'y' means '+y', not '-y'
             fix = f"did you mean {close[0]!r}?" if close else f"use one of {', '.join(map(str, args))}."
             raise ConfigError(src, dotted, f"{dotted} = {value!r} is not one of {', '.join(map(str, args))}; {fix}")
         return value

@@ -14,7 +14,7 @@ import re
 from typing import Any, Mapping, Optional, Sequence, Union
 
 from ...config import BUILTIN_SCENES, PRESETS, SceneConfig
-from ...errors import ConfigError
+from ...errors import ArgumentError, ConfigError
 from ...variants import VARIANT_NAMES
 from .build import set_key
 from .validate import MAX_IMAGE_SIDE, validate
@@ -32,7 +32,15 @@ def parse_resolution(text: Union[str, Sequence[int]], source: str = "") -> tuple
             )
         w, h = (int(p) for p in parts)
     else:
-        w, h = (int(v) for v in text)
+        pair = list(text) if isinstance(text, (list, tuple)) else None
+        if pair is None or len(pair) != 2 or not all(isinstance(v, int) and not isinstance(v, bool) for v in pair):
+            raise ConfigError(
+                source,
+                "--resolution",
+                f"resolution {text!r} is not a (width, height) pair of whole numbers of pixels; pass e.g. (640, 480) "
+                "or '640x480'.",
+            )
+        w, h = pair
     if w < 2 or h < 2:
         raise ConfigError(source, "--resolution", f"--resolution {w}x{h} is too small; use at least 2x2 pixels.")
     if w > MAX_IMAGE_SIDE or h > MAX_IMAGE_SIDE:
@@ -96,6 +104,11 @@ def apply_overrides(
     through the file reader's type checks (`build.set_key`), None values skipped. A bad flag raises ConfigError
     naming the flag or key; the result is validated again like a file, naming `source` (e.g.
     "configs/bread.toml with command-line overrides"), so a flag is held to the same ranges as its TOML key."""
+    if not isinstance(cfg, SceneConfig):
+        raise ArgumentError(
+            f"apply_overrides: cfg must be a SceneConfig, got {type(cfg).__name__}; load one first, e.g. "
+            "apply_overrides(fracture_gs.io.load_config('bread'), frames=30)."
+        )
     out = copy.deepcopy(cfg)
     if preset is not None:
         _apply_preset(out, preset, "")
