@@ -43,7 +43,7 @@ def test_only_the_gaussians_within_half_the_core_of_the_core_box_are_voxelled(mo
     is given is [10, 11]³."""
     seen = voxeller_spy(monkeypatch)
     auto_roi(scene(), 1.0)
-    (x, core_lo, core_hi, h), = seen
+    ((x, core_lo, core_hi, h),) = seen
     assert core_lo == pytest.approx([10.0] * 3) and core_hi == pytest.approx([11.0] * 3)
     assert h == pytest.approx(1 / 48)
     assert len(x) == 1331 + 6
@@ -57,7 +57,7 @@ def test_the_window_moves_with_the_core_on_the_negative_side(monkeypatch):
     voxelled; the window depends on the core's size, not on where it lies."""
     seen = voxeller_spy(monkeypatch)
     auto_roi(scene(-30.0), 1.0)
-    (x, core_lo, core_hi, _), = seen
+    ((x, core_lo, core_hi, _),) = seen
     assert core_lo == pytest.approx([-20.0] * 3) and core_hi == pytest.approx([-19.0] * 3)
     assert len(x) == 1337
     assert float(x.min()) == pytest.approx(-20.45) and float(x.max()) == pytest.approx(-18.55)

@@ -27,7 +27,9 @@ from fracture_gs.io.config import config_from_dict
 
 DROP = "load drop: falls from 0.1 m at 1 m/s onto a friction floor (up to 8 cracks)"
 PULL = "load pull: grips on the outer 15 % of each end along x, 0.1 m/s apart each, no gravity"
-CHOSE = " (capture.load = 'auto' chose drop: a fall breaks any shape without grips (0.6× as tall as wide); --load sets it)"
+CHOSE = (
+    " (capture.load = 'auto' chose drop: a fall breaks any shape without grips (0.6× as tall as wide); --load sets it)"
+)
 KEEPS = ' not used (the load sets them: capture.load = "none" keeps the config\'s own)'
 VELOCITY = "initial_velocity [1.0, 0.0, 0.0]"
 GRAVITY = "sim.gravity [0.0, 0.0, -5.0]"
