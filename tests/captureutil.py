@@ -3,9 +3,11 @@ are given, with the real quantile still answering."""
 
 from __future__ import annotations
 
+import pytest
 import torch
 
-from fracture_gs.capture import fit
+from fracture_gs.capture import fit, scene
+from fracture_gs.capture.resolution import Resolution
 
 
 def voxeller_spy(monkeypatch) -> list:
@@ -31,3 +33,10 @@ def quantile_spy(monkeypatch) -> list:
 
     monkeypatch.setattr(torch, "quantile", spy)
     return seen
+
+
+@pytest.fixture(autouse=True)
+def fixed_resolution(monkeypatch):
+    """Every capture resolved with 8 cells across its size (`scene.choose_resolution` stubbed): the scene's other
+    choices without the resolution search. Autouse in the test modules that import it."""
+    monkeypatch.setattr(scene, "choose_resolution", lambda obj, cap, device: Resolution(8, cap.size / 8, 0.0, "r", 300))

@@ -12,19 +12,14 @@ second.
 from __future__ import annotations
 
 import pytest
+from captureutil import fixed_resolution  # noqa: F401 - autouse: every capture here has 8 cells across
 from trainer_ply import write_cameras, write_trainer_ply
 
 from fracture_gs.capture import scene
-from fracture_gs.capture.resolution import Resolution
 from fracture_gs.errors import SceneError
 from fracture_gs.io.config import config_from_dict
 
 EYE = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
-
-
-@pytest.fixture(autouse=True)
-def fixed_resolution(monkeypatch):
-    monkeypatch.setattr(scene, "choose_resolution", lambda obj, cap, device: Resolution(8, cap.size / 8, 0.0, "r", 300))
 
 
 def model(folder, cameras: str):

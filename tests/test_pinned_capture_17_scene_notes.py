@@ -18,11 +18,11 @@ from __future__ import annotations
 
 import pytest
 import torch
+from captureutil import fixed_resolution  # noqa: F401 - autouse: every capture here has 8 cells across
 from trainer_ply import write_trainer_ply
 
 from fracture_gs.capture import scene
 from fracture_gs.capture.camera import frame_box
-from fracture_gs.capture.resolution import Resolution
 from fracture_gs.io.config import config_from_dict
 
 DROP = "load drop: falls from 0.1 m at 1 m/s onto a friction floor (up to 8 cracks)"
@@ -33,11 +33,6 @@ CHOSE = (
 KEEPS = ' not used (the load sets them: capture.load = "none" keeps the config\'s own)'
 VELOCITY = "initial_velocity [1.0, 0.0, 0.0]"
 GRAVITY = "sim.gravity [0.0, 0.0, -5.0]"
-
-
-@pytest.fixture(autouse=True)
-def fixed_resolution(monkeypatch):
-    monkeypatch.setattr(scene, "choose_resolution", lambda obj, cap, device: Resolution(8, cap.size / 8, 0.0, "r", 300))
 
 
 @pytest.fixture(scope="module")
