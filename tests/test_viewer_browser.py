@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import io
 import os
+import time
 from pathlib import Path
 
 import numpy as np
@@ -211,6 +212,10 @@ def test_play_advances_the_frames_and_pause_stops_them(session):
     page.get_by_role("button", name="play").click()
     page.wait_for_timeout(1200)
     page.get_by_role("button", name="pause").click()
+    deadline = time.monotonic() + 10  # the click reaches the server a moment after the browser sent it
+    while viewer.play.label != "play" and time.monotonic() < deadline:
+        time.sleep(0.02)
+    assert viewer.play.label == "play"
     stopped = int(viewer.frame.value)
     played = {state[0] for _, state, _, _ in viewer.pushed}
     # the loop wraps after the last frame, so where it stops may be frame 0 again: what proves play is the frames

@@ -171,3 +171,25 @@ def test_without_viser_the_viewer_says_how_to_install_it(run, monkeypatch, capsy
     assert cli.main(["render-sim", "bread", "--view", "--device", "cpu"]) == 2
     err = capsys.readouterr().err
     assert "--view needs viser" in err and "pip install 'fracture-gs[view]'" in err
+
+
+def test_pause_stops_the_frame_where_it_is_the_moment_it_returns(served):
+    """Server side of play/pause: play steps the frame at the run's frame rate; once `pause` has returned the frame
+    never moves again (the player's check and step and the toggle share a lock), whenever in a period it lands."""
+    import time
+
+    viewer, _ = served
+    period = 1.0 / max(int(viewer.header.get("fps", 24)), 1)
+    for k in range(6):
+        viewer._toggle_play()  # play
+        time.sleep(period * (2.3 + 0.37 * k))  # pauses land at different points of the player's period
+        before = int(viewer.frame.value)
+        viewer._toggle_play()  # pause
+        stopped = int(viewer.frame.value)
+        assert viewer.play.label == "play"
+        time.sleep(period * 3)
+        assert int(viewer.frame.value) == stopped, (k, before, stopped)
+    viewer._toggle_play()
+    time.sleep(period * 4)
+    assert int(viewer.frame.value) != stopped  # play again moves it
+    viewer._toggle_play()

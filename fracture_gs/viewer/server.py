@@ -123,6 +123,7 @@ class Viewer:
         self._dirty, self._moving, self._pending_full, self._changed_at = True, False, False, time.monotonic()
         self._stop = threading.Event()
         self._playing = False
+        self._play_lock = threading.Lock()  # a pause never lands between the player's check and its step
         self._layout()
         self._controls(int(max_splats))
         self.pusher = threading.Thread(target=self._push_loop, name="fgs-view-push", daemon=True)
@@ -190,7 +191,8 @@ class Viewer:
         return f"t = {k * dt:.3f} s · frame {k} of {self.view.frames - 1}"
 
     def _toggle_play(self) -> None:
-        self._playing = not self._playing
+        with self._play_lock:
+            self._playing = not self._playing
         self.play.label = "pause" if self._playing else "play"
         if not self._playing:
             self._changed(moving=False)  # the whole frame now that it rests
@@ -198,8 +200,9 @@ class Viewer:
     def _play_loop(self) -> None:
         period = 1.0 / max(int(self.header.get("fps", 24)), 1)
         while not self._stop.wait(period):
-            if self._playing and self.view.frames > 1:
-                self.frame.value = (int(self.frame.value) + 1) % self.view.frames
+            with self._play_lock:
+                if self._playing and self.view.frames > 1:
+                    self.frame.value = (int(self.frame.value) + 1) % self.view.frames
 
     def video_camera(self, client) -> None:
         """Put `client`'s camera where the videos' camera is at the current frame (backed off to take in every
