@@ -108,8 +108,10 @@ def cmd_render_sim(args: argparse.Namespace) -> int:
     from ..profiling import phases
 
     warp_init = phases.startup.get("warp init", [0.0])[0]
-    forks_cuda = schedule == "processes" and device.startswith("cuda") and not (devices and len(devices) > 1)
-    _prepare_warp(init=not forks_cuda)  # the flags and the config are checked: only now torch and Warp load
+    from ..render_sim.job import forks_cuda_workers
+
+    # the flags and the config are checked: only now torch and Warp load (Warp starts later if CUDA workers fork)
+    _prepare_warp(init=not forks_cuda_workers(device, devices, schedule))
     from ..render_sim import run_render_sim as run
 
     if args.profile:  # the "imports" row: from the process's start (or main()'s, called in a process) to the run

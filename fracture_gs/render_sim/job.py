@@ -174,6 +174,13 @@ def cpu_slots(variants: int, cores: int, forked: bool) -> int:
     return max(1, min(variants, 2 * cores if forked else cores))
 
 
+def forks_cuda_workers(device: str, devices, schedule: str) -> bool:
+    """Whether a run may fork worker processes on a CUDA device (`_forked_workers`): one device, asked for by the
+    processes schedule. Nothing may start CUDA in this process before the fork, so the CLI then checks the device
+    through NVML and leaves Warp unstarted (`cli.devices`)."""
+    return schedule == "processes" and str(device).startswith("cuda") and not (devices and len(devices) > 1)
+
+
 @contextlib.contextmanager
 def _forked_workers(device: str, devices, schedule: str, variants: int, backend: str = "auto"):
     """Worker processes forked now for a run that may take the processes schedule (`forked.ForkedWorkers`), or
@@ -185,8 +192,11 @@ def _forked_workers(device: str, devices, schedule: str, variants: int, backend:
     `gsplat`, which waits for the build, is given spawned workers instead (they wait for it themselves)."""
     cores = usable_cores()
     on_cuda = device.startswith("cuda")
-    asked = schedule == "processes" or (schedule == "auto" and not on_cuda)
-    if (devices and len(devices) > 1) or not asked or variants < 2:
+    if on_cuda:
+        asked = forks_cuda_workers(device, devices, schedule)
+    else:
+        asked = schedule in ("auto", "processes") and not (devices and len(devices) > 1)
+    if not asked or variants < 2:
         yield None
         return
     from .forked import ForkedWorkers, can_fork, cuda_untouched
