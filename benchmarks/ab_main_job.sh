@@ -19,17 +19,5 @@ echo "| run | process s | in-run s | phases busy s | rc |"
 echo "|---|---:|---:|---|---:|"
 one warm_new "$here"; one warm_old "$old"
 for i in $(seq 1 "$runs"); do one "new$i" "$here"; one "old$i" "$old"; done
-python - <<'P'
-import json
-def rows(n): return [json.loads(line) for line in open(f"/tmp/ab_{n}/metrics.jsonl")]
-keys = ["fragment_penetration", "fragment_crossing", "opening", "energy_total", "penetration", "identity_crossing"]
-def gap(a, b):
-    worst = {}
-    for x, y in zip(a, b):
-        for k in keys:
-            if isinstance(x.get(k), (int, float)) and isinstance(y.get(k), (int, float)):
-                worst[k] = max(worst.get(k, 0.0), abs(x[k] - y[k]))
-    return {k: f"{v:.3g}" for k, v in worst.items()}
-print("new1 against old1:", gap(rows("new1"), rows("old1")))
-print("old2 against old1:", gap(rows("old2"), rows("old1")))
-P
+python benchmarks/metrics_gap.py /tmp/ab_new1 /tmp/ab_old1
+python benchmarks/metrics_gap.py /tmp/ab_old2 /tmp/ab_old1

@@ -39,27 +39,8 @@ for i in $(seq 1 "$runs"); do
   for s in $schedules; do one "${s}_$i" "$s"; done
 done
 grep -h "processes\|spawning" /tmp/sch_processes_1.log 2>/dev/null | head -3
-python - "$schedules" <<'P'
-import json, sys
-names = sys.argv[1].split()
-def rows(n):
-    try:
-        return sorted((json.loads(line) for line in open(f"/tmp/sch_{n}/metrics.jsonl")), key=lambda r: (r["variant"], r["frame"]))
-    except OSError:
-        return []
-keys = ["fragment_penetration", "opening", "energy_total", "penetration", "identity_crossing", "momentum"]
-def gap(a, b):
-    worst = {}
-    for x, y in zip(a, b):
-        for k in keys:
-            u, v = x.get(k), y.get(k)
-            if isinstance(u, list):
-                u, v = (sum(abs(p) for p in u), sum(abs(q) for q in v)) if isinstance(v, list) else (None, None)
-            if isinstance(u, (int, float)) and isinstance(v, (int, float)):
-                worst[k] = max(worst.get(k, 0.0), abs(u - v))
-    return {k: f"{v:.3g}" for k, v in worst.items()}
-base = f"{names[0]}_1"
-for s in names[1:]:
-    print(f"{s}_1 against {base}:", gap(rows(f"{s}_1"), rows(base)))
-print(f"{names[0]}_2 against {base}:", gap(rows(f"{names[0]}_2"), rows(base)))
-P
+first=${schedules%% *}
+for s in $schedules; do
+  [[ $s == "$first" ]] || python benchmarks/metrics_gap.py "/tmp/sch_${s}_1" "/tmp/sch_${first}_1"
+done
+python benchmarks/metrics_gap.py "/tmp/sch_${first}_2" "/tmp/sch_${first}_1"

@@ -171,3 +171,23 @@ def test_frame_costs_counts_each_part_of_a_frame(tmp_path):
     assert {"paint (draw + host copy)", "view record write", "diagnostics: surface penetration"} <= set(rows), text
     ops = int(rows["diagnostics: surface penetration"][5])
     assert 0 < ops < 600, text
+
+
+def test_metrics_gap_reports_the_largest_difference_per_metric(tmp_path):
+    """benchmarks/metrics_gap.py: rows are matched by variant and frame (not by order), each metric's largest
+    |a − b| is printed, momentum by its summed absolute components, and rows one run lacks are left out."""
+    a, b = tmp_path / "a", tmp_path / "b"
+    a.mkdir(), b.mkdir()
+    rows_a = [
+        {"variant": "full", "frame": 1, "opening": 1.0, "momentum": [1.0, -2.0, 0.0]},
+        {"variant": "full", "frame": 2, "opening": 2.0, "momentum": [0.0, 0.0, 0.0]},
+        {"variant": "baseline", "frame": 1, "opening": 5.0},
+    ]
+    rows_b = [  # other order, one row fewer
+        {"variant": "full", "frame": 2, "opening": 2.5, "momentum": [0.0, 0.0, 1.0]},
+        {"variant": "full", "frame": 1, "opening": 1.25, "momentum": [1.0, 2.0, 0.5]},
+    ]
+    (a / "metrics.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows_a))
+    (b / "metrics.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows_b))
+    out = _run([str(BENCH / "metrics_gap.py"), str(a), str(b)], tmp_path)
+    assert out.strip() == f"{a} against {b}: {{'momentum': '1', 'opening': '0.5'}}"
