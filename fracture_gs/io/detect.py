@@ -224,6 +224,15 @@ def detect_format(path) -> str:
     raise refuse(path, f"is binary data of {size:,} bytes in no format recognised")
 
 
+def named_format(path) -> str | None:
+    """The splat format a file name's suffix names ("compressed-ply" for `.compressed.ply`, "ksplat" too), or None
+    (the writers refuse a name that names another format than they write)."""
+    name = str(path).lower()
+    if name.endswith(".compressed.ply"):
+        return "compressed-ply"
+    return {".ply": "ply", ".splat": "splat", ".spz": "spz", ".ksplat": "ksplat"}.get(Path(name).suffix)
+
+
 def is_splat_file(path) -> bool:
     """Whether a scene path names a splat file: its suffix is one of SCENE_SUFFIXES, or the file exists
     and its content is a splat format (whatever its suffix says)."""

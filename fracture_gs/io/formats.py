@@ -39,6 +39,7 @@ from .detect import (
     as_path,
     detect_format,
     is_splat_file,
+    named_format,
     ply_header,
     refuse,
     spz_header,
@@ -213,14 +214,6 @@ def _checked(gs: GaussianSet, path) -> dict:
             "zero quaternions; drop them first (GaussianSet.subset)."
         )
     return a
-
-
-def named_format(path) -> str | None:
-    """The splat format a file name's suffix names ("compressed-ply" for `.compressed.ply`, "ksplat" too), or None."""
-    name = str(path).lower()
-    if name.endswith(".compressed.ply"):
-        return "compressed-ply"
-    return {".ply": "ply", ".splat": "splat", ".spz": "spz", ".ksplat": "ksplat"}.get(Path(name).suffix)
 
 
 def write_gaussians(gs: GaussianSet, path, fmt: str = "ply") -> Path:

@@ -28,7 +28,7 @@ import torch
 from plyfile import PlyData, PlyElement
 
 from ..errors import ArgumentError, OutputError, PlyError
-from .detect import as_path, detect_format
+from .detect import SUFFIX, as_path, detect_format, named_format
 from .devices import as_device  # callers import it from here too (io.ply.as_device)
 from .gaussian_set import SIGMA_RANGE, GaussianSet
 
@@ -476,9 +476,9 @@ def save_ply(gs: GaussianSet, path, normals: bool | None = None) -> None:
             f"save_ply: normals = {normals!r:.40} is not True, False or None; pass normals=True to write nx ny nz, "
             "False to leave them out, or None (as in the source file)."
         )
-    lower = str(path).lower()
-    other = next((s for s in (".compressed.ply", ".splat", ".spz", ".ksplat") if lower.endswith(s)), None)
-    if other is not None:
+    named = named_format(path)
+    if named not in (None, "ply"):
+        other = SUFFIX.get(named, f".{named}")
         raise PlyError(
             f"save_ply: {os.path.basename(path)} ends in {other}, but save_ply writes a 3DGS .ply, which viewers "
             f"going by the name would misread; name it {os.path.basename(path)[: -len(other)]}.ply, or use "
