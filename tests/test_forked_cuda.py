@@ -211,26 +211,3 @@ def test_a_cuda_child_that_cannot_start_cuda_says_why_and_loads_nothing(monkeypa
     monkeypatch.setattr(runtime, "ensure_warp", lambda: pytest.fail("Warp started without CUDA"))
     got = forked._start_cuda("cuda:0", gsplat=True)
     assert got == "CUDA does not work in a forked worker (Cannot re-initialize CUDA in forked subprocess.)"
-
-
-@pytest.mark.slow
-def test_the_cli_runs_forked_workers_on_the_test_device(tmp_path, device):
-    """`render-sim --schedule processes` on the tests' device (`--device cuda` on a GPU machine, the CPU here) forks
-    its workers at the start and never falls back to spawning; every variant writes every frame's row and latches
-    at the leader's frame (on a GPU too, where the fork must come before anything starts CUDA)."""
-    import json
-    import subprocess
-    import sys
-
-    argv = [sys.executable, "-m", "fracture_gs.cli", "render-sim", "bread", "--device", device, "--frames", "14"]
-    argv += ["--particles", "2500", "--resolution", "64x48", "--no-view-record", "--schedule", "processes"]
-    out = subprocess.run(argv + ["--out", str(tmp_path / "r")], capture_output=True, text=True, timeout=900)
-    text = out.stdout + out.stderr
-    assert out.returncode == 0, text[-3000:]
-    assert "3 variants in 3 processes (forked at the start)" in text and "spawning" not in text, text[-3000:]
-    rows = [json.loads(line) for line in (tmp_path / "r" / "metrics.jsonl").read_text().splitlines()]
-    assert sorted((r["variant"], r["frame"]) for r in rows) == sorted(
-        (v, f) for v in ("baseline", "stress_zero", "full") for f in range(15)
-    )
-    latches = {v["variant"]: v["latch"] for v in json.loads((tmp_path / "r" / "summary.json").read_text())["variants"]}
-    assert len(set(map(json.dumps, latches.values()))) == 1 and latches["full"] is not None, latches

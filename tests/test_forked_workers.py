@@ -89,13 +89,15 @@ def test_a_healthy_child_reports_ready_with_the_parents_thread_count():
 
 
 @pytest.mark.slow
-def test_the_cli_forks_its_workers_and_gives_the_in_turn_run(tmp_path):
-    """`fracture-gs render-sim` on a CPU with the processes schedule forks one worker per variant beyond the first
-    (it says so) and writes the same metrics, byte for byte, as the same run in turn."""
-    base = [sys.executable, "-m", "fracture_gs.cli", "render-sim", "bread", "--device", "cpu", "--frames", "12"]
+def test_the_cli_forks_its_workers_and_gives_the_in_turn_run(tmp_path, device):
+    """`fracture-gs render-sim` with the processes schedule on the tests' device (the CPU here, `--device cuda` on a
+    GPU machine, where the fork must come before anything starts CUDA) forks one worker per variant beyond the
+    first (it says so) and never falls back to spawning; every variant writes every frame's row and latches at the
+    leader's frame. On the CPU the metrics are the same run in turn's, byte for byte (a GPU's atomics are not)."""
+    base = [sys.executable, "-m", "fracture_gs.cli", "render-sim", "bread", "--device", device, "--frames", "12"]
     base += ["--particles", "2500", "--resolution", "64x48", "--no-view-record"]
     runs = {}
-    for schedule in ("processes", "in-turn"):
+    for schedule in ("processes", "in-turn") if device == "cpu" else ("processes",):
         out = subprocess.run(
             base + ["--schedule", schedule, "--out", str(tmp_path / schedule)], capture_output=True, text=True
         )
@@ -103,9 +105,15 @@ def test_the_cli_forks_its_workers_and_gives_the_in_turn_run(tmp_path):
         runs[schedule] = out.stdout + out.stderr
     assert "3 variants in 3 processes (forked at the start)" in runs["processes"]
     assert "spawning" not in runs["processes"]
-    assert metrics_rows(tmp_path / "processes") == metrics_rows(tmp_path / "in-turn")
-    latches = [json.loads((tmp_path / s / "summary.json").read_text())["variants"] for s in ("processes", "in-turn")]
-    assert [v["latch"] for v in latches[0]] == [v["latch"] for v in latches[1]]
+    rows = [json.loads(line) for line in (tmp_path / "processes" / "metrics.jsonl").read_text().splitlines()]
+    assert sorted((r["variant"], r["frame"]) for r in rows) == sorted(
+        (v, f) for v in ("baseline", "stress_zero", "full") for f in range(13)
+    )
+    latches = [json.loads((tmp_path / s / "summary.json").read_text())["variants"] for s in runs]
+    assert len({json.dumps(v["latch"]) for v in latches[0]}) == 1 and latches[0][0]["latch"] is not None
+    if device == "cpu":
+        assert metrics_rows(tmp_path / "processes") == metrics_rows(tmp_path / "in-turn")
+        assert [v["latch"] for v in latches[0]] == [v["latch"] for v in latches[1]]
 
 
 @pytest.mark.slow
