@@ -23,7 +23,7 @@ import torch
 import warp as wp
 
 from ..config import MATERIALS, ParticleOrder, SimConfig
-from ..runtime import StreamFork, cpu_ranges, ensure_warp, launch, run_ranges, torch_stream
+from ..runtime import StreamFork, cpu_ranges, ensure_warp, launch, range_views, run_ranges, torch_stream
 from ..variants import VARIANT_NAMES, variant_spec
 from .boxes.fragment_boxes import FragmentBoxes
 from .boxes.storage import BoxStorage
@@ -322,7 +322,8 @@ class Simulator:
         release = self.topology.release_events if self.release else 0
 
         def launch(a: int, b: int) -> None:
-            self.launch(compute_stress, b - a, [t[a:b] for t in arrays] + [release, int(commit), out_wp[a:b]])
+            *inputs, out_ab = range_views(arrays + [out_wp], a, b)
+            self.launch(compute_stress, b - a, inputs + [release, int(commit), out_ab])
 
         n = len(self.particles)
         if self.device == "cpu":

@@ -12,7 +12,7 @@ from __future__ import annotations
 import torch
 import warp as wp
 
-from ...runtime import ensure_warp, launch
+from ...runtime import ensure_warp, launch, range_views
 from ..physics.contact import NORMAL_LATCHED, NORMAL_MASS_GRADIENT
 from .kernels import BOX_P2G, MAX_FIELDS, BoxContact, BoxView, box_clear, box_g2p, fragment_bounds, grid_update_kernel
 
@@ -203,7 +203,7 @@ class FragmentBoxes:
     def g2p(self, w: dict, clock, lower, upper, counts, a: int = 0, b: int = -1) -> None:
         """Particles [a, b) gather from their own fragment's box (v, C, F, x; clamped into [lower, upper])."""
         b = w["x"].shape[0] if b < 0 else b
-        arrays = [w[k][a:b] for k in ("x", "v", "C", "F", "fragment")]
+        arrays = range_views([w[k] for k in ("x", "v", "C", "F", "fragment")], a, b)
         launch(box_g2p, b - a, arrays + [clock, self.view, lower, upper, counts], self.device)
 
     def field(self, k: int) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:

@@ -19,6 +19,7 @@ from typing import Optional
 import torch
 import warp as wp
 
+from ...runtime import range_views
 from ..neighbourhood import solo_mask, solo_radius
 from ..physics.contact import NORMAL_LATCHED, NORMAL_MASS_GRADIENT
 from ..recorded import Recorded
@@ -270,7 +271,7 @@ class SlotStorage(Storage):
             sim.launch(
                 g2p,
                 (b - a) * (2 if split else 1),
-                [t[a:b] for t in arrays]
+                range_views(arrays, a, b)
                 + [s["order"], s["first"], int(split), int(fan), s["slot_cache"], cached]
                 + [multi, only_fragment, sim.clock.view, g.view, sim.lower, sim.upper, counts],
             )
