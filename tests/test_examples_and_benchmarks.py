@@ -191,3 +191,39 @@ def test_metrics_gap_reports_the_largest_difference_per_metric(tmp_path):
     (b / "metrics.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows_b))
     out = _run([str(BENCH / "metrics_gap.py"), str(a), str(b)], tmp_path)
     assert out.strip() == f"{a} against {b}: {{'momentum': '1', 'opening': '0.5'}}"
+
+
+def test_same_outputs_ignores_timings_only(tmp_path):
+    """benchmarks/same_outputs.py: two run folders that differ only in wall-clock fields (summary.json's wall_s,
+    substeps_per_s, profile, out_dir; summary.md's last column; profile.md) are the same run; a changed byte in any
+    other file, a changed number in summary.json or summary.md, or a file only one holds is a difference (exit 1)."""
+
+    def run_folder(name: str, wall: float, opening: float, png: bytes) -> Path:
+        d = tmp_path / name
+        (d / "frames").mkdir(parents=True)
+        (d / "frames" / "compare_0000.png").write_bytes(png)
+        (d / "metrics.jsonl").write_text('{"frame": 0}\n')
+        summary = {"out_dir": str(d), "variants": [{"variant": "full", "wall_s": wall, "opening": opening}]}
+        (d / "summary.json").write_text(json.dumps(summary))
+        (d / "summary.md").write_text(f"| variant | opening | substeps/s |\n| full | {opening} | {100 / wall:.1f} |\n")
+        (d / "profile.md").write_text(f"wall time {wall} s\n")
+        return d
+
+    a = run_folder("a", 2.0, 1.5, b"\x89PNG0")
+    b = run_folder("b", 3.0, 1.5, b"\x89PNG0")
+    out = _run([str(BENCH / "same_outputs.py"), str(a), str(b)], tmp_path)
+    assert out.strip() == "identical: 5 files"
+
+    def differs(c: Path) -> str:
+        proc = subprocess.run(
+            [sys.executable, str(BENCH / "same_outputs.py"), str(a), str(c)], capture_output=True, text=True
+        )
+        assert proc.returncode == 1, proc.stdout + proc.stderr
+        return proc.stdout
+
+    assert differs(run_folder("c", 2.0, 1.5, b"\x89PNG1")).strip() == "frames/compare_0000.png differs"
+    found = differs(run_folder("d", 2.0, 1.75, b"\x89PNG0")).splitlines()
+    assert found == ["summary.json differs beyond its timings", "summary.md differs beyond its substeps/s column"]
+    e = run_folder("e", 2.0, 1.5, b"\x89PNG0")
+    (e / "frames" / "compare_0001.png").write_bytes(b"x")
+    assert differs(e).strip() == f"only in {e}: frames/compare_0001.png"
