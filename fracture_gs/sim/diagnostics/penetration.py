@@ -158,7 +158,7 @@ NEAR = 1.2  # spacings: particles with one of another fragment this close are ev
 CHUNK = 4096  # candidates per chunk: ≈ 2,000 particles gathered each, so ≈ 8 M pairs at a time
 DENSE_LIMIT = 1 << 22  # (candidate, fragment) sums kept dense up to this many entries, else sorted keys
 _BITS = 21  # bits per axis of a cell key
-DENSE_CELLS = 1 << 22  # `_Cells.near_foreign` pools a dense grid up to this many cells (16 MiB a float32 copy)
+DENSE_CELLS = 1 << 22  # `_Cells.near_foreign` pools a dense grid up to this many cells (16 MiB an int32 copy)
 NN_PER_SPACING = 0.65  # median nearest-neighbour distance over h of a jittered grid (one point anywhere per cell h)
 SAMPLES = 256  # particles per fragment whose own kernel sums calibrate its filled density
 CENTRED = 0.01  # a sample whose neighbours' kernel-weighted centroid lies within this × R sees a full ball
@@ -182,13 +182,60 @@ def _cube(reach: int, device, ball: bool = False) -> torch.Tensor:  # [C, 3] int
     return off
 
 
+def _max_around(grid: torch.Tensor) -> torch.Tensor:  # [C, d0 + 2, d1 + 2, d2 + 2] -> [C, d0, d1, d2]
+    """Per channel, the largest value over each interior cell's 3×3×3 block, one axis at a time (exact: a maximum
+    of maxima, as `max_pool3d` with padding; the outer layer stands for the padding and must hold the least value)."""
+    for dim in (3, 2, 1):
+        n = grid.shape[dim] - 2
+        grid = torch.maximum(torch.maximum(grid.narrow(dim, 0, n), grid.narrow(dim, 1, n)), grid.narrow(dim, 2, n))
+    return grid
+
+
+def _mixed_around(c: torch.Tensor, fmin: torch.Tensor, fmax: torch.Tensor) -> Optional[torch.Tensor]:  # [n] bool
+    """For entries in cells c [n, 3] (int64, repeats allowed) with ids fmin ≤ fmax [n]: whether the smallest and
+    largest id over the entry's cell and its 26 neighbours differ. As two 3×3×3 max-pools (of the ids and of their
+    negatives) of a dense int32 grid over the cells' bounding box, empty cells holding the least int32, which changes
+    neither extreme; None when the box has more than DENSE_CELLS cells or an id is not below 2²⁴ in size."""
+    c0 = c.min(0).values
+    dims = c.max(0).values - c0 + 1  # [3]
+    *d, top, bottom = torch.cat([dims, fmax.max()[None], fmin.min()[None]]).tolist()  # one host read
+    if d[0] * d[1] * d[2] > DENSE_CELLS or not (top < (1 << 24) and bottom > -(1 << 24)):
+        return None
+    idx = c - c0 + 1  # [n, 3] in a grid with one empty layer around
+    flat = (idx[:, 0] * (d[1] + 2) + idx[:, 1]) * (d[2] + 2) + idx[:, 2]  # [n]
+    size = (d[0] + 2) * (d[1] + 2) * (d[2] + 2)
+    grid = torch.full((2, size), -(1 << 31), dtype=torch.int32, device=c.device)
+    grid.scatter_reduce_(1, flat.expand(2, -1), torch.stack([fmax, -fmin]).int(), "amax")  # largest id, −smallest
+    pooled = _max_around(grid.view(2, d[0] + 2, d[1] + 2, d[2] + 2))  # [2, d0, d1, d2]
+    mixed = torch.zeros((d[0] + 2, d[1] + 2, d[2] + 2), dtype=torch.bool, device=c.device)
+    mixed[1:-1, 1:-1, 1:-1] = pooled[0] != -pooled[1]
+    return mixed.view(-1)[flat]
+
+
+def _cell_coords(x: torch.Tensor, lo: torch.Tensor, size: float) -> torch.Tensor:  # [N, 3] float64 -> [N, 3] int64
+    """Each point's cell of edge `size` counted from `lo`, with 3 free cells below (clamped to the keys' range)."""
+    return (torch.floor((x - lo) / size).long() + 3).clamp(0, (1 << _BITS) - 4)
+
+
 class _Cells:
     """Particles binned into cells of edge `size` by sorted keys (no dense grid): per occupied cell its key,
-    first sorted index, count and smallest/largest fragment id."""
+    first sorted index, count and smallest/largest fragment id. `among` [n]: bin only these particles (`order`
+    then holds indices into x; `coord` still covers all; `near_foreign` needs every particle binned). `coord`
+    [N, 3]: the cells `_cell_coords` gives, when already at hand."""
 
-    def __init__(self, x: torch.Tensor, fragment: torch.Tensor, lo: torch.Tensor, size: float):
-        self.coord = (torch.floor((x - lo) / size).long() + 3).clamp(0, (1 << _BITS) - 4)  # [N, 3], 3 free cells
-        self.sorted, self.order = torch.sort(_keys(self.coord))
+    def __init__(
+        self,
+        x: torch.Tensor,
+        fragment: torch.Tensor,
+        lo: torch.Tensor,
+        size: float,
+        among: Optional[torch.Tensor] = None,
+        coord: Optional[torch.Tensor] = None,
+    ):
+        self.coord = _cell_coords(x, lo, size) if coord is None else coord  # [N, 3]
+        self.sorted, self.order = torch.sort(_keys(self.coord if among is None else self.coord[among]))
+        if among is not None:
+            self.order = among[self.order]
         self.keys, self.inverse, self.count = torch.unique_consecutive(
             self.sorted, return_inverse=True, return_counts=True
         )
@@ -205,39 +252,29 @@ class _Cells:
     def near_foreign(self) -> torch.Tensor:  # [N] bool
         """Particles whose cell or one of its 26 neighbours holds a particle of another fragment: the smallest and
         largest fragment id over the 27 cells differ. Over the occupied cells' bounding box, when it has at most
-        DENSE_CELLS cells, as two 3×3×3 max-pools of a dense grid (exact: ids are small integers, empty cells
-        hold −∞/+∞ and change neither extreme); else by 27 binary searches per occupied cell."""
+        DENSE_CELLS cells, by `_mixed_around`; else by 27 binary searches per occupied cell."""
         mask = (1 << _BITS) - 1
         c = torch.stack([self.keys >> (2 * _BITS), self.keys >> _BITS, self.keys], 1) & mask  # [V, 3]
-        c0 = c.min(0).values
-        dims = c.max(0).values - c0 + 1  # [3]
-        *d, fmax, fmin = torch.cat([dims, self.fmax.max()[None], self.fmin.min()[None]]).tolist()  # one host read
-        small_ids = fmax < (1 << 24) and fmin > -(1 << 24)  # exact in float32
-        if d[0] * d[1] * d[2] <= DENSE_CELLS and small_ids:
-            idx = c - c0
-            flat = (idx[:, 0] * d[1] + idx[:, 1]) * d[2] + idx[:, 2]  # [V] each occupied cell once
-            hi = torch.full((d[0] * d[1] * d[2],), -math.inf, dtype=torch.float32, device=c.device)
-            neg_lo = hi.clone()
-            hi[flat], neg_lo[flat] = self.fmax.float(), -self.fmin.float()
-            pool = torch.nn.functional.max_pool3d
-            hi = pool(hi.view(1, 1, *d), 3, stride=1, padding=1).view(-1)[flat]
-            lo = -pool(neg_lo.view(1, 1, *d), 3, stride=1, padding=1).view(-1)[flat]
-        else:
+        mixed = _mixed_around(c, self.fmin, self.fmax)
+        if mixed is None:
             i, hit = self.find(_keys(c[:, None, :] + _cube(1, c.device)[None]))  # [V, 27]
             lo = torch.where(hit, self.fmin[i], torch.full_like(i, 1 << 40)).amin(1)
             hi = torch.where(hit, self.fmax[i], torch.full_like(i, -1)).amax(1)
+            mixed = lo != hi
         out = torch.zeros(self.order.numel(), dtype=torch.bool, device=self.order.device)
-        out[self.order] = (lo != hi)[self.inverse]
+        out[self.order] = mixed[self.inverse]
         return out
 
     def gather(
-        self, coord: torch.Tensor, reach: int, other_than: Optional[torch.Tensor] = None
+        self, coord: torch.Tensor, reach: int, other_than: Optional[torch.Tensor] = None, half: bool = False
     ) -> tuple[torch.Tensor, torch.Tensor]:
         """(query index, particle index) for every particle in the cells within `reach` cells of each query
         cell [M, 3] (a point of the query cell sees no other particle within reach·size). `other_than` [M]: a
         fragment id per query; cells holding only that fragment's particles are left out (the pairs that remain
-        come in the same order as without it)."""
+        come in the same order as without it). `half`: only the query's own cell and the offsets after it (the
+        offsets are symmetric and sorted, the centre in the middle): one of each pair of opposite neighbours."""
         off = _cube(reach, coord.device, ball=True)
+        off = off[off.shape[0] // 2 :] if half else off
         i, hit = self.find(_keys(coord[:, None, :] + off[None]))  # [M, C]
         if other_than is not None:  # a cell of the query's own piece alone holds no pair of another piece
             own = (self.fmin[i] == self.fmax[i]) & (self.fmin[i] == other_than[:, None])
@@ -274,19 +311,27 @@ def kernel(u2: torch.Tensor, radius) -> torch.Tensor:
     return torch.where(u2 < 1.0, 105.0 / (32.0 * math.pi * radius**3) * (1.0 - u2).clamp_min(0.0) ** 2, 0.0 * u2)
 
 
-def _nearest(x: torch.Tensor, fragment: torch.Tensor, query: torch.Tensor, size: float) -> torch.Tensor:
+def _nearest(x: torch.Tensor, fragment: torch.Tensor, query: Optional[torch.Tensor], size: float) -> torch.Tensor:
     """Distance [m] from each query particle to its nearest other particle of the same fragment within
-    `size` (inf if none): cells of edge `size`, the 27 around the query's."""
+    `size` (inf if none): cells of edge `size`, the 27 around the query's. `query` None: every particle, each pair
+    of cells visited once (the distance of a pair is the same from either end, and a minimum takes its values in
+    any order)."""
     lo = x.min(0).values
     cells = _Cells(x, fragment, lo, size)
-    qi, j = cells.gather(cells.coord[query], 1)
-    same = (fragment[j] == fragment[query][qi]) & (j != query[qi])
-    d2 = torch.where(same, ((x[query][qi] - x[j]) ** 2).sum(1), torch.full_like(x[j, 0], float("inf")))
-    return (
-        torch.full((query.numel(),), float("inf"), dtype=x.dtype, device=x.device)
-        .scatter_reduce(0, qi, d2, "amin")
-        .sqrt()
-    )
+    n = x.shape[0] if query is None else query.numel()
+    if query is None:  # the pairs with a neighbour cell on one side, each read for both its particles
+        qi, j = cells.gather(cells.coord, 1, half=True)
+        ends = (qi, j)
+    else:
+        qi, j = cells.gather(cells.coord[query], 1)
+        ends = (qi,)
+    at = qi if query is None else query[qi]  # [P] the query particle of each pair
+    same = (fragment[j] == fragment[at]) & (j != at)
+    d2 = torch.where(same, ((x[at] - x[j]) ** 2).sum(1), torch.full_like(x[j, 0], float("inf")))
+    nearest = torch.full((n,), float("inf"), dtype=x.dtype, device=x.device)
+    for end in ends:
+        nearest = nearest.scatter_reduce(0, end, d2, "amin")
+    return nearest.sqrt()
 
 
 def _sampled(fragment: torch.Tensor, K: int, samples: int) -> torch.Tensor:
@@ -310,6 +355,15 @@ def _group_median(values: torch.Tensor, groups: torch.Tensor, K: int) -> tuple[t
     mid = (start + torch.div(count - 1, 2, rounding_mode="floor")).clamp(0, max(values.numel() - 1, 0))
     med = values[order][mid] if values.numel() else torch.zeros(K, dtype=values.dtype, device=values.device)
     return torch.where(count > 0, med, torch.zeros_like(med)), count
+
+
+def _adds_something(inside: torch.Tensor, scaled: torch.Tensor, odd: Optional[torch.Tensor]) -> torch.Tensor:
+    """[P] bool: the pairs whose kernel term W·J (and its products with the offset) may differ from ±0: those `inside`
+    the ball, and any whose squared distance over the radius² (`scaled`, non-finite when an offset is) or weight J is
+    not finite (`odd`, None when no weight is; 0·inf and 0·NaN are NaN). Leaving the others out of a sum that starts
+    at +0 changes none of its bits: a float sum from +0 never reads −0, and s + ±0 = s."""
+    out = inside | ~torch.isfinite(scaled)
+    return out if odd is None else out | odd
 
 
 def calibrate(
@@ -336,7 +390,7 @@ def calibrate(
     J = torch.ones_like(xd[:, 0]) if volume_ratio is None else volume_ratio.double()[idx]  # [N'] weights
     box = (xd.max(0).values - xd.min(0).values).clamp_min(1e-12)
     guess = float(box.prod() / idx.numel()) ** (1.0 / 3.0)  # ≥ the spacing: the box holds the solid
-    nn = _nearest(xd, frag, torch.arange(idx.numel(), device=x.device), guess)  # [N']
+    nn = _nearest(xd, frag, None, guess)  # [N']
     finite = torch.isfinite(nn)
     if not bool(finite.any()):
         return out
@@ -347,11 +401,16 @@ def calibrate(
     cells = _Cells(xd, frag, xd.min(0).values, R / 3)
     qi, j = cells.gather(cells.coord[pick], 3)
     d = xd[j] - xd[pick][qi]  # [P, 3]
-    u2 = (d**2).sum(1) / (R * R)
+    d2, Jj = (d**2).sum(1), J[j]  # [P]
+    u2 = d2 / (R * R)
     keep = (frag[j] == frag[pick][qi]) & (u2 < 1.0)
-    w = torch.where(keep, kernel(u2, R), torch.zeros_like(u2)) * J[j]
-    own = torch.zeros(pick.numel(), dtype=torch.float64, device=x.device).index_add_(0, qi, w)  # [S]
-    moment = torch.zeros(pick.numel(), 3, dtype=torch.float64, device=x.device).index_add_(0, qi, w[:, None] * d)
+    # a pair outside the ball adds a zero (±0: a sum from +0 keeps its bits) unless a non-finite weight or offset
+    # makes it NaN; the others are summed in their order
+    odd = None if bool(torch.isfinite(J).all()) else ~torch.isfinite(Jj)  # [P] pairs of a non-finite weight
+    a = torch.nonzero(_adds_something(keep, u2, odd)).flatten()
+    w = torch.where(keep[a], kernel(u2[a], R), torch.zeros_like(u2[a])) * Jj[a]
+    own = torch.zeros(pick.numel(), dtype=torch.float64, device=x.device).index_add_(0, qi[a], w)  # [S]
+    moment = torch.zeros(pick.numel(), 3, dtype=torch.float64, device=x.device).index_add_(0, qi[a], w[:, None] * d[a])
     centred = moment.norm(dim=1) < CENTRED * R * own  # [S] the neighbours' centroid within CENTRED·R
     fp = frag[pick]
     inner, n_inner = _group_median(own[centred], fp[centred], K)
@@ -359,12 +418,14 @@ def calibrate(
     # inside thin and small pieces, counting every fragment's particles (at a latch the pieces just cut are one
     # body, so a thin layer cut from its twin still fills the ball): its sums where no free face cuts the ball
     r = DENSITY_REACH * gap[fp][qi]  # [P] per pair, the query's piece's small radius
-    v2 = (d**2).sum(1) / (r * r)
-    ws = kernel(v2, r) * J[j]
-    small = torch.zeros(pick.numel(), dtype=torch.float64, device=x.device).index_add_(0, qi, ws)  # [S]
-    ms = torch.zeros(pick.numel(), 3, dtype=torch.float64, device=x.device).index_add_(0, qi, ws[:, None] * d)
+    v2 = d2 / (r * r)
+    b = torch.nonzero(_adds_something(v2 < 1.0, v2, odd)).flatten()  # as above: the pairs that add a non-zero
+    qb, db = qi[b], d[b]
+    ws = kernel(v2[b], r[b]) * Jj[b]
+    small = torch.zeros(pick.numel(), dtype=torch.float64, device=x.device).index_add_(0, qb, ws)  # [S]
+    ms = torch.zeros(pick.numel(), 3, dtype=torch.float64, device=x.device).index_add_(0, qb, ws[:, None] * db)
     cov = torch.zeros(pick.numel(), 3, 3, dtype=torch.float64, device=x.device).index_add_(
-        0, qi, ws[:, None, None] * d[:, :, None] * d[:, None, :]
+        0, qb, ws[:, None, None] * db[:, :, None] * db[:, None, :]
     )  # [S, 3, 3] the neighbours' second moment: a ball cut on two sides (a thin plate's) is flat, not round
     eig = torch.linalg.eigvalsh(cov)  # [S, 3] ascending
     round_ = eig[:, 0] > ISOTROPY * eig[:, 2]
@@ -409,12 +470,18 @@ def surface_depth(
     ok = ok & (fragment < filled.numel())
     frag = torch.where(ok, fragment.long(), torch.full_like(fragment, -1, dtype=torch.long))
     xd = x.double()
-    lo = torch.where(ok[:, None], xd, torch.full_like(xd, float("inf"))).min(0).values
+    every = x.device.type == "cpu" and bool(ok.all())  # every particle labelled (a free host read on the CPU only)
+    lo = (xd if every else torch.where(ok[:, None], xd, torch.full_like(xd, float("inf")))).min(0).values
     spacing = radius / SPACINGS
-    small = _Cells(xd, frag, lo, NEAR * spacing)
-    query = torch.nonzero(small.near_foreign() & ok).flatten()  # [M0] particles in cells by another fragment
+    coord = _cell_coords(xd, lo, NEAR * spacing)  # [N, 3]
+    near = _mixed_around(coord, frag, frag)  # frag ≥ −1: the bounds `_Cells` starts its extremes from change nothing
+    near = _Cells(xd, frag, lo, NEAR * spacing, coord=coord).near_foreign() if near is None else near
+    query = torch.nonzero(near & ok).flatten()  # [M0] particles in cells by another fragment
     if query.numel() == 0:
         return depth, into
+    # a particle of another piece within a cell of a query is itself in cells by another fragment (the query's): the
+    # cells hold only those
+    small = _Cells(xd, frag, lo, NEAR * spacing, among=torch.nonzero(near).flatten(), coord=coord)
     # a particle behind b's surface has a particle of b within about a spacing (b's sample is dense there)
     if twin:
         qi, j = small.gather(small.coord[query], 1)
@@ -423,6 +490,8 @@ def surface_depth(
         query = query[torch.zeros(query.numel(), dtype=torch.bool, device=x.device).index_fill_(0, qi[close], True)]
     else:
         query = query[near_another_piece_mask(xd, frag, small, query, NEAR * spacing, _BITS)]
+    if query.numel() == 0:
+        return depth, into
     big = _Cells(xd, frag, lo, radius / 3)  # cells within 3 of the query's: every particle within R
     volume_ratio = _volume_ratio_now(volume_ratio)
     J = torch.ones_like(xd[:, 0]) if volume_ratio is None else volume_ratio.double()  # [N] weights

@@ -5,10 +5,11 @@ Sums: for a query particle p of piece a, c_b(p) = Σ_{j∈b, b≠a} J_j W(|x_p �
 the kernel radius R (W the compact kernel of `penetration.kernel`, J_j its volume change det F, n_b b's filled
 density). The torch twin (`penetration.behind_surfaces_torch`) materialises every (query, particle) pair of the
 cells around the queries — about a million pairs a frame for pieces pressed together, 60 ms a frame on one CPU
-core and ≈ 60 ops a chunk on a GPU. Here one thread per query walks the same cells (binary searches in the sorted
-cell keys, cells of its own piece alone skipped), in the same order, and sums in float64 (the twin takes the pair
-offsets in float32, so the two agree to about 1e-6 of a share). The same thread then inverts each share over ½
-(below, the particle is in front of b's surface) and keeps the deepest: depth [m] and the piece it lies behind.
+core and ≈ 60 ops a chunk on a GPU. Here one thread per query walks the same cells (a binary search in the sorted
+cell keys where a run of cells along z starts, a step along the keys for each next one; cells of its own piece alone
+skipped), in the same order, and sums in float64 (the twin takes the pair offsets in float32, so the two agree to
+about 1e-6 of a share). The same thread then inverts each share over ½ (below, the particle is in front of b's
+surface) and keeps the deepest: depth [m] and the piece it lies behind.
 
 Inversion:
 a particle whose ball of radius R is filled to a share c by another piece lies d = R·u behind that piece's flat
@@ -75,6 +76,22 @@ def lower_bound(keys: wp.array(dtype=wp.int64), key: wp.int64):
 
 
 @wp.func
+def lower_bound_next(keys: wp.array(dtype=wp.int64), key: wp.int64, last_key: wp.int64, last: int, have: int):
+    """`lower_bound`(keys, key) given last = `lower_bound`(keys, last_key) when `have` (keys sorted and unique): where
+    key = last_key + 1 (the next cell along z) it is last, one further if keys[last] is last_key itself; else a
+    binary search."""
+    i = int(0)  # noqa: UP018 - a typed variable Warp may change in the branches
+    if have != 0 and key == last_key + wp.int64(1):
+        i = last
+        if last < keys.shape[0]:
+            if keys[last] == last_key:
+                i = last + 1
+    else:
+        i = lower_bound(keys, key)
+    return i
+
+
+@wp.func
 def cell_key(cx: wp.int64, cy: wp.int64, cz: wp.int64, bits: int):
     """The sorted key of cell (cx, cy, cz), as `penetration._keys`."""
     return (cx << wp.int64(2 * bits)) | (cy << wp.int64(bits)) | cz
@@ -115,9 +132,13 @@ def deepest_behind(
     p = query[m]
     fp = frag[p]
     r2 = radius * radius
+    last_key = wp.int64(0)
+    last = int(0)  # noqa: UP018 - a typed variable Warp may change in the loop
     for c in range(offsets.shape[0]):
         key = cell_key(coord[p, 0] + offsets[c, 0], coord[p, 1] + offsets[c, 1], coord[p, 2] + offsets[c, 2], bits)
-        i = lower_bound(keys, key)
+        i = lower_bound_next(keys, key, last_key, last, c)  # offsets run along z: mostly one step, not a search
+        last_key = key
+        last = i
         if i < keys.shape[0]:
             if keys[i] == key and not (fmin[i] == fmax[i] and fmin[i] == fp):
                 for s in range(int(start[i]), int(start[i] + count[i])):
@@ -161,17 +182,32 @@ def near_another_piece(
     found = int(0)  # noqa: UP018 - a typed variable Warp may change in the loop
     for ox in range(-1, 2):
         for oy in range(-1, 2):
+            last_key = wp.int64(0)
+            last = int(0)  # noqa: UP018 - a typed variable Warp may change in the loop
+            have = int(0)  # noqa: UP018 - set once a cell of this column was looked up
             for oz in range(-1, 2):
-                key = cell_key(coord[p, 0] + wp.int64(ox), coord[p, 1] + wp.int64(oy), coord[p, 2] + wp.int64(oz), bits)
-                i = lower_bound(keys, key)
-                if found == 0 and i < keys.shape[0]:
-                    if keys[i] == key:
-                        for s in range(int(start[i]), int(start[i] + count[i])):
-                            j = order[s]
-                            fj = frag[j]
-                            if fj >= wp.int64(0) and fj != fp and distance_sq(x, p, j) < reach2:
-                                found = 1
+                if found == 0:  # once found, the remaining cells change nothing
+                    key = cell_key(
+                        coord[p, 0] + wp.int64(ox), coord[p, 1] + wp.int64(oy), coord[p, 2] + wp.int64(oz), bits
+                    )
+                    i = lower_bound_next(keys, key, last_key, last, have)  # a search, then steps along z
+                    last_key = key
+                    last = i
+                    have = 1
+                    if i < keys.shape[0]:
+                        if keys[i] == key:
+                            for s in range(int(start[i]), int(start[i] + count[i])):
+                                j = order[s]
+                                fj = frag[j]
+                                if fj >= wp.int64(0) and fj != fp and distance_sq(x, p, j) < reach2:
+                                    found = 1
     near[m] = found
+
+
+def _view(t: torch.Tensor):
+    """A launch argument over t's memory (a contiguous copy where t is not): the bare array descriptor, which is
+    cheaper to make than a `wp.array` and keeps t alive."""
+    return wp.from_torch(t.contiguous(), return_ctype=True)
 
 
 def near_another_piece_mask(
@@ -189,7 +225,7 @@ def near_another_piece_mask(
     wp.launch(
         near_another_piece,
         dim=query.numel(),
-        inputs=[wp.from_torch(t.contiguous()) for t in inputs] + [reach * reach, bits, wp.from_torch(near)],
+        inputs=[_view(t) for t in inputs] + [reach * reach, bits, _view(near)],
         device=device,
         stream=warp_stream(device),
     )
@@ -222,13 +258,13 @@ def deepest_behind_surfaces(
     ensure_warp()
     device = str(dev)
     w = {
-        k: wp.from_torch(t.contiguous())
+        k: _view(t)
         for k, t in dict(
             keys=cells.keys, start=cells.start, count=cells.count, fmin=cells.fmin, fmax=cells.fmax,
             order=cells.order, frag=frag, volume_ratio=volume_ratio, filled=filled,
         ).items()
     }  # fmt: skip
-    coord, off, xs = (wp.from_torch(t.contiguous()) for t in (cells.coord, offsets, x))
+    coord, off, xs = (_view(t) for t in (cells.coord, offsets, x))
     norm = 105.0 / (32.0 * math.pi * radius**3)
     for s in range(0, M, chunk):
         q = query[s : s + chunk].contiguous()
@@ -237,9 +273,9 @@ def deepest_behind_surfaces(
             deepest_behind,
             dim=q.numel(),
             inputs=[
-                wp.from_torch(q), coord, off, w["keys"], w["start"], w["count"], w["fmin"], w["fmax"], w["order"],
-                xs, w["frag"], w["volume_ratio"], w["filled"], radius, norm, bits, wp.from_torch(sums),
-                wp.from_torch(depth[s : s + chunk]), wp.from_torch(into[s : s + chunk]),
+                _view(q), coord, off, w["keys"], w["start"], w["count"], w["fmin"], w["fmax"], w["order"],
+                xs, w["frag"], w["volume_ratio"], w["filled"], radius, norm, bits, _view(sums),
+                _view(depth[s : s + chunk]), _view(into[s : s + chunk]),
             ],
             device=device,
             stream=warp_stream(device),
