@@ -2,17 +2,19 @@
 `splat.render` (DESIGN.md "Rendering").
 
 `tile_lists` builds `splat._tile_intersections`' lists (Gaussian ids sorted by (tile, depth), a [start, start +
-count) range per tile) in three launches. `composite` then runs one thread per pixel (x, y), which walks its tile's
-list with the rules of `splat`'s module docstring, in the operation order of the torch rasterizer's
-`_composite_chunk`:
+count) range per tile) in three launches. `composite` then runs one thread per tile, in which every pixel (x, y)
+walks its tile's list with the rules of `splat`'s module docstring, in the operation order of the torch
+rasterizer's `_composite_chunk`:
 
     u, v = x + ½ − μ_x, y + ½ − μ_y,   ln α = ln o − ½a u² − ½c v² − b u v,   α = min(0.999, e^{ln α})
     α < 1/255: skipped;   T(1 − α) ≤ 1e-4: stop before this Gaussian (exclusive);   else C += c α T, T ← T(1 − α)
     image = C + T·background,   alpha = 1 − T
 
 The tile only chooses which Gaussians a pixel visits; a pixel's arithmetic is its own, in the inputs' dtype
-(float32 or float64, one overload each). Warp compiles CPU kernels to C++ and runs a launch on one thread; bread's
-320×240 frame takes ~14 ms here against ~43 ms for the torch rasterizer on one thread
+(float32 or float64, one overload each), the same as a thread per pixel would compute (`tests/test_raster_tiles.py`
+holds that kernel and compares them bit for bit); the tile thread only skips the pixels that, for certain, would skip
+the Gaussian. Warp compiles CPU kernels to C++ and runs a launch on one thread; bread's 320×240 frame takes ~7 ms
+here (~12 ms with a thread per pixel) against ~43 ms for the torch rasterizer on one thread
 (`benchmarks/raster_cpu.py`). Forward only: gradients take the torch path.
 """
 
@@ -34,7 +36,9 @@ ALPHA_MAX = wp.constant(0.999)
 LN_ALPHA_SKIP = wp.constant(math.log(1.0 / 255.0) - 1e-3)
 """Below this ln α, α < 1/255 for certain (e^{−0.001} ≈ 1 − 1e-3, far beyond exp's rounding): the pair is
 skipped without evaluating exp; between it and ln(1/255) the exact test on α decides, as in the torch path."""
-COLUMNS = 9  # per-Gaussian row of `composite_pixels`: μ_x, μ_y, a, b, c, ln o, r, g, b
+SPAN_MARGIN_REL = 1e-5  # `row_span`'s margin on ln α: ×S (float32 rounds ln α by ≤ 8·2⁻²⁴·S ≈ 5e-7·S) ...
+SPAN_MARGIN_ABS = 1e-4  # ... plus this, for underflowing terms
+COLUMNS = 9  # per-Gaussian row of `composite_tiles`: μ_x, μ_y, a, b, c, ln o, r, g, b
 
 
 @wp.kernel
@@ -92,8 +96,36 @@ def fill_tiles(
                 cursor[t] += 1
 
 
+@wp.func
+def span_reach(
+    x0: int,
+    x1: int,
+    y0: int,
+    y1: int,
+    mx: wp.float64,
+    my: wp.float64,
+    a: wp.float64,
+    b: wp.float64,
+    c: wp.float64,
+    ln_o: wp.float64,
+    skip: wp.float64,
+):
+    """d0 = 2a(ln o − skip + E) of a Gaussian over the tile [x0, x1) × [y0, y1): with u = x + ½ − μ_x, v = y + ½ −
+    μ_y and f = ln o − ½a u² − ½c v² − b u v the exact ln α of pixel (x, y), f ≥ skip − E is (a u + b v)² ≤ d0 −
+    det v², det = ac − b² (for a > 0). E = SPAN_MARGIN_REL·S + SPAN_MARGIN_ABS, S = |ln o| + ½a u² + ½c v² +
+    |b u v| at the tile's largest |u| and |v|, is far above the ≤ 8 ulp·S by which a pixel's rounded ln α can
+    exceed f, and the ≈ 1e-15·S by which this float64 arithmetic can err: a pixel with (a u + b v)² > d0 − det v²
+    has a rounded ln α below skip for certain."""
+    half = wp.float64(0.5)
+    um = wp.max(wp.abs(wp.float64(x0) + half - mx), wp.abs(wp.float64(x1) - half - mx))
+    vm = wp.max(wp.abs(wp.float64(y0) + half - my), wp.abs(wp.float64(y1) - half - my))
+    s = wp.abs(ln_o) + half * a * um * um + half * c * vm * vm + wp.abs(b) * um * vm
+    e = wp.float64(SPAN_MARGIN_REL) * s + wp.float64(SPAN_MARGIN_ABS)
+    return wp.float64(2.0) * a * (ln_o - skip + e)
+
+
 @wp.kernel
-def composite_pixels(
+def composite_tiles(
     flat: wp.array(dtype=wp.int32),  # [M] Gaussian ids sorted by (tile, depth)
     starts: wp.array(dtype=wp.int32),  # [tiles] first entry of each tile in `flat`
     counts: wp.array(dtype=wp.int32),  # [tiles] entries of each tile
@@ -101,49 +133,109 @@ def composite_pixels(
     background: wp.array(dtype=Any),  # [3]
     tile: int,
     tiles_w: int,
-    image: wp.array3d(dtype=Any),  # [H, W, 3] out
-    alpha: wp.array2d(dtype=Any),  # [H, W] out
+    image: wp.array3d(dtype=Any),  # [H, W, 3] out; each pixel's colour sum C while compositing
+    alpha: wp.array2d(dtype=Any),  # [H, W] out; each pixel's T while compositing, −T once it stopped
 ):
-    y, x = wp.tid()
+    """Thread = a tile: every pixel of the tile walks the tile's list with the module docstring's rules. The
+    Gaussian is the outer loop, so its row is read once per tile and its terms of ln α that depend on the pixel's
+    row only (v, ½c v²) once per row; each pixel's ln α, α, T and C take the very operations, in the same order,
+    of a per-pixel walk. Pixels whose ln α is below LN_ALPHA_SKIP for certain are not evaluated (`span_reach`:
+    per row, the u between (−b v ± sqrt(d0 − det v²))/a, widened to whole pixels), and the tile's list ends early
+    once all its pixels have stopped."""
+    t = wp.tid()
     zero = gauss.dtype(0.0)
     half = gauss.dtype(0.5)
     one = gauss.dtype(1.0)
-    px = gauss.dtype(x) + half  # pixel centre
-    py = gauss.dtype(y) + half
-    t = (y // tile) * tiles_w + x // tile
+    f64_half = wp.float64(0.5)
+    f64_zero = wp.float64(0.0)
+    skip = wp.float64(gauss.dtype(LN_ALPHA_SKIP))  # the threshold as the pixels compare with it
+    x0 = (t % tiles_w) * tile
+    y0 = (t // tiles_w) * tile
+    x1 = wp.min(x0 + tile, alpha.shape[1])
+    y1 = wp.min(y0 + tile, alpha.shape[0])
+    for y in range(y0, y1):
+        for x in range(x0, x1):
+            alpha[y, x] = one
+            image[y, x, 0] = zero
+            image[y, x, 1] = zero
+            image[y, x, 2] = zero
+    live = (x1 - x0) * (y1 - y0)  # pixels not stopped yet
     start = starts[t]
-    T = one
-    r = zero
-    g = zero
-    b = zero
     for k in range(start, start + counts[t]):
         i = flat[k]
-        u = px - gauss[i, 0]
-        v = py - gauss[i, 1]
-        ln_a = gauss[i, 5] - half * gauss[i, 2] * u * u - half * gauss[i, 4] * v * v - gauss[i, 3] * u * v
-        if ln_a < gauss.dtype(LN_ALPHA_SKIP):
-            continue
-        a = wp.min(wp.exp(ln_a), gauss.dtype(ALPHA_MAX))
-        if a < gauss.dtype(ALPHA_THRESHOLD):
-            continue
-        next_T = T * (one - a)
-        if next_T <= gauss.dtype(T_THRESHOLD):
-            break  # exclusive: this Gaussian is not drawn
-        w = a * T
-        r += gauss[i, 6] * w
-        g += gauss[i, 7] * w
-        b += gauss[i, 8] * w
-        T = next_T
-    image[y, x, 0] = r + T * background[0]
-    image[y, x, 1] = g + T * background[1]
-    image[y, x, 2] = b + T * background[2]
-    alpha[y, x] = one - T
+        mx = gauss[i, 0]
+        my = gauss[i, 1]
+        ha = half * gauss[i, 2]
+        hc = half * gauss[i, 4]
+        cb = gauss[i, 3]
+        ln_o = gauss[i, 5]
+        # the spans, in float64, where every input is finite and the conic positive definite; else every pixel
+        a64 = wp.float64(gauss[i, 2])
+        b64 = wp.float64(cb)
+        c64 = wp.float64(gauss[i, 4])
+        mx64 = wp.float64(mx)
+        my64 = wp.float64(my)
+        det = a64 * c64 - b64 * b64
+        finite = wp.isfinite(det) and wp.isfinite(wp.float64(ln_o)) and wp.isfinite(mx64) and wp.isfinite(my64)
+        spans = finite and a64 > f64_zero and det > f64_zero
+        d0 = f64_zero
+        inv_a = f64_zero
+        if spans:
+            d0 = span_reach(x0, x1, y0, y1, mx64, my64, a64, b64, c64, wp.float64(ln_o), skip)
+            inv_a = wp.float64(1.0) / a64
+            if d0 < f64_zero:
+                continue  # no pixel of the tile reaches the threshold
+        for y in range(y0, y1):
+            xa = x0
+            xb = x1
+            if spans:
+                v64 = wp.float64(y) + f64_half - my64
+                disc = d0 - det * v64 * v64
+                if disc < f64_zero:
+                    continue  # no pixel of the row
+                hw = wp.sqrt(disc) * inv_a
+                centre = mx64 - f64_half - b64 * v64 * inv_a  # u = 0 at x = μ_x − ½
+                # clamped to [x0, x1] ⊂ [0, W], truncation is floor: one pixel more than the span at most
+                xa = int(wp.clamp(centre - hw, wp.float64(x0), wp.float64(x1)))
+                xb = int(wp.clamp(centre + hw + wp.float64(1.0), wp.float64(x0), wp.float64(x1)))
+            v = (gauss.dtype(y) + half) - my  # pixel centre y − μ_y
+            cv = hc * v * v
+            for x in range(xa, xb):
+                T = alpha[y, x]
+                if T < zero:
+                    continue  # stopped
+                u = (gauss.dtype(x) + half) - mx
+                ln_a = ln_o - ha * u * u - cv - cb * u * v
+                if ln_a < gauss.dtype(LN_ALPHA_SKIP):
+                    continue
+                a = wp.min(wp.exp(ln_a), gauss.dtype(ALPHA_MAX))
+                if a < gauss.dtype(ALPHA_THRESHOLD):
+                    continue
+                next_T = T * (one - a)
+                if next_T <= gauss.dtype(T_THRESHOLD):
+                    alpha[y, x] = -T  # exclusive: this Gaussian is not drawn, and the pixel stops
+                    live -= 1
+                    continue
+                w = a * T
+                image[y, x, 0] = image[y, x, 0] + gauss[i, 6] * w
+                image[y, x, 1] = image[y, x, 1] + gauss[i, 7] * w
+                image[y, x, 2] = image[y, x, 2] + gauss[i, 8] * w
+                alpha[y, x] = next_T
+        if live == 0:
+            break
+    for y in range(y0, y1):
+        for x in range(x0, x1):
+            T = wp.abs(alpha[y, x])
+            image[y, x, 0] = image[y, x, 0] + T * background[0]
+            image[y, x, 1] = image[y, x, 1] + T * background[1]
+            image[y, x, 2] = image[y, x, 2] + T * background[2]
+            alpha[y, x] = one - T
 
 
 for _dt in (wp.float32, wp.float64):
     wp.overload(tile_boxes, {"means2d": wp.array2d(dtype=_dt)})
     wp.overload(
-        composite_pixels,
+        composite_tiles,
         {
             "gauss": wp.array2d(dtype=_dt),
             "background": wp.array(dtype=_dt),
@@ -209,16 +301,26 @@ def composite(
     alpha = torch.empty(height, width, dtype=dt)
     if flat.numel() == 0:  # nothing to visit: a one-entry list no tile points into keeps the arrays non-empty
         flat = torch.zeros(1, dtype=torch.int32)
-    # one row per Gaussian, so a pixel's visit reads one cache line; ln 0 = −inf: α = 0, skipped
-    log_opac = torch.log(opacities.detach().to(dt))[:, None]
-    gauss = torch.cat([means2d.detach(), conics.detach().to(dt), log_opac, colors.detach().to(dt)], dim=1)  # [N, 9]
-    if gauss.shape[0] == 0:  # no Gaussians (every count is 0): one placeholder row, never read
-        gauss = gauss.new_zeros(1, COLUMNS)
     lists = [a.to(torch.int32).contiguous() for a in (flat, starts, counts)]
     tiles_w = (width + tile - 1) // tile
     _launch(
-        composite_pixels,
-        (height, width),
-        [*lists, gauss, background.detach().to(dt).contiguous(), tile, tiles_w, image, alpha],
+        composite_tiles,
+        tiles_w * ((height + tile - 1) // tile),
+        [*lists, gauss_rows(means2d, conics, opacities, colors), background.detach().to(dt).contiguous(), tile]
+        + [tiles_w, image, alpha],
     )
     return image, alpha
+
+
+def gauss_rows(
+    means2d: torch.Tensor,  # [N, 2]
+    conics: torch.Tensor,  # [N, 3]
+    opacities: torch.Tensor,  # [N]
+    colors: torch.Tensor,  # [N, 3]
+) -> torch.Tensor:  # [max(N, 1), COLUMNS] in means2d's dtype
+    """The compositing kernel's per-Gaussian rows (μ, conic, ln o, colour): one row per Gaussian, so a visit reads
+    one cache line; ln 0 = −inf (α = 0, skipped). No Gaussians: one placeholder row, never read."""
+    dt = means2d.dtype
+    log_opac = torch.log(opacities.detach().to(dt))[:, None]
+    gauss = torch.cat([means2d.detach(), conics.detach().to(dt), log_opac, colors.detach().to(dt)], dim=1)  # [N, 9]
+    return gauss if gauss.shape[0] else gauss.new_zeros(1, COLUMNS)
