@@ -68,10 +68,9 @@ def tile_boxes(
 
 @wp.kernel
 def count_tiles(boxes: wp.array2d(dtype=wp.int32), tiles_w: int, counts: wp.array(dtype=wp.int32)):
-    """Thread = a row of tiles: how many boxes touch each of its tiles (`counts` zeroed before)."""
-    ty = wp.tid()
+    """One thread: how many boxes touch each tile (`counts` zeroed before), each box counted at its tiles only."""
     for j in range(boxes.shape[0]):
-        if boxes[j, 2] <= ty and ty < boxes[j, 3]:
+        for ty in range(boxes[j, 2], boxes[j, 3]):
             for tx in range(boxes[j, 0], boxes[j, 1]):
                 counts[ty * tiles_w + tx] += 1
 
@@ -84,15 +83,14 @@ def fill_tiles(
     cursor: wp.array(dtype=wp.int32),  # [tiles] each tile's start on entry, its end on exit
     flat: wp.array(dtype=wp.int32),  # [M] out: Gaussian ids by (tile, depth)
 ):
-    """Thread = a row of tiles: appends each Gaussian, in depth order, to the list of every tile of the row
-    its box touches. A row's tiles belong to its thread alone, so the lists come out the same however the
-    threads run."""
-    ty = wp.tid()
+    """One thread: appends each Gaussian, in depth order, to the list of every tile its box touches, so each list
+    comes out in depth order."""
     for j in range(boxes.shape[0]):
-        if boxes[j, 2] <= ty and ty < boxes[j, 3]:
+        i = wp.int32(order[j])
+        for ty in range(boxes[j, 2], boxes[j, 3]):
             for tx in range(boxes[j, 0], boxes[j, 1]):
                 t = ty * tiles_w + tx
-                flat[cursor[t]] = wp.int32(order[j])
+                flat[cursor[t]] = i
                 cursor[t] += 1
 
 
@@ -260,7 +258,8 @@ def tile_lists(
     tile: int,
 ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:  # [M], [tiles], [tiles] int32
     """`splat._tile_intersections`' lists (flat ids by (tile, depth), starts, counts) in three launches:
-    boxes, a count per tile, then each tile row filled in depth order; int32."""
+    boxes, a count per tile, then the lists filled in depth order (one thread each: a box visits only its own
+    tiles); int32."""
     ensure_warp()
     tiles_w, tiles_h = (width + tile - 1) // tile, (height + tile - 1) // tile
     counts = torch.zeros(tiles_w * tiles_h, dtype=torch.int32)
@@ -273,11 +272,11 @@ def tile_lists(
         order.numel(),
         [order, means2d.detach().contiguous(), radii.to(torch.int32).contiguous(), tile, tiles_w, tiles_h, boxes],
     )
-    _launch(count_tiles, tiles_h, [boxes, tiles_w, counts])
+    _launch(count_tiles, 1, [boxes, tiles_w, counts])
     ends = torch.cumsum(counts, 0, dtype=torch.int32)
     starts = ends - counts
     flat = torch.empty(int(ends[-1]), dtype=torch.int32)
-    _launch(fill_tiles, tiles_h, [order, boxes, tiles_w, starts.clone(), flat])
+    _launch(fill_tiles, 1, [order, boxes, tiles_w, starts.clone(), flat])
     return flat, starts, counts
 
 
