@@ -182,4 +182,4 @@ class Painter:
             backend=self.cfg.backend,
             mode=self.cfg.mode,
         ).image
-        return (img.clamp(0, 1) * 255).round().to(torch.uint8)
+        return img.clamp(0, 1).mul_(255).round_().to(torch.uint8)  # ×255 and round in place on clamp's copy
