@@ -1,6 +1,6 @@
-"""`deform_covariances` on the CPU (`gaussians._deform_kernel`, a Warp kernel) against the torch expression it
-replaces, ½(S + Sᵀ) with S = F Σ⁰ Fᵀ by torch's matmul, bit for bit: float32 and float64, magnitudes from 1e-20 to
-1e20 (in float32 underflow and overflow to inf), signed zeros (a product of zeros is +0 only because the sum starts from +0),
+"""`deform_covariances` on the CPU (`raster_kernels.deform`, a Warp kernel) against the torch expression it replaces,
+½(S + Sᵀ) with S = F Σ⁰ Fᵀ by torch's matmul, bit for bit: float32 and float64, magnitudes from 1e-20 to 1e20 (in
+float32 underflow and overflow to inf), signed zeros (a product of zeros is +0 only because the sum starts from +0),
 non-contiguous inputs, and no Gaussians at all."""
 
 from __future__ import annotations

@@ -13,61 +13,17 @@ Takes tensors only; never imports `fracture_gs.sim`.
 
 from __future__ import annotations
 
-from typing import Any
-
 import torch
-import warp as wp
 from torch import Tensor
 
 from ..errors import RenderError
 from ..linalg import polar_rotation  # noqa: F401  (re-exported: R(F) for the SH rotation)
-from ..runtime import ensure_warp
 from ..sh import SH_C0, SH_C1, SH_C2, SH_C3
-
-wp.set_module_options({"enable_backward": False})
-
-
-@wp.func
-def _dot3(a0: Any, a1: Any, a2: Any, b0: Any, b1: Any, b2: Any):
-    """((0 + a0 b0) + a1 b1) + a2 b2: one entry of a 3×3 product as torch's CPU bmm sums it for small matrices
-    (from +0, k in order), so the same bits, signed zeros included."""
-    return ((type(a0)(0.0) + a0 * b0) + a1 * b1) + a2 * b2
-
-
-@wp.kernel
-def _deform_kernel(
-    F: wp.array(dtype=Any),  # [N] 3×3
-    cov0: wp.array(dtype=Any),  # [N] 3×3
-    out: wp.array(dtype=Any),  # [N] 3×3 out: ½(S + Sᵀ), S = (F Σ⁰) Fᵀ
-):
-    """`deform_covariances`' torch expression per Gaussian, with its operations in its order: M = F Σ⁰ and S = M Fᵀ
-    as `_dot3` sums, then ½(S + Sᵀ)."""
-    n = wp.tid()
-    f = F[n]
-    c = cov0[n]
-    m = out.dtype()
-    for i in range(3):
-        for j in range(3):
-            m[i, j] = _dot3(f[i, 0], f[i, 1], f[i, 2], c[0, j], c[1, j], c[2, j])
-    s = out.dtype()
-    for i in range(3):
-        for j in range(3):
-            s[i, j] = _dot3(m[i, 0], m[i, 1], m[i, 2], f[j, 0], f[j, 1], f[j, 2])
-    r = out.dtype()
-    for i in range(3):
-        for j in range(3):
-            r[i, j] = type(s[i, j])(0.5) * (s[i, j] + s[j, i])
-    out[n] = r
-
-
-for _mat in (wp.mat33f, wp.mat33d):
-    wp.overload(_deform_kernel, {"F": wp.array(dtype=_mat), "cov0": wp.array(dtype=_mat), "out": wp.array(dtype=_mat)})
-_WARP_MATS = {torch.float32: wp.mat33f, torch.float64: wp.mat33d}
 
 
 def deform_covariances(F: Tensor, cov0: Tensor) -> Tensor:  # [N,3,3], [N,3,3] -> [N,3,3]
     """Σ = F Σ⁰ Fᵀ, symmetrized so the result is exactly symmetric (SPD when det F ≠ 0). On the CPU (float32 or
-    float64, no gradient) a Warp kernel computes the torch expression's very bits."""
+    float64, no gradient) a Warp kernel computes the torch expression's very bits (`raster_kernels.deform`)."""
     for name, t in (("F", F), ("cov0", cov0)):
         if not isinstance(t, Tensor) or t.ndim != 3 or tuple(t.shape[1:]) != (3, 3):
             what = f"shape {list(t.shape)}" if isinstance(t, Tensor) else f"type {type(t).__name__}"
@@ -78,14 +34,12 @@ def deform_covariances(F: Tensor, cov0: Tensor) -> Tensor:  # [N,3,3], [N,3,3] -
         raise RenderError(
             f"deform_covariances: F has {F.shape[0]} matrices but cov0 {cov0.shape[0]}; pass one of each per Gaussian."
         )
-    mat = _WARP_MATS.get(F.dtype)
     grad = torch.is_grad_enabled() and (F.requires_grad or cov0.requires_grad)
-    if F.device.type == "cpu" and cov0.device.type == "cpu" and mat is not None and cov0.dtype == F.dtype and not grad:
-        ensure_warp()  # the same bits as below, a few times faster on the CPU (`_deform_kernel`)
-        out = torch.empty(F.shape, dtype=F.dtype)
-        args = [wp.from_torch(t.contiguous(), dtype=mat) for t in (F, cov0, out)]
-        wp.launch(_deform_kernel, F.shape[0], args, device="cpu")
-        return out
+    on_cpu = F.device.type == "cpu" and cov0.device.type == "cpu"
+    if on_cpu and F.dtype in (torch.float32, torch.float64) and cov0.dtype == F.dtype and not grad:
+        from .raster_kernels import deform  # lazy: Warp's CPU render kernels load with the first CPU frame
+
+        return deform(F, cov0)  # the same bits as below, a few times faster
     S = F @ cov0 @ F.transpose(-1, -2)
     return 0.5 * (S + S.transpose(-1, -2))
 
