@@ -86,11 +86,12 @@ def _magnify_into(dst: torch.Tensor, src: torch.Tensor, center, zoom: float, ins
     ya, yb, fy = _axis(y0, y1, inset_xy[1], center[1], zoom, h, src.device)  # [bh]
     fx, fy = fx[None, :, None], fy[:, None, None]
     rows_a, rows_b = src.index_select(0, ya), src.index_select(0, yb)  # [bh, w, 3]
+    # a + (b − a)·f with its operations in its order, in place on the float32 copies: (b − a)·f into b, then a + it
     top = rows_a.index_select(1, xa).to(torch.float32)  # [bh, bw, 3]
-    top = top + (rows_a.index_select(1, xb).to(torch.float32) - top) * fx
+    top.add_(rows_a.index_select(1, xb).to(torch.float32).sub_(top).mul_(fx))
     bottom = rows_b.index_select(1, xa).to(torch.float32)
-    bottom = bottom + (rows_b.index_select(1, xb).to(torch.float32) - bottom) * fx
-    vals = torch.round(top + (bottom - top) * fy).clamp(0, 255).to(torch.uint8)
+    bottom.add_(rows_b.index_select(1, xb).to(torch.float32).sub_(bottom).mul_(fx))
+    vals = top.add_(bottom.sub_(top).mul_(fy)).round_().clamp_(0, 255).to(torch.uint8)
     inside = torch.from_numpy(disc).to(src.device)[..., None]  # [bh, bw, 1]
     region = dst[y0:y1, x0:x1]
     region.copy_(torch.where(inside, vals, region))

@@ -22,7 +22,8 @@ from ..sh import SH_C0, SH_C1, SH_C2, SH_C3
 
 
 def deform_covariances(F: Tensor, cov0: Tensor) -> Tensor:  # [N,3,3], [N,3,3] -> [N,3,3]
-    """Σ = F Σ⁰ Fᵀ, symmetrized so the result is exactly symmetric (SPD when det F ≠ 0)."""
+    """Σ = F Σ⁰ Fᵀ, symmetrized so the result is exactly symmetric (SPD when det F ≠ 0). On the CPU (float32 or
+    float64, no gradient) a Warp kernel computes the torch expression's very bits (`raster_kernels.deform`)."""
     for name, t in (("F", F), ("cov0", cov0)):
         if not isinstance(t, Tensor) or t.ndim != 3 or tuple(t.shape[1:]) != (3, 3):
             what = f"shape {list(t.shape)}" if isinstance(t, Tensor) else f"type {type(t).__name__}"
@@ -33,6 +34,12 @@ def deform_covariances(F: Tensor, cov0: Tensor) -> Tensor:  # [N,3,3], [N,3,3] -
         raise RenderError(
             f"deform_covariances: F has {F.shape[0]} matrices but cov0 {cov0.shape[0]}; pass one of each per Gaussian."
         )
+    grad = torch.is_grad_enabled() and (F.requires_grad or cov0.requires_grad)
+    on_cpu = F.device.type == "cpu" and cov0.device.type == "cpu"
+    if on_cpu and F.dtype in (torch.float32, torch.float64) and cov0.dtype == F.dtype and not grad:
+        from .raster_kernels import deform  # lazy: Warp's CPU render kernels load with the first CPU frame
+
+        return deform(F, cov0)  # the same bits as below, a few times faster
     S = F @ cov0 @ F.transpose(-1, -2)
     return 0.5 * (S + S.transpose(-1, -2))
 

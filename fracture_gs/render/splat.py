@@ -1,7 +1,7 @@
 """Splatting 3D Gaussians: one entry point (`render`), three backends, one float64 reference.
 
 Backends (DESIGN.md "Rendering"): gsplat's CUDA `rasterization` when the tensors live on a CUDA
-device; on the CPU a Warp kernel (`raster_kernels`, one thread per pixel) when no gradient is
+device; on the CPU a Warp kernel (`raster_kernels`, one thread per tile) when no gradient is
 needed, else a pure-torch tile rasterizer (differentiable, any device and dtype). All three share
 the math below and the torch projection. The choice is made from the tensors' device, never by
 trying to import gsplat: without a GPU, importing gsplat's CUDA code may start a slow, failing JIT
@@ -339,7 +339,7 @@ def rasterize_warp(
     tile: int = TILE_CPU,  # tile edge [px]: which Gaussians a pixel visits, not how it composites them
 ) -> tuple[Tensor, Tensor]:  # [H, W, 3], [H, W]
     """`rasterize_tiles`' image on the CPU with Warp kernels (`raster_kernels`: the tile lists, then one thread per
-    pixel): forward only, float32 or float64."""
+    tile, each of its pixels composited on its own): forward only, float32 or float64."""
     from .raster_kernels import composite, tile_lists  # lazy: Warp loads with the first CPU render, not on import
 
     flat, starts, counts = tile_lists(_depth_order(proj), proj.means2d, proj.radii, width, height, tile)

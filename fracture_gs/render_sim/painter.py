@@ -64,6 +64,7 @@ class Painter:
         self._visible_version: Optional[int] = None  # the topology version `_keep` was made for
         self._keep: Optional[torch.Tensor] = None
         self.keep_on_device = False  # a variant's painter on CUDA: frames as `DrawnFrame`s (`for_variant`)
+        self._camera: Optional[tuple] = None  # (frame, or None for every frame; its camera) of `camera`
 
     def for_variant(self) -> Painter:
         """A painter for one variant's frames: the scene's tensors shared (read only), the exposed-interior
@@ -83,7 +84,12 @@ class Painter:
         return frames <= DEVICE_FRAMES_BYTES
 
     def camera(self, frame: int):
-        return frame_camera(self.scene_cfg, frame)
+        """The frame's camera (`render.camera.frame_camera`); one that does not orbit is the same for every frame,
+        so it is made once."""
+        key = frame if self.cfg.camera.orbit_degrees else None
+        if self._camera is None or self._camera[0] != key:
+            self._camera = (key, frame_camera(self.scene_cfg, frame))
+        return self._camera[1]
 
     def _visible(self, out: FrameOutput) -> torch.Tensor:
         """Indices of the Gaussians drawn: the surface, and the interior a cut has exposed. Recomputed when
@@ -176,4 +182,4 @@ class Painter:
             backend=self.cfg.backend,
             mode=self.cfg.mode,
         ).image
-        return (img.clamp(0, 1) * 255).round().to(torch.uint8)
+        return img.clamp(0, 1).mul_(255).round_().to(torch.uint8)  # ×255 and round in place on clamp's copy

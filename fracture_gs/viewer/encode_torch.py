@@ -59,11 +59,12 @@ def frame_body(means: torch.Tensor, cov: torch.Tensor, cov_unit: float) -> tuple
     else:
         lo = hi = torch.zeros(3, dtype=torch.float64, device=m.device)
     span = torch.where(hi > lo, hi - lo, torch.ones_like(hi))
-    q = torch.round((m - lo) / span * QUANT_STEPS).clamp(0, QUANT_STEPS).to(torch.int32)  # [N,3] in 0 … 65535
+    # the operations of round((m − lo) / span · QUANT_STEPS).clamp(0, QUANT_STEPS), in place on one temporary
+    q = (m - lo).div_(span).mul_(QUANT_STEPS).round_().clamp_(0, QUANT_STEPS).to(torch.int32)  # [N,3] in 0 … 65535
     q16 = _bytes(q).view(-1, 4)[:, :2]  # [3N, 2]: each value's two low bytes, little-endian
     triu = device_constant(TRIU, torch.int64, cov.device)  # `covariance_triu`'s columns, 4x faster than [:, list]
-    c = cov.detach().reshape(-1, 9).index_select(1, triu).to(torch.float64) / cov_unit  # [N,6]
-    c = torch.nan_to_num(c, nan=0.0, posinf=0.0, neginf=0.0).clamp(-F16_CLIP, F16_CLIP)
+    c = cov.detach().reshape(-1, 9).index_select(1, triu).to(torch.float64)  # [N,6], a new tensor (index_select)
+    c.div_(cov_unit).nan_to_num_(nan=0.0, posinf=0.0, neginf=0.0).clamp_(-F16_CLIP, F16_CLIP)
     packed = torch.cat([_bytes(torch.cat([lo, hi]).to(torch.float32)), q16.reshape(-1), _bytes(_half(c))])
     host = packed.cpu().numpy().tobytes()
     return host[:24], host[24:]
