@@ -334,7 +334,11 @@ class Diagnostics:
             # the shadow: its fragment-conditioned P2G claims every slot (the solver's skips the claims at
             # nodes only one fragment reaches), and deposits exactly what the realized transfer does
             K = sim.n_fragments
-            cf, shared, grid_mass = self.shadow.field_sums_within(sim.eps_m, K, self._reach())
+            box = self._reach()
+            if box is None:
+                cf, shared, grid_mass = self.shadow.field_sums(sim.eps_m, K)
+            else:
+                cf, shared, grid_mass = self.shadow.field_sums_within(sim.eps_m, K, box)
         dev.add("shadow_overflow", self.shadow_counts[COUNT_POOL_OVERFLOW])
         dev.add("shadow_rows", self.shadow.rows_used())
         dev.add("mixing_cf", cf)
@@ -342,19 +346,18 @@ class Diagnostics:
         mp = self.particle_mass
         dev.add("mass_residual", (grid_mass - mp).abs() / (mp + 1e-12))
 
-    def _reach(self) -> tuple:
+    def _reach(self) -> tuple | None:
         """A node box (x0, y0, z0, x1, y1, z1) holding every node the particles' P2G stencils reach (`stencil_base`:
         ⌊(x − origin)/Δx − ½⌋ clamped into the grid, and the two nodes past it), for `Grid.field_sums_within`: on
         the CPU from the particles' extent (a host read that waits for nothing there), two nodes wider on each side
-        than the float64 bound for the kernels' float32 rounding; elsewhere, or with a non-finite position, the
-        whole grid (no host read)."""
+        than the float64 bound for the kernels' float32 rounding. None (the whole grid) elsewhere, with no host
+        read, and for a non-finite position."""
         g, x = self.shadow, self.sim.particles.x
-        whole = (0, 0, 0) + g.shape
         if x.device.type != "cpu" or len(x) == 0:
-            return whole
+            return None
         extent = torch.stack([x.min(0).values, x.max(0).values]).tolist()  # [[x, y, z] min, [x, y, z] max]; NaN kept
         if not all(math.isfinite(v) for row in extent for v in row):
-            return whole
+            return None
         base = [
             [min(max(math.floor((v - o) / g.dx - 0.5) + margin, 0), s - 3) for v, o, s in zip(row, g.origin, g.shape)]
             for row, margin in zip(extent, (-2, 2))
