@@ -87,7 +87,8 @@ def density(F, material, E, nu, yield_stress=None, alpha=None, models=None, rota
     psi = torch.zeros_like(J)
 
     def put(model: int, values: torch.Tensor) -> torch.Tensor:  # [N] ψ with `model`'s particles' set to `values`
-        return values if len(models) == 1 else torch.where(material == model, values, psi)  # one model: all its
+        """ψ so far with `model`'s particles' entries from `values`: all of `values` when it is the one model."""
+        return values if len(models) == 1 else torch.where(material == model, values, psi)
 
     if FIXED_COROTATED in models:
         R = polar_rotation(F) if rotation is None else rotation  # float64 Warp kernel, the kernels' convention

