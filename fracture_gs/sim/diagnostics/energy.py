@@ -85,14 +85,17 @@ def density(F, material, E, nu, yield_stress=None, alpha=None, models=None, rota
         models = set(material.unique().tolist())
     J = det3(F)
     psi = torch.zeros_like(J)
+
+    def put(model: int, values: torch.Tensor) -> torch.Tensor:  # [N] ψ with `model`'s particles' set to `values`
+        """ψ so far with `model`'s particles' entries from `values`: all of `values` when it is the one model."""
+        return values if len(models) == 1 else torch.where(material == model, values, psi)
+
     if FIXED_COROTATED in models:
         R = polar_rotation(F) if rotation is None else rotation  # float64 Warp kernel, the kernels' convention
-        fc = mu * ((F - R) ** 2).sum((1, 2)) + 0.5 * lam * (J - 1) ** 2
-        psi = torch.where(material == FIXED_COROTATED, fc, psi)
+        psi = put(FIXED_COROTATED, mu * ((F - R) ** 2).sum((1, 2)) + 0.5 * lam * (J - 1) ** 2)
     if NEO_HOOKEAN in models:
         lnJ = torch.log(J.clamp_min(J_MIN))
-        nh = 0.5 * mu * ((F * F).sum((1, 2)) - 3) - mu * lnJ + 0.5 * lam * lnJ**2
-        psi = torch.where(material == NEO_HOOKEAN, nh, psi)
+        psi = put(NEO_HOOKEAN, 0.5 * mu * ((F * F).sum((1, 2)) - 3) - mu * lnJ + 0.5 * lam * lnJ**2)
     if STVK_HENCKY_VM in models or DRUCKER_PRAGER in models:
         eps = hencky_strain(F, J)
         for model, elastic in (
@@ -101,8 +104,7 @@ def density(F, material, E, nu, yield_stress=None, alpha=None, models=None, rota
         ):
             if model in models:
                 e = elastic(eps)
-                hencky = mu * (e**2).sum(1) + 0.5 * lam * e.sum(1) ** 2
-                psi = torch.where(material == model, hencky, psi)
+                psi = put(model, mu * (e**2).sum(1) + 0.5 * lam * e.sum(1) ** 2)
     return psi
 
 

@@ -77,6 +77,25 @@ class Packed:
         return out
 
 
+class Float64Particles:
+    """The particles with their positions, velocities, masses, volumes, F, E and ν as float64 tensors, each
+    converted once, on first use; every other attribute is the particles' own. A metric's `.double()` of a float64
+    tensor is that tensor, so the metrics take this for the particles and compute the same numbers: one
+    conversion per array in a snapshot instead of one per metric."""
+
+    CONVERTED = frozenset(("x", "v", "mass", "volume", "F", "E", "nu"))
+
+    def __init__(self, particles):
+        self._particles = particles
+
+    def __getattr__(self, name: str):
+        value = getattr(self._particles, name)
+        if name in self.CONVERTED:
+            value = value.double()
+            setattr(self, name, value)  # found in the instance from now on
+        return value
+
+
 class Diagnostics:
     """Tracks a simulator's metrics frame by frame (`history`) and on demand (`snapshot`)."""
 
@@ -119,6 +138,7 @@ class Diagnostics:
         self.models = frozenset(int(m) for m in P.material.unique().tolist())  # fixed for the run: one read
         self.t_prev = sim.time  # the previous frame's end: the window the drivers are checked in
         self.rotation = None  # ((frame, substeps), R(F) [N, 3, 3] float64) of the last eager snapshot (`take_rotation`)
+        self.doubles: Float64Particles | None = None  # the float64 particles of the eager snapshot under way
         if sim.latched:
             self.on_latch()
 
@@ -173,6 +193,12 @@ class Diagnostics:
 
     # ---- the frame's numbers ----------------------------------------------------------------------
     def snapshot(self) -> dict:
+        try:
+            return self._snapshot()
+        finally:
+            self.doubles = None  # this state's: not kept past the snapshot
+
+    def _snapshot(self) -> dict:
         sim = self.sim
         if sim.latched and (self.latch_info is None or len(sim.topologies) != self._n_topologies):
             self.on_latch()
@@ -240,16 +266,18 @@ class Diagnostics:
         F is kept for the frame drawn from this state (`take_rotation`); on the CPU only, where it is a tensor of
         its own (a recorded CUDA graph's outputs are overwritten at its next replay)."""
         sim = self.sim
-        P = sim.particles
+        P = Float64Particles(sim.particles)
+        if keep_rotation:  # eager: `_volume_ratio` takes its F in float64 from here
+            self.doubles = P
         rotation = None
         if keep_rotation and E.FIXED_COROTATED in self.models:
-            rotation = polar_rotation(P.F.double())  # [N, 3, 3] float64: the energy's R, and the frame's SH rotation
+            rotation = polar_rotation(P.F)  # [N, 3, 3] float64: the energy's R, and the frame's SH rotation
             self.rotation = ((sim.frame, sim.substeps), rotation)
         energy = E.energies(P, self.gravity, self.energy_reference, self._release(), self.models, rotation)
         out = [("momentum", M.momentum(P)), ("energy", energy)]
         out.append(("clamped", sim.counts[COUNT_CLAMPED]))
         if sim.latched:
-            out += self._interface()
+            out += self._interface(P)
         frag = P.fragment if sim.latched else torch.zeros_like(P.fragment)
         for b in self.planes[:1]:
             state = M.plane_state(P.x, P.v, frag, b, sim.grid.dx, max(2, sim.n_fragments))
@@ -306,13 +334,35 @@ class Diagnostics:
             # the shadow: its fragment-conditioned P2G claims every slot (the solver's skips the claims at
             # nodes only one fragment reaches), and deposits exactly what the realized transfer does
             K = sim.n_fragments
-            cf, shared, grid_mass = self.shadow.field_sums(sim.eps_m, K)
+            box = self._reach()
+            if box is None:
+                cf, shared, grid_mass = self.shadow.field_sums(sim.eps_m, K)
+            else:
+                cf, shared, grid_mass = self.shadow.field_sums_within(sim.eps_m, K, box)
         dev.add("shadow_overflow", self.shadow_counts[COUNT_POOL_OVERFLOW])
         dev.add("shadow_rows", self.shadow.rows_used())
         dev.add("mixing_cf", cf)
         dev.add("shared", shared)
         mp = self.particle_mass
         dev.add("mass_residual", (grid_mass - mp).abs() / (mp + 1e-12))
+
+    def _reach(self) -> tuple | None:
+        """A node box (x0, y0, z0, x1, y1, z1) holding every node the particles' P2G stencils reach (`stencil_base`:
+        ⌊(x − origin)/Δx − ½⌋ clamped into the grid, and the two nodes past it), for `Grid.field_sums_within`: on
+        the CPU from the particles' extent (a host read that waits for nothing there), two nodes wider on each side
+        than the float64 bound for the kernels' float32 rounding. None (the whole grid) elsewhere, with no host
+        read, and for a non-finite position."""
+        g, x = self.shadow, self.sim.particles.x
+        if x.device.type != "cpu" or len(x) == 0:
+            return None
+        extent = torch.stack([x.min(0).values, x.max(0).values]).tolist()  # [[x, y, z] min, [x, y, z] max]; NaN kept
+        if not all(math.isfinite(v) for row in extent for v in row):
+            return None
+        base = [
+            [min(max(math.floor((v - o) / g.dx - 0.5) + margin, 0), s - 3) for v, o, s in zip(row, g.origin, g.shape)]
+            for row, margin in zip(extent, (-2, 2))
+        ]
+        return tuple(base[0]) + tuple(b + 3 for b in base[1])
 
     def _transfer_again(self, h: dict) -> None:
         """The rare frame whose shadow pool overflowed: grow it and redo the transfer numbers (another read)."""
@@ -335,18 +385,19 @@ class Diagnostics:
             "mass_residual": h["mass_residual"],
         }
 
-    def _interface(self) -> list[tuple[str, torch.Tensor]]:
+    def _interface(self, doubles: Float64Particles) -> list[tuple[str, torch.Tensor]]:
         sim = self.sim
         P, dx = sim.particles, sim.grid.dx
         if self.voxels is None:
             self.voxels = VoxelOverlap(len(P), P.x.device)
+        x = doubles.x  # [N, 3] float64
         return [
-            ("opening", M.raw_opening(P.x, self.pairs, self.n)),
-            ("penetration", M.penetration(P.x, self.members, self.n, 2.0 * dx)),
-            ("identity_crossing", M.identity_crossing(P.x, P.fragment, self.members, self.n)),
-            ("stringing", M.stringing(P.F, self.band_index)),
+            ("opening", M.raw_opening(x, self.pairs, self.n)),
+            ("penetration", M.penetration(x, self.members, self.n, 2.0 * dx)),
+            ("identity_crossing", M.identity_crossing(x, P.fragment, self.members, self.n)),
+            ("stringing", M.stringing(doubles.F, self.band_index)),
             ("overlap", self.voxels.packed(P.x, P.fragment, VOXEL * dx, max(2, sim.n_fragments))),
-            ("collider", collider_packed(P.x, self.planes, COLLIDER_TOLERANCE * dx)),
+            ("collider", collider_packed(x, self.planes, COLLIDER_TOLERANCE * dx)),
         ]
 
     def _interface_row(self, h: dict) -> dict:
@@ -387,7 +438,8 @@ class Diagnostics:
             return surface_penetration(P.x, P.fragment, CROSSING * dx, self.surface_calibration, self._volume_ratio)
 
     def _volume_ratio(self) -> torch.Tensor:  # [N] det F: each particle's current over its rest volume
-        return torch.linalg.det(self.sim.particles.F.double()).clamp_min(0.0)
+        P = self.sim.particles if self.doubles is None else self.doubles  # in a snapshot: its float64 F
+        return torch.linalg.det(P.F.double()).clamp_min(0.0)
 
     def _contact_row(self, h: dict) -> dict:
         stats = h["stats"]

@@ -5,7 +5,8 @@ Over every node i and field k of the slot storage (`layout.py`), in float64:
     E   = Σ_i Σ_k [m_i^k > ε_m] m_i^k ‖v̄_i − v_i^k‖²,  v̄_i = Σ_k p_i^k / Σ_k m_i^k,  v_i^k = p_i^k / m_i^k
                                                      (counterfactual mixing numerator, Eq. mixing)
     nodes with ≥ 1 and with ≥ 2 active fields (m > ε_m)   (shared support)
-Only a pool row can hold a second field, so `dense_sums` runs over every node (slot 0) and `pool_sums`
+Only a pool row can hold a second field, so `dense_sums` runs over every node (slot 0; or a box holding every
+node with mass: the nodes without add nothing, and the others add in the same order) and `pool_sums`
 over the pool's rows. Each thread adds into one of `out`'s rows (thread index mod its row count), which
 the host sums: a hundred thousand float64 atomics on the same few addresses would serialise on a GPU. The
 torch twins, summing the same terms in another order, are `Grid.fragment_mass`
@@ -30,10 +31,11 @@ vec_sd = wp.types.vector(length=MAX_SLOTS, dtype=wp.float64)
 
 
 @wp.kernel
-def dense_sums(g: GridView, eps_m: wp.float64, K: int, out: wp.array2d(dtype=wp.float64)):
-    """Slot 0 of every node: total mass, its fragment's mass, nodes whose slot 0 is active."""
+def dense_sums(g: GridView, lo: wp.vec3i, eps_m: wp.float64, K: int, out: wp.array2d(dtype=wp.float64)):
+    """Slot 0 of every node of the box launched from node `lo` (every node that may hold mass): total mass, its
+    fragment's mass, nodes whose slot 0 is active."""
     i, j, l = wp.tid()  # noqa: E741
-    n = flat(wp.vec3i(i, j, l), wp.vec3i(0, 0, 0), g.shape)
+    n = flat(wp.vec3i(i + lo[0], j + lo[1], l + lo[2]), wp.vec3i(0, 0, 0), g.shape)
     m = g.mp[n][3]
     if m == 0.0:
         return

@@ -200,13 +200,21 @@ class Grid:
     def field_sums(self, eps_m: float, K: int) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """(E_mix counterfactual, shared-support %, Σ_i m_i^k [K]) as `mixing` and `fragment_mass` give
         them, float64 on the device (no host read), from two Warp launches on the current Warp stream."""
+        return self.field_sums_within(eps_m, K, (0, 0, 0) + self.shape)
+
+    def field_sums_within(self, eps_m: float, K: int, box: tuple) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """`field_sums` of a grid whose slot 0 holds no mass outside the node box (x0, y0, z0, x1, y1, z1), [x0, x1)
+        along x, …: the dense launch covers the box only. On the CPU the same numbers as `field_sums`, bit for
+        bit (the box's nodes add in the same order, the nodes outside add nothing)."""
         if not self.multi:
             cf, shared = self.mixing(eps_m)
             return cf, shared, self.fragment_mass(K)
         rows = SUM_ROWS if self.device.startswith("cuda") else 1  # spread the atomics (see the kernels)
         out = torch.zeros((rows, OUT_MASS + K), dtype=torch.float64, device=self.device)
         o = wp.from_torch(out, dtype=wp.float64)
-        launch(dense_sums, self.shape, [self.view, float(eps_m), K, o], self.device)
+        lo, dims = wp.vec3i(*box[:3]), tuple(max(0, b - a) for a, b in zip(box[:3], box[3:]))
+        if min(dims) > 0:
+            launch(dense_sums, dims, [self.view, lo, float(eps_m), K, o], self.device)
         launch(pool_sums, self.capacity, [self.view, float(eps_m), K, o], self.device)
         out = out.sum(0)
         cf = _per_mass(out[OUT_MIXING], out[OUT_TOTAL])
