@@ -114,12 +114,7 @@ def momentum(P) -> torch.Tensor:  # -> [3]
 
 
 def kinetic_energy(P) -> torch.Tensor:  # -> []
-    """Σ ½ m |v|² [J] in float64, |v|² = `(v ** 2).sum(1)`. On the CPU that sum over three contiguous numbers is a
-    running sum from 0 (torch's `cascade_sum`, scalar path): the two elementwise adds here, left to right, give
-    the same bits for a tenth of the time. Elsewhere the reduction itself (its order is the device's)."""
-    q = P.v.double() ** 2  # [N, 3]
-    square = q[:, 0] + q[:, 1] + q[:, 2] if q.device.type == "cpu" else q.sum(1)  # [N] |v|²
-    return 0.5 * (P.mass.double() * square).sum()
+    return 0.5 * (P.mass.double() * (P.v.double() ** 2).sum(1)).sum()
 
 
 def plane_constants(plane, device) -> tuple[torch.Tensor, torch.Tensor]:
