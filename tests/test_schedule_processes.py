@@ -109,36 +109,3 @@ def test_range_views_are_the_arrays_for_the_whole_range_and_slices_otherwise():
     assert wp.to_torch(part[0])[0].tolist() == [9.0, 10.0, 11.0]
     head = range_views([x, m], 0, 5)  # from 0 but not to the end: still a slice
     assert head[0] is not x and head[0].shape == (5,)
-
-
-def report_niceness(ctx, variant, *args, **kwargs):
-    """A run_variant stand-in that reports its process's niceness as its status (module level: a worker imports it)."""
-    import os
-
-    from fracture_gs.render_sim import VariantSummary
-
-    return VariantSummary(variant, f"nice {os.nice(0)}", 0, 0, 0.0, None, None, None, interrupted=False), None
-
-
-def test_followers_on_one_cpu_run_a_step_below_the_leader(tmp_path):
-    """Workers sharing the CPU with this process, which leads and then composes, run at a lower priority
-    (`FOLLOWER_NICENESS`), so the leader that every follower waits for is not slowed to their pace; the leader's
-    own priority is unchanged."""
-    import io
-    import os
-
-    from test_devices import _context
-
-    from fracture_gs.render_sim.forked import ForkedWorkers
-    from fracture_gs.render_sim.multi_device import FOLLOWER_NICENESS, run_on_devices
-
-    assert FOLLOWER_NICENESS >= 1
-    mine = os.nice(0)
-    workers = ForkedWorkers(1, "cpu")
-    try:
-        result = run_on_devices(_context(tmp_path), ["cpu", "cpu"], io.StringIO(), run=report_niceness, workers=workers)
-    finally:
-        workers.terminate()
-    assert result.summaries["stress_zero"].status == f"nice {mine}"  # the leader, here
-    assert result.summaries["full"].status == f"nice {min(19, mine + FOLLOWER_NICENESS)}"
-    assert os.nice(0) == mine

@@ -25,7 +25,6 @@ error is raised here with the worker's traceback.
 
 from __future__ import annotations
 
-import os
 import queue
 import shutil
 import threading
@@ -48,13 +47,6 @@ from .forked import ForkedWorkers
 from .frame_files import FrameFiles
 from .painter import Painter
 from .variant import run_variant
-
-FOLLOWER_NICENESS = 1
-"""How much lower a worker process's CPU priority is than this process's when they share one CPU (`os.nice`). This
-process runs the leader, which every follower waits for frame by frame, and then composes the comparison: with
-equal shares of two cores among three processes the leader sets everyone's pace and the composing ran alone on one
-core at the end. A step lower (weight 820 against 1024) lets the leader run ahead, so the followers' last frames
-and the composing overlap. Nothing computed changes."""
 
 
 @dataclass(frozen=True)
@@ -89,8 +81,6 @@ def _worker(
     local = isinstance(results, queue.Queue)
     run, profile, cores = setup.run, setup.profile, setup.cores
     torch.set_num_threads(setup.threads)
-    if not local and ctx.device == "cpu" and FOLLOWER_NICENESS:
-        os.nice(FOLLOWER_NICENESS)
     before = share_cpu(cores) if cores is not None else None
     if profile and not local:
         phases.enable()
