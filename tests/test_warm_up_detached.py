@@ -189,3 +189,49 @@ def test_a_frame_bar_has_no_eta_until_its_first_frame_is_done_and_leaves_that_fr
     bar.update(1)
     assert eta.held == first
     bar.close()
+
+
+def test_a_run_waits_for_an_earlier_runs_build_instead_of_starting_another(tmp_path):
+    """Runs that end before gsplat's build (about 75 s on a fresh machine) leave it building; the next run finds it
+    by the pid file beside the log and waits for it rather than start a second build into the same folder (four
+    builds at once on an H200 ended in "ninja: build stopped"). It keeps the first build's log, reports the first
+    build's pid while it runs, and once that build ends, the next run starts its own again."""
+    log = tmp_path / "build.log"
+    marker = tmp_path / "second_build_ran"
+    first_cmd = [sys.executable, "-c", "import time; print('first build', flush=True); time.sleep(1.5)"]
+    second_cmd = [sys.executable, "-c", f"open({str(marker)!r}, 'w').write('x')"]
+    first = BackgroundCompile(warm_up.GSPLAT_STEP, None)
+    first.compile = lambda: build_gsplat_detached("cuda:0", first, command=first_cmd, log=log)
+    first.start()
+    assert _until(lambda: first.process is not None and "first build" in log.read_text())
+    second = BackgroundCompile(warm_up.GSPLAT_STEP, None)
+    second.compile = lambda: build_gsplat_detached("cuda:0", second, command=second_cmd, log=log)
+    second.start()
+    assert _until(lambda: second.process is not None)
+    assert isinstance(second.process, warm_up.EarlierBuild) and second.process.pid == first.process.pid
+    assert second.process.poll() is None and not second.done  # waiting for the first build
+    assert _until(lambda: first.done and second.done)
+    assert first.error is None and second.error is None
+    assert not marker.exists() and "first build" in log.read_text()  # no second build, the first one's log kept
+    assert warm_up.EarlierBuild.find(log) is None  # it ended: the next run builds again
+    third = BackgroundCompile(warm_up.GSPLAT_STEP, None)
+    third.compile = lambda: build_gsplat_detached("cuda:0", third, command=second_cmd, log=log)
+    third.start()
+    assert _until(lambda: third.done) and third.error is None and marker.exists()
+
+
+def test_an_earlier_build_is_known_by_its_pid_and_start_time(tmp_path):
+    """A pid file naming a live process with another start time (the pid reused since) or a dead one is no build;
+    only the recorded pid with its recorded start time is."""
+    log = tmp_path / "build.log"
+    warm_up.EarlierBuild.note(log, os.getpid())
+    assert warm_up.EarlierBuild.find(log).pid == os.getpid()
+    pid_file = log.with_suffix(".pid")
+    pid_file.write_text(f"{os.getpid()} 1\n")  # this pid, but started at another time: a reused pid
+    assert warm_up.EarlierBuild.find(log) is None
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    warm_up.EarlierBuild.note(log, dead.pid)
+    assert warm_up.EarlierBuild.find(log) is None
+    pid_file.write_text("not a pid\n")
+    assert warm_up.EarlierBuild.find(log) is None

@@ -286,6 +286,52 @@ def build_log() -> Path:
     return Path(tempfile.gettempdir()) / f"fracture_gs_gsplat_build_{os.getuid()}.log"
 
 
+class EarlierBuild:
+    """A detached build that an earlier run started and that still runs (found by the pid file beside its log, and
+    the process's start time, so a reused pid is not taken for it): `pid`, `poll()` (None while it runs) and `wait()`,
+    as much of `subprocess.Popen` as a run needs of its build. Runs on a fresh machine that end before the build
+    (about 75 s) would otherwise each start another: measured on an H200, four 25–40 s runs in a row started four
+    builds into one folder, none finished, and the log ended "ninja: build stopped: subcommand failed"."""
+
+    def __init__(self, pid: int):
+        self.pid = pid
+
+    @staticmethod
+    def _started(pid: int) -> Optional[str]:
+        """The process's start time in clock ticks since boot (`/proc/PID/stat`), or None if there is none."""
+        try:
+            stat = Path(f"/proc/{pid}/stat").read_text()
+        except OSError:
+            return None
+        fields = stat[stat.rindex(")") + 2 :].split()  # after "pid (comm) ": state is field 3, starttime field 22
+        return fields[19] if len(fields) > 19 and fields[0] not in ("Z", "X") else None
+
+    @classmethod
+    def note(cls, log: Path, pid: int) -> None:
+        """Record a build just started, for later runs to find (`find`)."""
+        with contextlib.suppress(OSError):
+            log.with_suffix(".pid").write_text(f"{pid} {cls._started(pid) or ''}\n")
+
+    @classmethod
+    def find(cls, log: Path) -> Optional[EarlierBuild]:
+        """The build recorded beside `log` if that process still runs, else None."""
+        try:
+            pid_text, *started = log.with_suffix(".pid").read_text().split()
+            pid = int(pid_text)
+        except (OSError, ValueError):
+            return None
+        now = cls._started(pid)
+        return cls(pid) if now is not None and started == [now] else None
+
+    def poll(self) -> Optional[int]:
+        return None if self._started(self.pid) is not None else 0
+
+    def wait(self, tick: float = 0.5) -> int:
+        while self.poll() is None:
+            time.sleep(tick)
+        return 0
+
+
 def build_gsplat_detached(
     device: str, job: Optional[BackgroundCompile] = None, command: Optional[list] = None, log: Optional[Path] = None
 ) -> None:
@@ -295,19 +341,27 @@ def build_gsplat_detached(
     built; skipped for a `command` of a test's). `job`: the BackgroundCompile to note the process and its `log` on.
     Raises RenderError when gsplat found no toolkit, RuntimeError with the log's last line when the build failed."""
     log = build_log() if log is None else log
-    env = dict(os.environ, TTY_INTERACTIVE="0")  # no rich spinner in the log (`_no_spinner`)
-    with open(log, "w") as out:
-        proc = subprocess.Popen(
-            command or [sys.executable, "-c", BUILD_SCRIPT],
-            stdin=subprocess.DEVNULL,
-            stdout=out,
-            stderr=subprocess.STDOUT,
-            env=env,
-            start_new_session=True,
-        )
-    if job is not None:
-        job.process, job.log = proc, log
-    code = proc.wait()
+    earlier = EarlierBuild.find(log)
+    if earlier is not None:  # an earlier run's build still runs: a second would collide with it in torch's build folder
+        if job is not None:
+            job.process, job.log = earlier, log
+        earlier.wait()
+        code = 0  # its status went to its own parent; whether it built shows when the build is loaded below
+    else:
+        env = dict(os.environ, TTY_INTERACTIVE="0")  # no rich spinner in the log (`_no_spinner`)
+        with open(log, "w") as out:
+            proc = subprocess.Popen(
+                command or [sys.executable, "-c", BUILD_SCRIPT],
+                stdin=subprocess.DEVNULL,
+                stdout=out,
+                stderr=subprocess.STDOUT,
+                env=env,
+                start_new_session=True,
+            )
+        EarlierBuild.note(log, proc.pid)
+        if job is not None:
+            job.process, job.log = proc, log
+        code = proc.wait()
     if code == NO_TOOLKIT_EXIT:
         raise RenderError(NO_TOOLKIT)
     if code != 0:
