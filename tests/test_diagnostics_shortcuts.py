@@ -6,6 +6,8 @@
   stencils reach, instead of every node.
 - `VoxelOverlap.packed` stops eroding on the CPU once no voxel is alive.
 - The tracker's float64 particles (`tracker.Float64Particles`) give the metrics the numbers of the particles.
+- `metrics.piece_gap` bounds its nearest-neighbour query by a sampled distance between the two pieces, and returns
+  what the unbounded query of every particle returns.
 """
 
 import math
@@ -183,3 +185,45 @@ def test_float64_particles_give_the_particles_numbers():
     for ours, theirs in pairs:
         assert torch.equal(ours.view(torch.int64), theirs.view(torch.int64))
     assert isinstance(P, S.Particles)
+
+
+def _piece_gap_unbounded(x, fragment, dx):
+    """The plain computation: every particle of the second-largest piece queried against the largest's tree."""
+    from scipy.spatial import cKDTree
+
+    ids, counts = torch.unique(fragment[fragment >= 0], return_counts=True)
+    if len(ids) < 2:
+        return 0.0
+    a, b = ids[counts.argsort(descending=True)[:2]]
+    d, _ = cKDTree(x[fragment == a].double().numpy()).query(x[fragment == b].double().numpy(), k=1)
+    return float(d.min()) / dx
+
+
+@pytest.mark.parametrize("seed", range(6))
+@pytest.mark.parametrize("case", ["spread", "lattice ties", "apart", "tiny scale", "one near pair", "sampled pair"])
+def test_piece_gap_bounded_query_is_the_unbounded_one(seed, case):
+    """Bit for bit the unbounded query's gap, where the sampled particles miss the nearest pair, where pairs tie on
+    a lattice (gap 0 included), where the pieces lie far apart, at scales whose squared distances are subnormal."""
+    g = torch.Generator().manual_seed(seed)
+    n = 500 + 700 * seed
+    x = torch.rand(n, 3, generator=g, dtype=torch.float64)
+    frag = torch.randint(-1, 3, (n,), generator=g)
+    if case in ("one near pair", "sampled pair"):  # piece 0 the largest, piece 1 the second
+        frag = torch.where(torch.rand(n, generator=g) < 0.6, 0, torch.where(torch.rand(n, generator=g) < 0.8, 1, -1))
+    if case == "lattice ties":
+        x = torch.round(x * 6) / 6
+    elif case == "apart":
+        x[frag == 1] += torch.tensor([3.0 + seed, 0.0, 0.0], dtype=torch.float64)
+    elif case == "tiny scale":
+        x = x * 1e-160
+    elif case == "one near pair":  # two slabs 1 apart, one particle of each reaching across: not in the sample
+        x[:, 0] = torch.where(frag == 1, x[:, 0] + 2.0, x[:, 0])
+        ones = torch.nonzero(frag == 1).flatten()
+        x[ones[1], 0] = 1.5 + 1e-3 * seed  # stride 64 samples ones[0], ones[64], ...
+    elif case == "sampled pair":  # the same, the reaching particle one the sample holds: the bound is the gap itself
+        x[:, 0] = torch.where(frag == 1, x[:, 0] + 2.0, x[:, 0])
+        x[torch.nonzero(frag == 1).flatten()[64], 0] = 1.5 + 1e-3 * seed
+    got = M.piece_gap(x, frag, 0.1)
+    assert got == _piece_gap_unbounded(x, frag, 0.1)
+    if case in ("one near pair", "sampled pair"):
+        assert got < 6.0  # the reaching particle, not the slabs' gap of 10 Δx, sets it

@@ -227,3 +227,35 @@ def test_same_outputs_ignores_timings_only(tmp_path):
     e = run_folder("e", 2.0, 1.5, b"\x89PNG0")
     (e / "frames" / "compare_0001.png").write_bytes(b"x")
     assert differs(e).strip() == f"only in {e}: frames/compare_0001.png"
+
+
+def test_spy_summary_counts_each_function_once_per_stack(tmp_path):
+    """benchmarks/spy_summary.py: a py-spy raw file summed per thread; a function twice in one stack (recursion) counts
+    once inclusive; the self frame is the innermost frame matching --only, `(outside)` when none does; seconds are
+    samples over the rate."""
+    raw = tmp_path / "raw.txt"
+    raw.write_text(
+        "thread (11): MainThread;main (fracture_gs/cli/__init__.py:3);f (fracture_gs/a.py:1);f (fracture_gs/a.py:2);"
+        "get (queue.py:9) 30\n"
+        "thread (11): MainThread;main (fracture_gs/cli/__init__.py:3);g (fracture_gs/b.py:5) 10\n"
+        "thread (12): fgs-render;_bootstrap (threading.py:1) 4\n"
+    )
+    out = _run([str(BENCH / "spy_summary.py"), str(raw), "--rate", "10", "--only", "fracture_gs"], tmp_path)
+    main_part, render_part = out.split("## fgs-render")[0], out.split("## fgs-render")[1]
+    assert "## MainThread: 40 samples = 4.00 s" in main_part
+    assert "| main (fracture_gs/cli/__init__.py) | 40 | 4.00 |" in main_part
+    assert "| f (fracture_gs/a.py) | 30 | 3.00 |" in main_part  # once per stack, though twice in it
+    assert "| get (queue.py) |" not in main_part  # outside --only
+    assert ": 4 samples = 0.40 s" in render_part and "| (outside) | 4 | 0.40 |" in render_part
+
+
+def test_gpu_busy_union_counts_overlaps_once():
+    """benchmarks/gpu_busy.py's device busy time: the union of the intervals, overlaps and nesting counted once."""
+    sys.path.insert(0, str(BENCH))
+    try:
+        from gpu_busy import busy_union
+    finally:
+        sys.path.remove(str(BENCH))
+    assert busy_union([]) == 0.0
+    assert busy_union([(5.0, 6.0), (0.0, 2.0), (1.0, 3.0), (5.5, 5.7)]) == 4.0
+    assert busy_union([(0.0, 10.0), (2.0, 3.0), (9.0, 11.0)]) == 11.0

@@ -5,12 +5,15 @@ packs a whole frame's numbers into one tensor and reads it once.
 
 from __future__ import annotations
 
+import math
+
 import torch
 
 from ...linalg import singular_values
 from ...runtime import device_constant
 
 SEPARATION = 0.1  # Δx: an interface whose opening exceeds this has separated (docs/DESIGN.md)
+GAP_STRIDE = 64  # `piece_gap`: every this many particles of the second piece give the first bound on the gap
 
 
 def per_fragment_sum(values: torch.Tensor, fragment: torch.Tensor, K: int) -> torch.Tensor:  # -> [K]
@@ -155,5 +158,12 @@ def piece_gap(x: torch.Tensor, fragment: torch.Tensor, dx: float) -> float:  # x
     from scipy.spatial import cKDTree
 
     pa, pb = x[fragment == a].detach().cpu().double().numpy(), x[fragment == b].detach().cpu().double().numpy()
-    d, _ = cKDTree(pa).query(pb, k=1)
+    tree = cKDTree(pa)
+    # every 64th particle of b first: its nearest distance u is a distance between the pieces, so the gap is at most
+    # u and the whole query may skip what lies farther (the same nearest pairs, the same distances: 3-4x cheaper)
+    u = float(tree.query(pb[::GAP_STRIDE], k=1)[0].min())
+    bound = u * (1.0 + 2.0**-20)  # the query compares squared distances: the bound's square must stay above u²
+    if not (math.isfinite(bound) and bound * bound > u * u):  # u = 0, or a square that underflows
+        bound = math.inf
+    d, _ = tree.query(pb, k=1, distance_upper_bound=bound)
     return float(d.min()) / dx
