@@ -4,8 +4,9 @@
 whose 27 cells hold two ids, from an int32 grid; `_nearest` over every particle visits each pair of neighbour cells
 once and reads the pair for both ends; `calibrate` sums only the pairs `_adds_something` keeps; `surface_depth`
 bins for the near test only the particles by another fragment; the Warp walks step along a run of keys instead of
-searching each (`penetration_kernels.lower_bound_next`). Each against the straightforward computation, on ties,
-repeats, empty sets, cell faces and non-finite values."""
+searching each (`penetration_kernels.lower_bound_next`); `surface_penetration` sums a frame up on a dense table of
+pairs read once (`_summary_dense`) instead of sorted keys read eight times. Each against the straightforward
+computation, on ties, repeats, empty sets, cell faces and non-finite values."""
 
 import math
 
@@ -191,3 +192,27 @@ def test_a_step_along_the_keys_lands_where_a_search_does(seed):
     )  # fmt: skip
     assert torch.equal(stepped, searched)
     assert torch.equal(searched.long(), torch.searchsorted(keys, asked))
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_dense_summary_is_the_sorted_keys_summary(seed, monkeypatch):
+    """Per-particle depths and ids as `surface_depth` hands them over (depth > 0 exactly where into ≥ 0; ties; ids up
+    to DENSE_PAIRS; unlabelled particles; no particle behind a surface): the dense table's summary is the sorted
+    keys' one, pairs in the same order, at a threshold equal to a depth and below every depth."""
+    g = torch.Generator().manual_seed(seed)
+    n, K = 400, [1, 2, 3, 5, 9, 17, 32, 2][seed]
+    fragment = torch.randint(-1, K, (n,), generator=g)
+    into = torch.randint(0, K, (n,), generator=g)
+    behind = (torch.rand(n, generator=g) < (0.0 if seed == 7 else 0.3)) & (fragment >= 0) & (into != fragment)
+    into = torch.where(behind, into, torch.full_like(into, -1))
+    depth = torch.where(behind, torch.randint(1, 6, (n,), generator=g).double() * 1e-3, torch.zeros(n).double())
+    cal = {"radius": 0.05, "filled": torch.ones(K, dtype=torch.float64), "spacing": 0.05 / pen.SPACINGS}
+    monkeypatch.setattr(pen, "surface_depth", lambda *a, **k: (depth, into))
+    x = torch.zeros(n, 3, dtype=torch.float64)
+    for crossing_at in (0.0, 3e-3):
+        dense = pen.surface_penetration(x, fragment, crossing_at, cal)
+        monkeypatch.setattr(pen, "DENSE_PAIRS", -1)
+        keyed = pen.surface_penetration(x, fragment, crossing_at, cal)
+        monkeypatch.setattr(pen, "DENSE_PAIRS", 32)
+        assert dense == keyed and list(dense["pairs"]) == list(keyed["pairs"])
+        assert (dense["crossing"] > 0) == (seed != 7 and bool((depth > crossing_at).any()))

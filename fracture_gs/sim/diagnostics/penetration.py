@@ -549,6 +549,26 @@ def behind_surfaces_torch(
     return depth, into
 
 
+DENSE_PAIRS = 32  # `surface_penetration` sums up on a dense K × K table, read in one transfer, up to this many ids
+
+
+def _summary_dense(depth, fragment, into, crossing_at: float, K: int, out: dict) -> dict:
+    """`surface_penetration`'s summary of (depth, into) [N] from a dense [K·K] table of each ordered pair's deepest
+    depth, the crossing count beside it, in one host read (the sorted-keys summary reads the device eight times).
+    The same numbers: a particle behind a surface has depth > 0 (`surface_depth`), so the table's non-zero entries
+    are the pairs present, the largest of the maxima is the deepest, and the pairs come in (a, b) order."""
+    hit = into >= 0  # [N]
+    key = torch.where(hit, fragment.long() * K + into, torch.zeros_like(into))
+    worst = torch.zeros(K * K, dtype=torch.float64, device=depth.device)
+    worst.scatter_reduce_(0, key, torch.where(hit, depth, torch.zeros_like(depth)), "amax")
+    crossing = (hit & (depth > crossing_at)).sum()
+    *table, count = torch.cat([worst, crossing.double()[None]]).tolist()  # the one host read
+    pairs = {(k // K, k % K): v for k, v in enumerate(table) if v > 0}
+    if pairs:
+        out.update(depth=max(pairs.values()), crossing=int(count), pairs=pairs)
+    return out
+
+
 def surface_penetration(
     x: torch.Tensor,
     fragment: torch.Tensor,
@@ -567,6 +587,9 @@ def surface_penetration(
         calibration = calibrate(x, fragment, volume_ratio)
     depth, into = surface_depth(x, fragment, calibration, volume_ratio)
     out = {"depth": 0.0, "crossing": 0, "pairs": {}, "radius": float(calibration["radius"])}
+    K = calibration["filled"].numel()  # ids of both ends are below it (`surface_depth` evaluates no other)
+    if K <= DENSE_PAIRS:
+        return _summary_dense(depth, fragment, into, crossing_at, K, out)
     inside = torch.nonzero(into >= 0).flatten()
     if inside.numel() == 0:
         return out
