@@ -67,3 +67,84 @@ def test_an_epoch_body_is_the_numpy_records_bytes(device):
     body = epoch_body(*(torch.from_numpy(a).to(device) for a in (rgb, flags, fragment)))
     ref = fmt.encode_epoch(4, 9, rgb, flags, fragment)
     assert fmt.epoch_header(4, 9) + body.cpu().numpy().tobytes() == ref
+
+
+def _reference_record(folder, frames, interior, radius, cov_unit):
+    """What `FrameRecorder` writes, by the format's numpy encoders: every frame record, and an epoch record wherever
+    the colours, flags (drawn, band, interface from the frame's centres, interior) or fragment ids differ from the
+    last epoch's."""
+    from fracture_gs.viewer.record import interface_flags
+
+    frames_bytes, epochs_bytes, last, epoch = b"", b"", None, -1
+    for k, (out, rgb, drawn) in enumerate(frames):
+        means, frag, band = out.means.numpy(), out.fragment.numpy().astype(np.int64), out.band.numpy() != 0
+        face = interface_flags(means.astype(np.float32), frag, band, radius)
+        flags = drawn.numpy() * fmt.DRAWN + band * fmt.BAND + face * fmt.INTERFACE + interior * fmt.INTERIOR
+        body = fmt.encode_epoch(0, 0, rgb.numpy(), flags.astype(np.uint8), frag)[fmt.EPOCH_HEADER :]
+        if body != last:
+            epoch += 1
+            epochs_bytes += fmt.epoch_header(epoch, k) + body
+            last = body
+        cov6 = fmt.covariance_triu(out.covars.numpy().astype(np.float64))
+        frames_bytes += fmt.encode_frame(k, epoch, float(out.time), means, cov6, cov_unit)
+    return frames_bytes, epochs_bytes
+
+
+@pytest.mark.parametrize("device", DEVICES)
+def test_the_recorder_writes_the_numpy_references_records(device, tmp_path):
+    """A sequence of frames where nothing changes, then only the colours, only what is drawn, the band (a new
+    interface), the fragment ids, and back: the recorder's two files are byte for byte the numpy reference's, so an
+    epoch starts exactly where one of its parts changed (the change is seen on the device, read with the frame)."""
+    from types import SimpleNamespace
+
+    from fracture_gs.config import SceneConfig
+    from fracture_gs.io import GaussianSet
+    from fracture_gs.viewer.record import FrameRecorder, start_record
+
+    rng = np.random.default_rng(4)
+    n = 300
+    gs = GaussianSet(
+        means=torch.from_numpy(rng.uniform(0, 1, (n, 3))).float(),
+        quats=torch.tensor([[1.0, 0, 0, 0]]).repeat(n, 1),
+        scales=torch.full((n, 3), 0.02),
+        opacities=torch.full((n,), 0.9),
+        sh=torch.from_numpy(rng.normal(size=(n, 1, 3))).float(),
+    )
+    gs.interior = torch.from_numpy(rng.uniform(size=n) < 0.3)
+    folder = start_record(tmp_path, SceneConfig(name="r", frames=9), gs, None, ["full"])
+    rgb0 = torch.from_numpy(rng.uniform(0, 1, (n, 3))).float()
+    rgb1 = rgb0.clone()
+    rgb1[5] = 0.25
+    drawn0 = torch.ones(n, dtype=torch.bool)
+    drawn1 = drawn0.clone()
+    drawn1[7] = False
+    frag0, band0 = torch.full((n,), -1, dtype=torch.int32), torch.zeros(n, dtype=torch.int32)
+    frag1 = (gs.means[:, 0] > 0.5).to(torch.int32)
+    band1 = ((gs.means[:, 0] - 0.5).abs() < 0.1).to(torch.int32)
+    frag2 = frag1.clone()
+    frag2[band1.bool() & (gs.means[:, 1] > 0.5)] = 2
+    steps = [  # (fragment, band, rgb, drawn) per frame
+        (frag0, band0, rgb0, drawn0), (frag0, band0, rgb0, drawn0), (frag0, band0, rgb1, drawn0),
+        (frag0, band0, rgb1, drawn1), (frag1, band1, rgb1, drawn1), (frag1, band1, rgb1, drawn1),
+        (frag2, band1, rgb1, drawn1), (frag2, band0, rgb1, drawn1), (frag2, band0, rgb1, drawn1),
+        (frag0, band0, rgb0, drawn0),
+    ]  # fmt: skip
+    covars = gs.covariances()
+    frames = []
+    for k, (frag, band, rgb, drawn) in enumerate(steps):
+        means = gs.means + 0.01 * k * torch.tensor([1.0, -0.5, 0.2])
+        out = SimpleNamespace(frame=k, time=0.04 * k, means=means, covars=covars * (1 + 0.1 * k), fragment=frag,
+                              band=band)  # fmt: skip
+        frames.append((out, rgb, drawn))
+    rec = FrameRecorder(folder, "full")
+    for out, rgb, drawn in frames:
+        on = SimpleNamespace(**{k: v.to(device) if torch.is_tensor(v) else v for k, v in vars(out).items()})
+        rec.write(on, rgb.to(device), drawn.to(device))
+    rec.close()
+    header = __import__("json").loads((folder / fmt.INDEX).read_text())
+    want_frames, want_epochs = _reference_record(
+        folder, frames, gs.interior.numpy(), float(header["interface_radius"]), float(header["cov_unit"])
+    )
+    assert (folder / "full.epochs").read_bytes() == want_epochs
+    assert (folder / "full.frames").read_bytes() == want_frames
+    assert len(want_epochs) == 7 * fmt.epoch_bytes(n)  # frames 0, 2, 3, 4, 6, 7, 9 start epochs

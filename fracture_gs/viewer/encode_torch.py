@@ -53,6 +53,13 @@ def frame_body(means: torch.Tensor, cov: torch.Tensor, cov_unit: float) -> tuple
     """(box, body) of a frame record: `box` the 24 bytes of the centres' bounding box (lo, hi as float32), `body`
     the uint16 centres quantised in that box [N,3] then the float16 covariance upper triangles / cov_unit [N,6].
     `means` [N,3] and `cov` [N,3,3] on any device; one host copy."""
+    host = frame_packed(means, cov, cov_unit).cpu().numpy().tobytes()
+    return host[:24], host[24:]
+
+
+def frame_packed(means: torch.Tensor, cov: torch.Tensor, cov_unit: float) -> torch.Tensor:  # -> [24 + 18N] uint8
+    """`frame_body`'s box and body as one uint8 tensor on the frames' device (box first), not yet copied to the host:
+    the recorder appends its own bytes and copies the whole once."""
     m = torch.nan_to_num(means.detach().to(torch.float64), nan=0.0, posinf=0.0, neginf=0.0)  # [N,3]
     if m.shape[0]:
         lo, hi = m.min(0).values, m.max(0).values  # [3]
@@ -65,9 +72,7 @@ def frame_body(means: torch.Tensor, cov: torch.Tensor, cov_unit: float) -> tuple
     triu = device_constant(TRIU, torch.int64, cov.device)  # `covariance_triu`'s columns, 4x faster than [:, list]
     c = cov.detach().reshape(-1, 9).index_select(1, triu).to(torch.float64)  # [N,6], a new tensor (index_select)
     c.div_(cov_unit).nan_to_num_(nan=0.0, posinf=0.0, neginf=0.0).clamp_(-F16_CLIP, F16_CLIP)
-    packed = torch.cat([_bytes(torch.cat([lo, hi]).to(torch.float32)), q16.reshape(-1), _bytes(_half(c))])
-    host = packed.cpu().numpy().tobytes()
-    return host[:24], host[24:]
+    return torch.cat([_bytes(torch.cat([lo, hi]).to(torch.float32)), q16.reshape(-1), _bytes(_half(c))])
 
 
 def epoch_body(rgb: torch.Tensor, flags: torch.Tensor, fragment: torch.Tensor) -> torch.Tensor:  # -> [6N] uint8

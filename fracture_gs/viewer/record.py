@@ -125,43 +125,71 @@ class FrameRecorder:
         self.epochs = open(folder / f"{variant}{fmt.EPOCHS_SUFFIX}", "ab")
         self.epoch = -1
         self._last_topology: Optional[tuple] = None  # (fragment, band) tensors of the last frame
-        self._interface = None  # [N] bool on the frames' device: band Gaussians facing another fragment
-        self._interior_dev = None
+        self._flags = None  # [N] uint8 on the frames' device: the band, interface and interior bits of this topology
         self._last_epoch = None  # the last epoch body, a uint8 tensor on the frames' device
+        self._pinned = None  # a CUDA run's page-locked host buffer for each frame's one copy
 
     def write(self, out, rgb, drawn) -> None:
         """Record frame `out` (a `pipeline.FrameOutput`): its centres and covariances, and (when they changed) its
         colours `rgb` [N,3] in [0,1], `drawn` [N] bool, band and fragment ids. Encoded on the frame's device
-        (`encode_torch`); the host gets the record's bytes, and the centres only when the fragments change."""
+        (`encode_torch`); the host gets the record's bytes with two bytes saying whether the fragments or the epoch
+        changed, in one copy, and the centres only when the fragments change."""
         import torch
 
-        from .encode_torch import epoch_body, frame_body
+        from .encode_torch import epoch_body, frame_packed
 
         fragment, band = out.fragment, out.band != 0  # [N] on the frame's device
-        if self._last_topology is None or not (
-            torch.equal(fragment, self._last_topology[0]) and torch.equal(band, self._last_topology[1])
-        ):
-            frag_host, band_host = _numpy(fragment).astype(np.int64), _numpy(band)
-            faces = interface_flags(_numpy(out.means).astype(np.float32), frag_host, band_host, self.radius)
-            self._interface = torch.from_numpy(faces).to(fragment.device)
-            self._last_topology = (fragment.clone(), band.clone())
-        if self._interior_dev is None or self._interior_dev.device != fragment.device:
-            self._interior_dev = torch.from_numpy(self.interior.astype(bool)).to(fragment.device)
-        flags = (
-            drawn.to(torch.uint8) * fmt.DRAWN
-            + band.to(torch.uint8) * fmt.BAND
-            + self._interface.to(torch.uint8) * fmt.INTERFACE
-            + self._interior_dev.to(torch.uint8) * fmt.INTERIOR
-        )
-        body = epoch_body(rgb, flags, fragment)
-        if self._last_epoch is None or not torch.equal(body, self._last_epoch):
+        packed = frame_packed(out.means, out.covars, self.cov_unit)  # [24 + 18N] uint8
+        if self._last_topology is None:
+            self._new_topology(out, fragment, band)
+        body = epoch_body(rgb, drawn.to(torch.uint8) * fmt.DRAWN + self._flags, fragment)
+        if self._last_epoch is None:
+            host, new_epoch = self._to_host(packed), True
+        else:
+            last_fragment, last_band = self._last_topology
+            moved = torch.stack([(fragment != last_fragment).any(), (band != last_band).any()]).any()
+            differs = (body != self._last_epoch).any()
+            host = self._to_host(torch.cat([packed, torch.stack([moved, differs]).to(torch.uint8)]))
+            new_topology, new_epoch, host = bool(host[-2]), bool(host[-1]), host[:-2]
+            if new_topology:  # a fracture: the interface flags anew, and the epoch body with them
+                self._new_topology(out, fragment, band)
+                body = epoch_body(rgb, drawn.to(torch.uint8) * fmt.DRAWN + self._flags, fragment)
+                new_epoch = not torch.equal(body, self._last_epoch)
+        if new_epoch:
             self.epoch += 1
             self.epochs.write(fmt.epoch_header(self.epoch, int(out.frame)) + body.cpu().numpy().tobytes())
             self.epochs.flush()
             self._last_epoch = body
-        box, data = frame_body(out.means, out.covars, self.cov_unit)
-        self.frames.write(fmt.frame_header(int(out.frame), self.epoch, float(out.time), box) + data)
+        self.frames.write(fmt.frame_header(int(out.frame), self.epoch, float(out.time), host[:24].tobytes()))
+        self.frames.write(host[24:])  # the body straight from the copy's buffer
         self.frames.flush()
+
+    def _new_topology(self, out, fragment, band) -> None:
+        """The fragments or the band changed (or the first frame): which band Gaussians face another fragment (on
+        the host, from the frame's centres), and the flag bits that follow from the topology."""
+        import torch
+
+        frag_host, band_host = _numpy(fragment).astype(np.int64), _numpy(band)
+        faces = interface_flags(_numpy(out.means).astype(np.float32), frag_host, band_host, self.radius)
+        interface = torch.from_numpy(faces).to(fragment.device)
+        interior = torch.from_numpy(self.interior.astype(bool)).to(fragment.device)
+        self._last_topology = (fragment.clone(), band.clone())
+        u8 = torch.uint8  # drawn·DRAWN + (these): integer sums, the same bytes in any grouping
+        self._flags = band.to(u8) * fmt.BAND + interface.to(u8) * fmt.INTERFACE + interior.to(u8) * fmt.INTERIOR
+
+    def _to_host(self, t):  # [n] uint8 on any device -> numpy [n] uint8, valid until the next call
+        """The bytes of `t` on the host: on CUDA through a page-locked buffer kept for the next frame (the copy
+        waits for this thread's stream), elsewhere `t` itself."""
+        import torch
+
+        if t.device.type != "cuda":
+            return t.numpy()
+        if self._pinned is None or self._pinned.numel() < t.numel():
+            self._pinned = torch.empty(t.numel(), dtype=torch.uint8, pin_memory=True)
+        buf = self._pinned[: t.numel()]
+        buf.copy_(t, non_blocking=True)
+        torch.cuda.current_stream(t.device).synchronize()
+        return buf.numpy()
 
     def close(self) -> None:
         self.frames.close()
