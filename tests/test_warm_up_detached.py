@@ -235,3 +235,40 @@ def test_an_earlier_build_is_known_by_its_pid_and_start_time(tmp_path):
     assert warm_up.EarlierBuild.find(log) is None
     pid_file.write_text("not a pid\n")
     assert warm_up.EarlierBuild.find(log) is None
+
+
+@pytest.mark.parametrize("env", [None, "set"])
+def test_the_build_folder_is_the_one_torch_builds_in(env, tmp_path, monkeypatch):
+    """`torch_build_directory` names the folder `torch.utils.cpp_extension._get_build_directory` names (and which
+    gsplat's JIT build uses), with and without TORCH_EXTENSIONS_DIR: the quick lookup and torch's agree."""
+    from torch.utils.cpp_extension import _get_build_directory
+
+    from fracture_gs.render.warm_up import torch_build_directory
+
+    if env is None:
+        monkeypatch.delenv("TORCH_EXTENSIONS_DIR", raising=False)
+        monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))  # torch's default root, without touching ~
+    else:
+        monkeypatch.setenv("TORCH_EXTENSIONS_DIR", str(tmp_path / "ext"))
+    assert torch_build_directory("gsplat_cuda") == _get_build_directory("gsplat_cuda", verbose=False)
+
+
+def test_a_cached_build_is_found_without_importing_gsplat(tmp_path, monkeypatch):
+    """With a `.so` in the build folder, `gsplat_needs_compile` says no build is needed and leaves gsplat and
+    `cpp_extension` unimported (checked in a fresh interpreter); with the folder empty it says a build is needed."""
+    ext = tmp_path / "ext"
+    (ext / "gsplat_cuda").mkdir(parents=True)
+    probe = (
+        "import sys, torch\n"
+        "from fracture_gs.render.warm_up import gsplat_needs_compile\n"
+        "need = gsplat_needs_compile()\n"
+        "print(need, 'gsplat' in sys.modules, 'torch.utils.cpp_extension' in sys.modules)\n"
+    )
+    env = {**os.environ, "TORCH_EXTENSIONS_DIR": str(ext)}
+
+    def ask() -> str:
+        return subprocess.run([sys.executable, "-c", probe], env=env, capture_output=True, text=True).stdout.strip()
+
+    assert ask().startswith("True")
+    (ext / "gsplat_cuda" / "gsplat_cuda.so").write_bytes(b"")
+    assert ask() == "False False False"
