@@ -239,3 +239,20 @@ class StreamFork:
         if self._main is not None:
             self._main.wait_stream(self._fork)
             self._main = self._fork = None
+
+
+def import_in_background(*names: str) -> threading.Thread:
+    """Import `names` on a daemon thread now, so a run that will need them later (scipy's modules at a fracture event:
+    0.2–0.5 s on a slow host) finds them loaded instead of importing them on its critical thread. The import lock
+    makes a later import of the same module wait for this one; a failure here is left for that import to raise.
+    Start it only after any fork: a child forked mid-import could inherit a module lock held by no thread."""
+    import importlib
+
+    def work() -> None:
+        for name in names:
+            with contextlib.suppress(Exception):
+                importlib.import_module(name)
+
+    thread = threading.Thread(target=work, name="fgs-import", daemon=True)
+    thread.start()
+    return thread

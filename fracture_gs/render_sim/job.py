@@ -23,7 +23,7 @@ from ..pipeline import prepare_scene
 from ..profiling import phases
 from ..render.splat import check_backend
 from ..render.warm_up import detached_notice, start_gsplat_compile
-from ..runtime import usable_cores
+from ..runtime import import_in_background, usable_cores
 from ..viewer.record import start_record
 from .comparison import check_video_size, compose_comparison, frames_png_default
 from .context import Export, RunContext, ScheduleResult
@@ -103,6 +103,8 @@ def run_render_sim(
     # torch's OpenMP threads started, a forked child could hang, and once gsplat's build was looked up (torch's
     # CUDA device query) a forked child cannot use CUDA (`forked`); a run that needs none ends them at once
     with _forked_workers(device, devices, schedule, len(variants), cfg.render.backend) as workers:
+        if device.startswith("cuda") and any(v != "baseline" for v in variants):  # after any fork (`runtime`)
+            import_in_background("scipy.ndimage", "scipy.spatial")  # a fracture event's components, the pieces' gap
         if cfg.render.backend != "torch" and not (devices and len(devices) > 1):  # (several devices: each builds)
             # gsplat's one-time CUDA build (about a minute and a half on a fresh machine) runs in a process of its
             # own beside the run, which draws with the torch rasterizer until it is done (`render.backend =
