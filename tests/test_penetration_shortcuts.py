@@ -215,4 +215,7 @@ def test_dense_summary_is_the_sorted_keys_summary(seed, monkeypatch):
         keyed = pen.surface_penetration(x, fragment, crossing_at, cal)
         monkeypatch.setattr(pen, "DENSE_PAIRS", 32)
         assert dense == keyed and list(dense["pairs"]) == list(keyed["pairs"])
+        empty = {"depth": 0.0, "crossing": 0, "pairs": {}, "radius": 0.05}
+        spread = pen._summary_dense(depth, fragment, into, crossing_at, K, empty, rows=7)
+        assert spread == {**keyed, "radius": 0.05} and list(spread["pairs"]) == list(keyed["pairs"])
         assert (dense["crossing"] > 0) == (seed != 7 and bool((depth > crossing_at).any()))
