@@ -8,7 +8,7 @@ import pytest
 import torch
 
 from fracture_gs.viewer import format as fmt
-from fracture_gs.viewer.encode_torch import epoch_body, frame_body, half_exact
+from fracture_gs.viewer.encode_torch import epoch_body, frame_packed, half_exact
 
 DEVICES = ["cpu"] + (["cuda"] if torch.cuda.is_available() else [])
 
@@ -34,7 +34,7 @@ def test_half_exact_rounds_once_like_numpy(device):
 
 @pytest.mark.parametrize("device", DEVICES)
 @pytest.mark.parametrize("n", [0, 1, 7, 3000])
-def test_a_frame_body_is_the_numpy_records_bytes(device, n):
+def test_a_packed_frame_is_the_numpy_records_bytes(device, n):
     """Random centres (with NaN and ±inf, which the format writes as 0, and a flat axis whose span is 0) and
     covariances (tiny, huge past the clip, non-finite): header box and body equal `format.encode_frame`'s."""
     g = np.random.default_rng(n)
@@ -48,7 +48,8 @@ def test_a_frame_body_is_the_numpy_records_bytes(device, n):
     if n > 4:
         cov[3, 0, 0], cov[4, 1, 1] = np.nan, 1e12
     unit = 1e-5
-    box, body = frame_body(torch.from_numpy(means).to(device), torch.from_numpy(cov).to(device), unit)
+    packed = frame_packed(torch.from_numpy(means).to(device), torch.from_numpy(cov).to(device), unit)
+    box, body = packed.cpu().numpy().tobytes()[:24], packed.cpu().numpy().tobytes()[24:]
     ref = fmt.encode_frame(5, 2, 0.25, means, fmt.covariance_triu(cov.astype(np.float64)), unit)
     assert fmt.frame_header(5, 2, 0.25, box) + body == ref
 

@@ -49,17 +49,11 @@ def _bytes(t: torch.Tensor) -> torch.Tensor:  # [...] -> [numel · itemsize] uin
     return t.contiguous().view(torch.uint8).reshape(-1)
 
 
-def frame_body(means: torch.Tensor, cov: torch.Tensor, cov_unit: float) -> tuple[bytes, bytes]:
-    """(box, body) of a frame record: `box` the 24 bytes of the centres' bounding box (lo, hi as float32), `body`
-    the uint16 centres quantised in that box [N,3] then the float16 covariance upper triangles / cov_unit [N,6].
-    `means` [N,3] and `cov` [N,3,3] on any device; one host copy."""
-    host = frame_packed(means, cov, cov_unit).cpu().numpy().tobytes()
-    return host[:24], host[24:]
-
-
 def frame_packed(means: torch.Tensor, cov: torch.Tensor, cov_unit: float) -> torch.Tensor:  # -> [24 + 18N] uint8
-    """`frame_body`'s box and body as one uint8 tensor on the frames' device (box first), not yet copied to the host:
-    the recorder appends its own bytes and copies the whole once."""
+    """A frame record's box and body as one uint8 tensor on the frames' device, not yet copied to the host (the
+    recorder appends its own bytes and copies the whole once): the 24 bytes of the centres' bounding box (lo, hi as
+    float32), then the uint16 centres quantised in that box [N,3], then the float16 covariance upper triangles /
+    cov_unit [N,6]. `means` [N,3] and `cov` [N,3,3] on any device."""
     m = torch.nan_to_num(means.detach().to(torch.float64), nan=0.0, posinf=0.0, neginf=0.0)  # [N,3]
     if m.shape[0]:
         lo, hi = m.min(0).values, m.max(0).values  # [3]

@@ -70,7 +70,7 @@ def frame_header(frame: int, epoch: int, time: float, box: bytes) -> bytes:
 def encode_frame(frame: int, epoch: int, time: float, means: np.ndarray, cov6: np.ndarray, cov_unit: float) -> bytes:
     """One frame record: centres [N,3] quantised to uint16 in their bounding box, covariances [N,6] / cov_unit as
     float16 (clipped to float16's range; a non-finite value becomes 0). The numpy reference of what the recorder
-    writes (`encode_torch.frame_body`, on the frame's device)."""
+    writes (`encode_torch.frame_packed`, on the frame's device)."""
     means = np.nan_to_num(np.asarray(means, np.float64), nan=0.0, posinf=0.0, neginf=0.0)
     lo = means.min(0) if len(means) else np.zeros(3)
     hi = means.max(0) if len(means) else np.zeros(3)
