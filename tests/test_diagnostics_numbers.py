@@ -9,7 +9,8 @@ import math
 import pytest
 
 from fracture_gs.sim.diagnostics import metrics as M
-from fracture_gs.sim.diagnostics.penetration import collider_crossing, fragment_overlap
+from fracture_gs.sim.diagnostics.metrics import collider_crossing
+from fracture_gs.sim.diagnostics.penetration import fragment_overlap
 from fracture_gs.sim.diagnostics.tracker import COLLIDER_TOLERANCE, VOXEL
 
 

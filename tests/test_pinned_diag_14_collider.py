@@ -1,4 +1,4 @@
-"""`penetration.collider_packed` and its host twin `collider_crossing`: particles behind plane colliders.
+"""`metrics.collider_packed` and its host twin `collider_crossing`: particles behind plane colliders.
 
 For each plane, d = (x − point)·n̂; a particle counts when d < −tolerance (strictly: exactly at the tolerance it
 does not), in the count of every plane it is behind; the depth is the deepest −d over all planes. Distances are
@@ -7,7 +7,7 @@ exact binary fractions, so the expected numbers are exact."""
 import torch
 
 from fracture_gs.config import PlaneBoundary
-from fracture_gs.sim.diagnostics.penetration import collider_crossing, collider_packed
+from fracture_gs.sim.diagnostics.metrics import collider_crossing, collider_packed
 
 TOL = 0.25
 

@@ -167,3 +167,30 @@ def piece_gap(x: torch.Tensor, fragment: torch.Tensor, dx: float) -> float:  # x
         bound = math.inf
     d, _ = tree.query(pb, k=1, distance_upper_bound=bound)
     return float(d.min()) / dx
+
+
+def collider_packed(x: torch.Tensor, planes, tolerance: float) -> torch.Tensor:
+    """`collider_crossing` as a device tensor [2] float64 (count, deepest distance [m]), no host read."""
+    out = torch.zeros(2, dtype=torch.float64, device=x.device)
+    xd = x.double()
+    for b in planes:
+        n, point = plane_constants(b, x.device)
+        d = (xd - point) @ n
+        below = d < -tolerance
+        out[0] += below.sum()
+        out[1] = torch.maximum(out[1], torch.where(below, -d, torch.zeros_like(d)).max())
+    return out
+
+
+def collider_crossing(x: torch.Tensor, planes, tolerance: float) -> tuple[int, float]:
+    """(particles behind a plane collider by more than `tolerance` [m], deepest such distance [m])."""
+    count, depth = 0, 0.0
+    xd = x.double()
+    for b in planes:
+        n, point = plane_constants(b, x.device)
+        d = (xd - point) @ n
+        below = d < -tolerance
+        count += int(below.sum())
+        if bool(below.any()):
+            depth = max(depth, float(-d[below].min()))
+    return count, depth

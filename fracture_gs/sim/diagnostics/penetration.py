@@ -30,7 +30,6 @@ from typing import Callable, Optional, Union
 
 import torch
 
-from .metrics import plane_constants
 from .penetration_kernels import deepest_behind_surfaces, near_another_piece_mask
 
 _NEIGHBOURS = ((1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0, 1), (0, 0, -1))
@@ -122,33 +121,6 @@ def fragment_overlap(x: torch.Tensor, fragment: torch.Tensor, h: float, max_dept
     if K < 2:
         return {"crossing": 0, "depth": 0.0, "pairs": {}}
     return unpack_overlap(overlap_packed(x, fragment, h, K, max_depth).tolist(), K)
-
-
-def collider_packed(x: torch.Tensor, planes, tolerance: float) -> torch.Tensor:
-    """`collider_crossing` as a device tensor [2] float64 (count, deepest distance [m]), no host read."""
-    out = torch.zeros(2, dtype=torch.float64, device=x.device)
-    xd = x.double()
-    for b in planes:
-        n, point = plane_constants(b, x.device)
-        d = (xd - point) @ n
-        below = d < -tolerance
-        out[0] += below.sum()
-        out[1] = torch.maximum(out[1], torch.where(below, -d, torch.zeros_like(d)).max())
-    return out
-
-
-def collider_crossing(x: torch.Tensor, planes, tolerance: float) -> tuple[int, float]:
-    """(particles behind a plane collider by more than `tolerance` [m], deepest such distance [m])."""
-    count, depth = 0, 0.0
-    xd = x.double()
-    for b in planes:
-        n, point = plane_constants(b, x.device)
-        d = (xd - point) @ n
-        below = d < -tolerance
-        count += int(below.sum())
-        if bool(below.any()):
-            depth = max(depth, float(-d[below].min()))
-    return count, depth
 
 
 # ---- the continuous measure -------------------------------------------------------------------------

@@ -47,9 +47,9 @@ from ..recorded import Recorded
 from ..storage import COUNT_CLAMPED, COUNT_POOL_OVERFLOW, N_COUNTS
 from . import energy as E
 from . import metrics as M
-from .metrics import SEPARATION, reapproach_ratio
+from .metrics import SEPARATION, collider_packed, reapproach_ratio
 from .overlap_kernels import VoxelOverlap
-from .penetration import calibrate, collider_packed, surface_penetration, unpack_overlap
+from .penetration import calibrate, surface_penetration, unpack_overlap
 
 VOXEL = 0.6  # Δx: voxel edge of the voxel-occupancy overlap (`penetration.fragment_overlap`)
 CROSSING = 0.1  # Δx: a particle deeper than this behind another fragment's surface is a `fragment_crossing`
