@@ -20,7 +20,7 @@ from fracture_gs.cli import devices, main
 from fracture_gs.render_sim import forked, job
 
 
-def _broken_cuda(jobs, ready, stop, results, device, gsplat):  # a child whose CUDA does not work: it says so at once
+def _broken_cuda(jobs, ready, stop, results, device, gsplat, parent):  # a child whose CUDA does not work: says so
     fn, slot, threads, args, kwargs = jobs.get()
     ready.put((slot, f"CUDA does not work in a forked worker (on {device})"))
 

@@ -9,6 +9,8 @@ spawn fresh workers instead of hanging.
 from __future__ import annotations
 
 import json
+import os
+import signal
 import subprocess
 import sys
 import time
@@ -71,7 +73,7 @@ def test_a_healthy_child_reports_ready_with_the_parents_thread_count():
     code = (
         "import torch\n"
         "from fracture_gs.render_sim import forked\n"
-        "def probe(jobs, ready, stop, results, device, gsplat):  # the real child's first steps, then its threads\n"
+        "def probe(jobs, ready, stop, results, device, gsplat, parent):  # the real child's first steps\n"
         "    fn, slot, threads, args, kwargs = jobs.get()\n"
         "    torch.set_num_threads(threads)\n"
         "    torch.ones(1 << 16, dtype=torch.float64).sum()\n"
@@ -165,6 +167,36 @@ def test_a_child_whose_parent_dies_before_its_job_exits():
     while alive and time.monotonic() < deadline:
         time.sleep(0.2)
         alive = [p for p in pids if _running(p)]
+    assert alive == [], alive
+
+
+def test_a_child_that_starts_after_its_parent_died_exits():
+    """The parent's pid travels with the fork: a child that reaches its loop only after the parent was killed (it is
+    the init process's child by then) still sees its parent gone and exits, instead of waiting forever (the test
+    above hung for two minutes under a loaded suite when the children started late)."""
+    code = (
+        "import os, signal, time\n"
+        "from fracture_gs.render_sim import forked\n"
+        "run = forked._child\n"
+        "def late(*args, **kwargs):\n"
+        "    time.sleep(1.0)  # the parent is killed meanwhile\n"
+        "    run(*args, **kwargs)\n"
+        "forked._child = late\n"
+        "w = forked.ForkedWorkers(2)\n"
+        "print(' '.join(str(p.pid) for p in w.procs), flush=True)\n"
+        "os.kill(os.getpid(), signal.SIGKILL)\n"
+    )
+    proc = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    pids = [int(p) for p in proc.stdout.readline().split()]
+    proc.wait(60)
+    assert len(pids) == 2
+    deadline = time.monotonic() + 20
+    alive = pids
+    while alive and time.monotonic() < deadline:
+        time.sleep(0.2)
+        alive = [p for p in pids if _running(p)]
+    for p in alive:  # a failure leaves no orphan behind
+        os.kill(p, signal.SIGKILL)
     assert alive == [], alive
 
 

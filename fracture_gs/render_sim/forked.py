@@ -76,12 +76,14 @@ def _start_cuda(device: str, gsplat: bool) -> Optional[str]:
     return None
 
 
-def _child(jobs, ready, stop, results, device: str, gsplat: bool = False) -> None:
+def _child(jobs, ready, stop, results, device: str, gsplat: bool = False, parent: Optional[int] = None) -> None:
     """A forked worker: for a CUDA run start CUDA and Warp at once (beside the parent's scene preparation), wait
     for a job (fn, slot, threads, args, kwargs), prove OpenMP works here on `threads` torch threads (and, for a
-    CUDA run, that CUDA did start), then run fn(*args, stop=stop, results=results, **kwargs)."""
+    CUDA run, that CUDA did start), then run fn(*args, stop=stop, results=results, **kwargs). `parent`: the pid of
+    the process that forked it, taken before the fork (a child that asked only once running would take the init
+    process for its parent if the parent was killed first, and wait forever)."""
     signal.signal(signal.SIGINT, signal.default_int_handler)  # not the parent's handler, which sets its own event
-    parent = os.getppid()
+    parent = os.getppid() if parent is None else parent
     try:
         broken = _start_cuda(device, gsplat) if device.startswith("cuda") else None
         while True:  # a parent killed before it sent the job (SIGKILL, out of memory) leaves no child waiting
@@ -117,7 +119,7 @@ class ForkedWorkers:
         self.procs = [
             mp.Process(
                 target=_child,
-                args=(q, self.ready, self.stop, self.results, str(device), gsplat),
+                args=(q, self.ready, self.stop, self.results, str(device), gsplat, os.getpid()),
                 name=f"fgs-{str(device).replace(':', '')}-{i + 1}",
                 daemon=True,
             )
