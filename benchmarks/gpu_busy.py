@@ -36,6 +36,10 @@ def main() -> int:
     import torch
     from torch.profiler import ProfilerActivity, profile
 
+    if not torch.cuda.is_available():
+        print("gpu_busy.py measures a CUDA device's busy time, and torch sees no CUDA device here", file=sys.stderr)
+        return 2
+
     from fracture_gs.cli import main as cli
 
     t0 = time.perf_counter()

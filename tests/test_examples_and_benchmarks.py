@@ -249,6 +249,18 @@ def test_spy_summary_counts_each_function_once_per_stack(tmp_path):
     assert ": 4 samples = 0.40 s" in render_part and "| (outside) | 4 | 0.40 |" in render_part
 
 
+def test_gpu_busy_without_cuda_says_so(tmp_path):
+    """benchmarks/gpu_busy.py where torch sees no CUDA device (hidden on a GPU machine): one sentence and exit
+    status 2, no profiler traceback."""
+    import os
+
+    env = {**os.environ, "CUDA_VISIBLE_DEVICES": ""}
+    proc = subprocess.run(
+        [sys.executable, str(BENCH / "gpu_busy.py"), "--", "validate", "bread"], capture_output=True, text=True, env=env
+    )
+    assert proc.returncode == 2 and "sees no CUDA device" in proc.stderr and "Traceback" not in proc.stderr
+
+
 def test_gpu_busy_union_counts_overlaps_once():
     """benchmarks/gpu_busy.py's device busy time: the union of the intervals, overlaps and nesting counted once."""
     sys.path.insert(0, str(BENCH))
