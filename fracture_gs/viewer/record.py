@@ -136,13 +136,13 @@ class FrameRecorder:
         changed, in one copy, and the centres only when the fragments change."""
         import torch
 
-        from .encode_torch import epoch_body, frame_packed
+        from .encode_torch import frame_packed
 
         fragment, band = out.fragment, out.band != 0  # [N] on the frame's device
         packed = frame_packed(out.means, out.covars, self.cov_unit)  # [24 + 18N] uint8
         if self._last_topology is None:
             self._new_topology(out, fragment, band)
-        body = epoch_body(rgb, drawn.to(torch.uint8) * fmt.DRAWN + self._flags, fragment)
+        body = self._epoch_body(rgb, drawn, fragment)
         if self._last_epoch is None:
             host, new_epoch = self._to_host(packed), True
         else:
@@ -153,7 +153,7 @@ class FrameRecorder:
             new_topology, new_epoch, host = bool(host[-2]), bool(host[-1]), host[:-2]
             if new_topology:  # a fracture: the interface flags anew, and the epoch body with them
                 self._new_topology(out, fragment, band)
-                body = epoch_body(rgb, drawn.to(torch.uint8) * fmt.DRAWN + self._flags, fragment)
+                body = self._epoch_body(rgb, drawn, fragment)
                 new_epoch = not torch.equal(body, self._last_epoch)
         if new_epoch:
             self.epoch += 1
@@ -163,6 +163,14 @@ class FrameRecorder:
         self.frames.write(fmt.frame_header(int(out.frame), self.epoch, float(out.time), host[:24].tobytes()))
         self.frames.write(host[24:])  # the body straight from the copy's buffer
         self.frames.flush()
+
+    def _epoch_body(self, rgb, drawn, fragment):  # -> [6N] uint8 on the frames' device
+        """The epoch body of these colours, drawn set and fragments under the current topology's flag bits."""
+        import torch
+
+        from .encode_torch import epoch_body
+
+        return epoch_body(rgb, drawn.to(torch.uint8) * fmt.DRAWN + self._flags, fragment)
 
     def _new_topology(self, out, fragment, band) -> None:
         """The fragments or the band changed (or the first frame): which band Gaussians face another fragment (on
