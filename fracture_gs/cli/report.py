@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 from typing import Any, Sequence
 
-from . import CliError, hardware
+from . import CliError, bytecode, hardware
 
 
 def _info_lines() -> list[tuple[str, str]]:
@@ -38,6 +38,7 @@ def _info_lines() -> list[tuple[str, str]]:
         )
     rows.append(("device", f"--device auto -> {'cuda:0' if available else 'cpu'}"))
     rows.append(("video", _video_encoder()))
+    rows.append(("bytecode", bytecode.info_line(bytecode.survey())))
     return rows
 
 

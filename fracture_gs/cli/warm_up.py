@@ -14,6 +14,8 @@ step printed with its time and whether it came from the cache:
 4. On CUDA, gsplat's CUDA code (`render.warm_up.compile_gsplat`, the build a run starts in the background);
    on the CPU nothing: the Warp rasterizer (`render.raster_kernels`, a step-2 module there) draws, gsplat is never
    built.
+5. Python's bytecode of the packages a run imports, where it is missing (`bytecode.compile_stale`): with
+   PYTHONDONTWRITEBYTECODE set and wheels installed without it, every start compiled torch's sources again.
 
 Cache hits are read from Warp's own load lines ("(cached)", "(compiled)") through a logger set for the duration
 (`wp.set_logger`, the hook the CLI's quiet logger uses); a module this process had loaded already says so.
@@ -184,7 +186,25 @@ def warm_up(device: str, report: Callable[[Step], None], say: Callable[[str], No
     else:
         steps.append(Step("gsplat CUDA code", 0.0, "not needed on the CPU (the Warp rasterizer draws there)"))
     report(steps[-1])
+    steps.append(bytecode_step())
+    report(steps[-1])
     return steps
+
+
+def bytecode_step() -> Step:
+    """The missing bytecode of the packages a run imports (and of what this process imported) written once."""
+    from . import bytecode
+
+    start = time.perf_counter()
+    packages = bytecode.survey(bytecode.imported_packages())
+    read_only = sorted(p.name for p in packages if p.stale and not p.writable)
+    written, left = bytecode.compile_stale(packages)
+    parts = [f"{written} module(s) compiled" if written else "cached"]
+    if left:
+        parts.append(f"{left} left as source (this Python cannot compile them, e.g. another version's syntax)")
+    if read_only:
+        parts.append(f"read-only, not written: {', '.join(read_only)} (set PYTHONPYCACHEPREFIX to a writable folder)")
+    return Step("Python bytecode of the packages a run imports", time.perf_counter() - start, "; ".join(parts))
 
 
 def _print_step(step: Step) -> None:
