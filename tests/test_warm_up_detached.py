@@ -253,22 +253,41 @@ def test_the_build_folder_is_the_one_torch_builds_in(env, tmp_path, monkeypatch)
     assert torch_build_directory("gsplat_cuda") == _get_build_directory("gsplat_cuda", verbose=False)
 
 
-def test_a_cached_build_is_found_without_importing_gsplat(tmp_path, monkeypatch):
+@pytest.mark.parametrize("env", ["TORCH_EXTENSIONS_DIR", "torch's default folder"])
+def test_a_cached_build_is_found_without_importing_gsplat(env, tmp_path):
     """With a `.so` in the build folder, `gsplat_needs_compile` says no build is needed and leaves gsplat and
-    `cpp_extension` unimported (checked in a fresh interpreter); with the folder empty it says a build is needed."""
-    ext = tmp_path / "ext"
-    (ext / "gsplat_cuda").mkdir(parents=True)
+    `cpp_extension` unimported (checked in a fresh interpreter); with the folder empty it says a build is needed.
+    Both where TORCH_EXTENSIONS_DIR names the folder and in torch's default one: there the lookup needs a torch
+    submodule that `import torch` alone does not load, which a fresh process (a user's run) does not have, so the
+    fresh interpreter also checks its folder against torch's own `_get_build_directory`, asked afterwards (the
+    lookup failed there once and said "no build needed" on every fresh GPU machine)."""
+    env_vars = dict(os.environ)
+    if env == "TORCH_EXTENSIONS_DIR":
+        ext = tmp_path / "ext"
+        env_vars["TORCH_EXTENSIONS_DIR"] = str(ext)
+    else:
+        env_vars.pop("TORCH_EXTENSIONS_DIR", None)
+        env_vars["XDG_CACHE_HOME"] = str(tmp_path / "cache")  # torch's default root, without touching ~
+        ext = None
     probe = (
         "import sys, torch\n"
-        "from fracture_gs.render.warm_up import gsplat_needs_compile\n"
+        "from fracture_gs.render.warm_up import gsplat_needs_compile, torch_build_directory\n"
         "need = gsplat_needs_compile()\n"
         "print(need, 'gsplat' in sys.modules, 'torch.utils.cpp_extension' in sys.modules)\n"
+        "from torch.utils.cpp_extension import _get_build_directory\n"
+        "print(torch_build_directory('gsplat_cuda') == _get_build_directory('gsplat_cuda', verbose=False))\n"
+        "print(_get_build_directory('gsplat_cuda', verbose=False))\n"
     )
-    env = {**os.environ, "TORCH_EXTENSIONS_DIR": str(ext)}
 
-    def ask() -> str:
-        return subprocess.run([sys.executable, "-c", probe], env=env, capture_output=True, text=True).stdout.strip()
+    def ask() -> list[str]:
+        out = subprocess.run([sys.executable, "-c", probe], env=env_vars, capture_output=True, text=True)
+        assert out.returncode == 0, out.stderr[-2000:]
+        return out.stdout.strip().splitlines()
 
-    assert ask().startswith("True")
-    (ext / "gsplat_cuda" / "gsplat_cuda.so").write_bytes(b"")
-    assert ask() == "False False False"
+    first = ask()
+    assert first[0] == "True False False" and first[1] == "True", first
+    folder = Path(first[2])
+    assert ext is None or folder == ext / "gsplat_cuda"
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "gsplat_cuda.so").write_bytes(b"")
+    assert ask()[:2] == ["False False False", "True"]

@@ -464,6 +464,7 @@ def torch_build_directory(name: str) -> str:
     (TORCH_EXTENSIONS_DIR, else torch's user cache folder with the Python and accelerator versions), without importing
     `cpp_extension` (setuptools: 0.1–0.4 s) and without creating the folder. A test holds the two to the same path."""
     import torch
+    from torch._appdirs import user_cache_dir  # a submodule `import torch` does not load (cpp_extension does)
 
     root = os.environ.get("TORCH_EXTENSIONS_DIR")
     if root is None:
@@ -474,7 +475,7 @@ def torch_build_directory(name: str) -> str:
         else:
             accelerator = "cpu"
         python = f"py{sys.version_info.major}{sys.version_info.minor}{getattr(sys, 'abiflags', '')}"
-        cache = os.path.realpath(torch._appdirs.user_cache_dir(appname="torch_extensions"))
+        cache = os.path.realpath(user_cache_dir(appname="torch_extensions"))
         root = os.path.join(cache, f"{python}_{accelerator}")
     return os.path.join(root, name)
 
