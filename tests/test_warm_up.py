@@ -269,8 +269,8 @@ def test_a_module_loaded_again_says_already_loaded():
 def test_info_warm_up_on_the_cpu_loads_every_module_and_prints_each_step(capsys):
     """`fracture-gs info --warm-up --device cpu` in-process: the info rows, then a line per step with its time and
     how it went (Warp init, each kernel module cached, compiled or already loaded, one frame of bread, gsplat not
-    needed on the CPU) and a summary; the frame of bread loads no module the list missed (0 more), so a run's
-    launches find every module the warm-up put in the cache."""
+    needed on the CPU, the Python bytecode written or cached) and a summary; the frame of bread loads no module the
+    list missed (0 more), so a run's launches find every module the warm-up put in the cache."""
     assert cli.main(["info", "--warm-up", "--device", "cpu"]) == 0
     out = capsys.readouterr().out
     assert "renderer" in out and "warm-up on cpu:" in out
@@ -283,4 +283,6 @@ def test_info_warm_up_on_the_cpu_loads_every_module_and_prints_each_step(capsys)
     frame = next(line for line in lines if "one frame of bread (300 particles)" in line)
     assert frame.rstrip().endswith("0 more module(s) loaded"), frame
     assert any("gsplat CUDA code" in line and "not needed on the CPU" in line for line in lines)
+    bytecode = next(line for line in lines if "Python bytecode of the packages a run imports" in line)
+    assert "cached" in bytecode or "module(s) compiled" in bytecode, bytecode
     assert f"{len(modules)} Warp kernel modules" in lines[-1] and "warm-up done in" in lines[-1]

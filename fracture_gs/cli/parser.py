@@ -38,7 +38,7 @@ class _Parser(argparse.ArgumentParser):
 _MAIN_EPILOG = """\
 examples:
   fracture-gs info                                  versions, GPU, renderer backend
-  fracture-gs info --warm-up                        compile Warp kernels and gsplat once, ahead of use
+  fracture-gs info --warm-up                        compile kernels, gsplat and bytecode once, ahead of use
   fracture-gs validate bread                        check a built-in or your own config
   fracture-gs render-sim bread                      simulate + render the default variants
   fracture-gs render-sim my_capture.ply             your own 3DGS scene, every setting automatic
@@ -123,11 +123,13 @@ examples:
   fracture-gs info --warm-up --device cuda:1
 
 Reports Python, torch, Warp and gsplat versions, CUDA devices, which renderer `--device auto`
-picks and why, and Warp's kernel cache directory. Nothing is compiled, unless --warm-up: then
-every Warp kernel module of the simulator and its diagnostics is loaded on the device (compiled
-where the kernel cache lacks it), one frame of a tiny scene checks that nothing else is needed,
-and on CUDA gsplat's CUDA code is built (about a minute the first time); each step prints its
-time and whether it came from the cache. Later runs then start without compiling.
+picks and why, Warp's kernel cache directory, and whether the packages a run imports have Python
+bytecode (without it, and with PYTHONDONTWRITEBYTECODE set, every start compiles their sources
+again: seconds for torch). Nothing is compiled, unless --warm-up: then every Warp kernel module
+of the simulator and its diagnostics is loaded on the device (compiled where the kernel cache
+lacks it), one frame of a tiny scene checks that nothing else is needed, on CUDA gsplat's CUDA
+code is built (about a minute the first time), and the missing bytecode is written; each step
+prints its time and whether it came from the cache. Later runs then start without compiling.
 """
 
 _VALIDATE_EPILOG = """\
@@ -356,7 +358,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--warm-up",
         action="store_true",
-        help="also compile every Warp kernel module and, on CUDA, gsplat's CUDA code once (each step timed)",
+        help="also compile every Warp kernel module, on CUDA gsplat's CUDA code, and the Python bytecode a run "
+        "lacks, once (each step timed)",
     )
     p.add_argument("--device", metavar="DEVICE", help="with --warm-up: auto (default), cpu, cuda or cuda:N")
 
