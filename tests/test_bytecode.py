@@ -1,6 +1,6 @@
-"""Python's cached bytecode of what a run imports (`cli.bytecode`): found stale the way Python decides, and written
-once by `info --warm-up`, also where PYTHONDONTWRITEBYTECODE is set (the lent GPU hosts compiled torch's sources at
-every start: 3.8–5.4 s to import torch against 2.2–2.6 s with bytecode)."""
+"""Python's cached bytecode of what a run imports (`fracture_gs.bytecode`): found stale the way Python decides,
+counted in `--profile`'s report, and written once by `info --warm-up`, also where PYTHONDONTWRITEBYTECODE is set (the
+lent GPU hosts compiled torch's sources at every start: 3.8–5.4 s to import torch against 2.2–2.6 s with bytecode)."""
 
 from __future__ import annotations
 
@@ -10,11 +10,12 @@ import os
 import py_compile
 import subprocess
 import sys
+import types
 from pathlib import Path
 
 import pytest
 
-from fracture_gs.cli import bytecode
+from fracture_gs import bytecode
 from fracture_gs.cli import warm_up as cli_warm_up
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -167,3 +168,21 @@ def test_the_run_packages_cover_what_a_run_imports(tmp_path):
     tops = json.loads(next(ln for ln in out.stderr.splitlines() if ln.startswith("TOPS "))[5:])
     assert "torch" in tops and "warp" in tops  # the probe saw the run
     assert set(tops) - set(bytecode.RUN_PACKAGES) == set()
+
+
+def test_the_profile_counts_the_modules_compiled_from_source(pkg):
+    """`--profile`'s note counts the imported source modules without fresh bytecode by top-level package (they were
+    compiled at this start and will be at the next), says what helps, and is silent below its threshold or once
+    the bytecode is written."""
+    mods = {}
+    for name, path in (("fgs_probe_pkg", pkg / "__init__.py"), ("fgs_probe_pkg.a", pkg / "a.py")):
+        module = types.ModuleType(name)
+        module.__spec__ = importlib.util.spec_from_file_location(name, path)
+        mods[name] = module
+    mods["builtin_like"] = types.ModuleType("builtin_like")  # no source file: not counted
+    assert bytecode.compiled_from_source(mods) == (2, 2, ["fgs_probe_pkg"])
+    note = bytecode.profile_note(minimum=2, modules=mods)
+    assert "2 of the 2 Python modules" in note and "(fgs_probe_pkg)" in note and "info --warm-up" in note
+    assert bytecode.profile_note(minimum=3, modules=mods) == ""
+    bytecode.compile_stale(bytecode.survey(["fgs_probe_pkg"]))
+    assert bytecode.compiled_from_source(mods) == (0, 2, [])

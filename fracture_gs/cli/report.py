@@ -8,7 +8,8 @@ import sys
 from pathlib import Path
 from typing import Any, Sequence
 
-from . import CliError, bytecode, hardware
+from .. import bytecode
+from . import CliError, hardware
 
 
 def _info_lines() -> list[tuple[str, str]]:

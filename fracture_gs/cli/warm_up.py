@@ -193,7 +193,7 @@ def warm_up(device: str, report: Callable[[Step], None], say: Callable[[str], No
 
 def bytecode_step() -> Step:
     """The missing bytecode of the packages a run imports (and of what this process imported) written once."""
-    from . import bytecode
+    from .. import bytecode
 
     start = time.perf_counter()
     packages = bytecode.survey(bytecode.imported_packages())

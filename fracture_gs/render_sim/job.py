@@ -160,7 +160,9 @@ def run_render_sim(
     if notice:
         tqdm.write(notice)
     if profile:
-        summary.profile = phases.report()
+        from ..bytecode import profile_note  # the start-up cost that bytecode left out of cache would explain
+
+        summary.profile = phases.report() + profile_note()
         (out_dir / "profile.md").write_text(f"# where the time went: {cfg.name} ({device})\n\n" + summary.profile)
         phases.disable()
     if summary.interrupted:

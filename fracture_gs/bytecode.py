@@ -7,8 +7,9 @@ compiles torch's modules again. On the lent H200 hosts (2026-11-29) torch, numpy
 bytecode with PYTHONDONTWRITEBYTECODE=1, and `import torch` took 3.8–5.4 s against 2.2–2.6 s with bytecode;
 a profile of the warm GPU job found 8 s of its process compiling sources (torch, Warp, the package itself, scipy).
 
-`info` reports the packages whose bytecode is missing and will stay missing; `info --warm-up` writes it, as pip
-does at install time: `compileall` in a child process, given the stale files only. Freshness is read the way
+`info` reports the packages whose bytecode is missing and will stay missing, `render-sim --profile` how many of the
+modules it imported it compiled from source (`profile_note`); `info --warm-up` writes it, as pip does at install
+time: `compileall` in a child process, given the stale files only. Freshness is read the way
 Python reads it: the bytecode file at `importlib.util.cache_from_source` (which follows PYTHONPYCACHEPREFIX), this
 interpreter's magic number, and the source's modification time and size in the header (or a hash-based file,
 which Python checks against the source itself). Nothing here imports the packages it looks at.
@@ -186,3 +187,35 @@ def compile_stale(packages: list[PackageBytecode], timeout: float = 600.0) -> tu
     )
     left = sum(not is_fresh(s) for s in todo)
     return len(todo) - left, left
+
+
+def compiled_from_source(modules: Optional[dict] = None) -> tuple[int, int, list[str]]:
+    """Of the source modules in `modules` (default: this process's `sys.modules`), how many have no fresh bytecode,
+    so were compiled from source when imported and will be at the next start too (where Python could write it, it
+    did, and they are fresh now); the total; and their top-level packages, the most such modules first."""
+    counts: dict[str, int] = {}
+    total = 0
+    for name, module in list((sys.modules if modules is None else modules).items()):
+        origin = getattr(getattr(module, "__spec__", None), "origin", None)
+        if not isinstance(origin, str) or not origin.endswith(".py"):
+            continue
+        total += 1
+        if not is_fresh(Path(origin)):
+            top = name.split(".")[0]
+            counts[top] = counts.get(top, 0) + 1
+    tops = sorted(counts, key=lambda t: (-counts[t], t))
+    return sum(counts.values()), total, tops
+
+
+def profile_note(minimum: int = 20, modules: Optional[dict] = None) -> str:
+    """A line for `--profile`'s report when this process compiled at least `minimum` of its modules from source
+    (a few are scripts and such, which Python never caches); "" otherwise. `modules`: as `compiled_from_source`."""
+    stale, total, tops = compiled_from_source(modules)
+    if stale < minimum:
+        return ""
+    names = ", ".join(tops[:4]) + (", ..." if len(tops) > 4 else "")
+    return (
+        f"imports: {stale:,} of the {total:,} Python modules this run imported had no cached bytecode ({names}) and "
+        "were compiled from source, as they will be at every start; `fracture-gs info` says why and "
+        "`fracture-gs info --warm-up` writes it once\n"
+    )
