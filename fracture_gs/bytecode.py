@@ -145,7 +145,8 @@ def survey(
             continue
         pkg = PackageBytecode(name, root, sources(root))
         pkg.stale = [s for s in pkg.sources if not is_fresh(s)]
-        pkg.writable = all(can_write(folder) for folder in {s.parent: s for s in pkg.stale}.values())
+        one_per_folder = {s.parent: s for s in pkg.stale}.values()  # a folder's sources share its __pycache__
+        pkg.writable = all(can_write(s) for s in one_per_folder)
         out.append(pkg)
     return out
 
