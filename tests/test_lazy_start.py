@@ -333,3 +333,51 @@ def test_a_held_interrupt_is_raised_when_the_hold_ends(monkeypatch, capsys, requ
         with cli.held_interrupts():
             os.kill(os.getpid(), signal.SIGINT)
             time.sleep(0.2)
+
+
+FINISH_PROBE = """
+import atexit, sys, threading, time
+if sys.argv[2] == "torch":
+    import torch  # noqa: F401
+from fracture_gs.cli import finish
+out = sys.argv[1]
+
+class Teardown:  # its finaliser runs in the interpreter's teardown, which the fast exit skips
+    def __init__(self):
+        import os
+        self.fd, self.write = os.open(out + "/teardown", os.O_WRONLY | os.O_CREAT), os.write  # kept: builtins go first
+    def __del__(self):
+        self.write(self.fd, b"ran")
+
+keep = Teardown()
+def late():
+    time.sleep(0.3)
+    open(out + "/thread", "w").write("done")
+threading.Thread(target=late).start()  # not a daemon: the process must wait for it
+atexit.register(lambda: open(out + "/atexit", "w").write("ran"))
+for _ in range(1000):
+    sys.stdout.write("x" * 100)  # small writes, no newline: the last few thousand are still in the buffer
+finish(3)
+"""
+
+
+@pytest.mark.parametrize("loaded", ["torch", "nothing"])
+def test_the_program_ends_without_teardown_once_torch_is_loaded(loaded, tmp_path):
+    """`cli.finish`, how the program ends: the exit code given, a thread that is not a daemon finished, the
+    atexit handlers run and stdout flushed, as at a plain exit. With torch loaded the interpreter's teardown is
+    skipped (0.65 s of finalising torch and Warp after a CPU run): an object's finaliser that runs only in the
+    teardown does not run. Without torch (--help, info, early errors) it is a plain exit, teardown included."""
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
+    env.pop("PYTHONUNBUFFERED", None)  # stdout block-buffered, as into a pipe or file by default
+    out = subprocess.run(
+        [sys.executable, "-c", FINISH_PROBE, str(tmp_path), loaded],
+        cwd=ROOT,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert out.returncode == 3, out.stderr[-2000:]
+    assert out.stdout == "x" * 100000
+    assert (tmp_path / "thread").read_text() == "done" and (tmp_path / "atexit").read_text() == "ran"
+    assert (tmp_path / "teardown").read_text() == ("ran" if loaded == "nothing" else "")
