@@ -195,3 +195,31 @@ def test_pause_stops_the_frame_where_it_is_the_moment_it_returns(served):
         time.sleep(period / 4)
     assert int(viewer.frame.value) != stopped  # play again moves it
     viewer._toggle_play()
+
+
+def test_ctrl_c_stops_the_viewer_with_exit_0(run):
+    """Ctrl-C is how a viewer stops, not an interruption of work: once it serves, `fracture-gs view` ends with
+    exit 0 and "stopped", not 130 and "interrupted; nothing was written" (main() turned the Ctrl-C the server had
+    handled into 130 until the command said it handled it)."""
+    import os
+    import signal
+
+    env = dict(os.environ, PYTHONUNBUFFERED="1")
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "fracture_gs.cli", "view", str(run), "--port", str(free_port())],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        env=env,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),  # as in a terminal
+    )
+    try:
+        for line in proc.stdout:
+            if b"Ctrl-C stops it" in line:  # serving: the page is up and the command waits for Ctrl-C
+                break
+        proc.send_signal(signal.SIGINT)
+        out, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 0, err.decode()[-2000:]
+    assert b"fracture-gs view: stopped" in out and b"interrupted" not in err

@@ -148,6 +148,13 @@ def in_finalizer(frame) -> bool:
 _running: "Optional[_Interrupts]" = None  # main()'s, while it runs
 
 
+def interrupt_handled() -> None:
+    """A command whose normal end is Ctrl-C (`view` serves until then) says it handled the interrupt, so main()
+    returns the command's own code instead of turning the recorded Ctrl-C into 130 and "interrupted"."""
+    if _running is not None:
+        _running.hit = False
+
+
 def held_interrupts():
     """A context in which Ctrl-C is recorded rather than raised, and raised as KeyboardInterrupt when it ends:
     for `import torch`, whose C++ start-up calls back into Python, so a KeyboardInterrupt raised there ends the

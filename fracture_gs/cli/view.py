@@ -20,7 +20,11 @@ def cmd_view(args: argparse.Namespace) -> int:
         if value < 0:
             raise CliError(f"{flag} {value} must be 0 (every Gaussian) or more; write it like {flag} 20000.")
     view = open_run(Path(args.run_dir))
-    return serve(view, host=args.host, port=args.port, preview=args.preview, max_splats=args.max_splats)
+    code = serve(view, host=args.host, port=args.port, preview=args.preview, max_splats=args.max_splats)
+    from . import interrupt_handled
+
+    interrupt_handled()  # Ctrl-C is how a viewer stops: exit 0, not "interrupted; nothing was written"
+    return code
 
 
 def check_can_serve(host: str, port: int) -> None:

@@ -376,7 +376,7 @@ def serve(view: RunView, host: str = "127.0.0.1", port: int = 8080, preview: int
         while True:
             time.sleep(3600)
     except KeyboardInterrupt:
-        pass
+        print("\nfracture-gs view: stopped")
     finally:
         viewer.close()
     return 0
