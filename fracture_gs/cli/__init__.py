@@ -260,12 +260,10 @@ def finish(code: int) -> None:
     temporary files, logging flushed), flush stdout and stderr, then leave without the teardown (`os._exit`).
     Outputs are closed by then: every writer of a run is closed before `main` returns. Without torch loaded
     (`--help`, `info`, errors before a run) or where those hooks are missing, a plain exit."""
+    import atexit
     import threading
 
-    shutdown = getattr(threading, "_shutdown", None)
-    import atexit
-
-    run_exitfuncs = getattr(atexit, "_run_exitfuncs", None)
+    shutdown, run_exitfuncs = getattr(threading, "_shutdown", None), getattr(atexit, "_run_exitfuncs", None)
     if "torch" not in sys.modules or shutdown is None or run_exitfuncs is None:
         sys.exit(code)
     shutdown()

@@ -28,13 +28,12 @@ def version(dist: str) -> str:
 
 
 def _package_dir(module: str) -> Optional[str]:
-    """The folder of top-level package `module`, found without importing it (None: not installed)."""
-    try:
-        spec = importlib.util.find_spec(module)
-    except (ImportError, ValueError):
-        return None
-    locations = list(spec.submodule_search_locations or []) if spec is not None else []
-    return locations[0] if locations else None
+    """The folder of top-level package `module`, found without importing it (None: not installed, or a single
+    module rather than a package): `bytecode.package_root`, which finds it for the bytecode row too."""
+    from ..bytecode import package_root
+
+    root = package_root(module)
+    return str(root) if root is not None and root.is_dir() else None
 
 
 def torch_cuda_build() -> tuple[bool, Optional[str]]:
