@@ -107,15 +107,33 @@ def side_stream(device: str | torch.device, purpose: str = "simulate"):
     benchmarks of the lane, as CUDA graphs cannot record the legacy default stream; "render": the
     render-sim worker that draws frames beside the solver; "record": the captures of `sim/recorded.py`;
     "main": a variant thread's own; "fork": `StreamFork`). Lanes (`stream_lane`) keep variants that run at
-    once apart. Reusing them matters: torch caches a cuBLAS workspace per stream (32 MiB on Hopper), so a
-    fresh pool stream per run held memory that only came back after torch had cycled through its 32
-    pooled streams (found by benchmarks/soak.py)."""
+    once apart; the solver's run at CUDA's highest priority (`stream_priority`). Reusing them matters: torch
+    caches a cuBLAS workspace per stream (32 MiB on Hopper), so a fresh pool stream per run held memory that only
+    came back after torch had cycled through its 32 pooled streams (found by benchmarks/soak.py)."""
     import torch
 
     key = (str(torch.device(device)), purpose, current_lane())
     if key not in _side_streams:
-        _side_streams[key] = torch.cuda.Stream(torch.device(device))
+        _side_streams[key] = torch.cuda.Stream(torch.device(device), priority=stream_priority(purpose))
     return _side_streams[key]
+
+
+SOLVER_PURPOSES = frozenset(("simulate", "record", "fork"))
+"""`side_stream` purposes whose work the next frame waits for: the substeps, the diagnostics' recorded graphs (replayed
+on the solver's stream, recorded on their own) and the solver's forked launches."""
+
+
+HIGHEST_PRIORITY = -64
+"""A stream priority above any device's range: torch maps it to the highest the device has (a smaller number runs
+first; 0, the default, is the lowest)."""
+
+
+def stream_priority(purpose: str) -> int:
+    """CUDA priority of a `side_stream`: the solver's streams at the highest, so the next frame's host read is not
+    held up by the renderer's or the composer's kernels queued beside it on the device (the render thread draws frame
+    n while the solver runs frame n + 1); every other stream at 0, torch's default and the lowest. Priorities order
+    which ready blocks the device starts next; they change no kernel's work, so no number."""
+    return HIGHEST_PRIORITY if purpose in SOLVER_PURPOSES else 0
 
 
 _constants: dict = {}
