@@ -13,7 +13,8 @@ one) and times `main()` there, after the imports. The modes change how the run e
     bare        norender and nosurface together: the solver with the rest of its diagnostics
     syncs       one run with torch's sync debug mode: every synchronising torch call counted by thread and site
 
-    python benchmarks/overlap_probe.py [--rounds 2] [--device cuda:0] [MODE ...]
+    python benchmarks/overlap_probe.py [--rounds 2] [--device cuda:0] [--out-root /tmp] [MODE ...]
+    python benchmarks/overlap_probe.py --device cpu --job "bread --frames 4" --rounds 1 base norender
 """
 
 from __future__ import annotations
@@ -115,19 +116,31 @@ def main() -> int:
     ap.add_argument("--rounds", type=int, default=2)
     ap.add_argument("--device", default="cuda:0")
     ap.add_argument("--job", default="bread --preset paper", help="the render-sim arguments before --device")
+    ap.add_argument("--out-root", default="/tmp", help="each mode writes its run to OUT_ROOT/probe_MODE")
     ap.add_argument("--child", help=argparse.SUPPRESS)
     ap.add_argument("modes", nargs="*", default=list(MODES))
     a = ap.parse_args()
     job = a.job.split()
     if a.child:
-        return child(a.child, a.device, f"/tmp/probe_{a.child}", job)
+        return child(a.child, a.device, os.path.join(a.out_root, f"probe_{a.child}"), job)
     walls: dict = collections.defaultdict(list)
 
     def run(mode: str) -> list[str]:
         env = dict(os.environ)
         if mode == "conn":
             env["CUDA_DEVICE_MAX_CONNECTIONS"] = "32"
-        cmd = [sys.executable, __file__, "--device", a.device, "--job", a.job, "--child", mode]
+        cmd = [
+            sys.executable,
+            __file__,
+            "--device",
+            a.device,
+            "--job",
+            a.job,
+            "--out-root",
+            a.out_root,
+            "--child",
+            mode,
+        ]
         t0 = time.perf_counter()
         p = subprocess.run(cmd, env=env, capture_output=True, text=True)
         lines = [ln for ln in p.stdout.splitlines() if ln.startswith(("PROBE", "SYNCS"))]

@@ -271,3 +271,30 @@ def test_gpu_busy_union_counts_overlaps_once():
     assert busy_union([]) == 0.0
     assert busy_union([(5.0, 6.0), (0.0, 2.0), (1.0, 3.0), (5.5, 5.7)]) == 4.0
     assert busy_union([(0.0, 10.0), (2.0, 3.0), (9.0, 11.0)]) == 11.0
+
+
+@pytest.mark.slow
+def test_overlap_probe_times_each_mode_and_changes_no_number(tmp_path):
+    """benchmarks/overlap_probe.py: every mode runs in a process of its own and gets a row of the table; a mode
+    changes how the run executes, never what it computes: with nothing drawn anew (norender) and without the surface
+    measure (nosurface; these frames have no piece behind another) the metrics are the shipped run's, while the
+    norender frames after the first are not the shipped ones (its painter hands back the first image)."""
+    job = "recontact --frames 3 --particles 2000 --variants full --resolution 160x120"
+    args = [str(BENCH / "overlap_probe.py"), "--device", "cpu", "--job", job, "--rounds", "1"]
+    out = _run([*args, "--out-root", str(tmp_path), "base", "norender", "nosurface"], BENCH.parent)
+    rows = {r.split("|")[1].strip(): r for r in out.splitlines() if r.startswith("| ") and "---" not in r}
+    assert {"base", "norender", "nosurface"} <= set(rows), out
+    assert all(float(rows[m].split("|")[2]) > 0 for m in ("base", "norender", "nosurface")), out
+
+    def metrics(mode: str) -> list:
+        lines = (tmp_path / f"probe_{mode}" / "metrics.jsonl").read_text().splitlines()
+        return [{k: v for k, v in json.loads(line).items() if k != "wall_s"} for line in lines]
+
+    shipped = metrics("base")
+    assert any(r.get("latched") for r in shipped) and all(r.get("fragment_penetration", 0) == 0 for r in shipped)
+    assert metrics("norender") == shipped and metrics("nosurface") == shipped
+
+    def frame(mode: str, i: int) -> bytes:
+        return (tmp_path / f"probe_{mode}" / "frames" / f"compare_{i:04d}.png").read_bytes()
+
+    assert frame("norender", 0) == frame("base", 0) and frame("norender", 3) != frame("base", 3)
