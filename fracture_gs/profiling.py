@@ -7,7 +7,8 @@ shows both. On CUDA, `enable(sync_device=...)` synchronises the calling thread's
 every section boundary, so GPU work is charged to the phase that launched it (a profiled run is a
 little slower). Only that stream: a device-wide sync would make the renderer's thread wait for the
 solver's queued substeps and the solver for the renderer's frame, a serialisation the unprofiled run
-does not have (each worker draws on its own stream, `runtime.side_stream(device, "render")`).
+does not have (each worker draws on its own stream, `runtime.side_stream(device, "render")`); and the threads'
+syncs do not wait for each other, only for a thread recording a CUDA graph (`SyncGate`).
 
 Start-up has rows of its own (STARTUP), noted with `phases.note_startup`, which works with the timer off, since
 most of start-up happens before a run enables it: "imports", the process's start to the run (the
@@ -41,6 +42,62 @@ def process_seconds() -> float | None:
         return None
 
 
+class SyncGate:
+    """The profiler's stream syncs against CUDA graph recordings: any number of threads may sync at once (each waits
+    for its own stream only, so one thread's wait must not hold up another's), but none while a thread records a
+    graph (a sync from another thread during a capture is a CUDA error; the renderer's thread once ended a profiled
+    run that way). A recording waits for the syncs under way and holds off new ones meanwhile; the recording thread
+    itself may sync (its own sections), as it may record again inside a recording."""
+
+    def __init__(self):
+        self._cond = threading.Condition()
+        self._syncs = 0  # syncs under way, from any thread but the recording one
+        self._owner = None  # the thread recording, while one does
+        self._depth = 0  # its nested recordings
+        self._waiting = 0  # recordings waiting for the syncs under way: new syncs wait behind them
+
+    @contextlib.contextmanager
+    def shared(self):
+        counted = threading.get_ident() != self._owner  # only this thread can make itself the owner
+        if counted:
+            with self._cond:
+                while self._owner is not None or self._waiting:
+                    self._cond.wait()
+                self._syncs += 1
+        try:
+            yield
+        finally:
+            if counted:
+                with self._cond:
+                    self._syncs -= 1
+                    self._cond.notify_all()
+
+    @contextlib.contextmanager
+    def exclusive(self):
+        me = threading.get_ident()
+        with self._cond:
+            if self._owner != me:
+                self._waiting += 1
+                while self._owner is not None or self._syncs:
+                    self._cond.wait()
+                self._waiting -= 1
+                self._owner = me
+            self._depth += 1
+        try:
+            yield
+        finally:
+            with self._cond:
+                self._depth -= 1
+                if self._depth == 0:
+                    self._owner = None
+                self._cond.notify_all()
+
+    def idle(self) -> bool:
+        """No sync under way or waiting, no recording."""
+        with self._cond:
+            return self._owner is None and not self._syncs and not self._waiting
+
+
 class PhaseTimer:
     """Busy seconds per phase, summed over threads, plus the wall time of the whole run."""
 
@@ -48,7 +105,7 @@ class PhaseTimer:
         self.enabled = False
         self.sync_device = None
         self._lock = threading.Lock()
-        self._device = threading.RLock()  # no device-wide sync while a thread records a CUDA graph
+        self._gate = SyncGate()  # syncs side by side, none while a thread records a CUDA graph
         self._local = threading.local()
         self.seconds: dict[str, float] = {}
         self.calls: dict[str, int] = {}
@@ -76,7 +133,7 @@ class PhaseTimer:
         if self.sync_device is not None:
             import torch
 
-            with self._device:
+            with self._gate.shared():
                 torch.cuda.current_stream(self.sync_device).synchronize()
 
     @contextlib.contextmanager
@@ -87,7 +144,7 @@ class PhaseTimer:
         if self.sync_device is None or not self.enabled:
             yield
             return
-        with self._device:
+        with self._gate.exclusive():
             yield
 
     @contextlib.contextmanager
