@@ -4,10 +4,13 @@
 # gsplat's build), each a process with --profile. Prints a table: process wall, in-run wall, each variant's own
 # wall (from its first frame), the busy phases; then how far the schedules' metrics differ next to how far two
 # runs of one schedule differ (GPU atomics are not deterministic).
+# PROFILE=0 runs them without --profile (its section syncs perturb the threads a little): the in-run and busy columns
+# are then empty, and the process and variants' own walls remain.
 # Usage (repository root, torch with CUDA, Warp, gsplat and imageio-ffmpeg importable):
-#   bash benchmarks/gpu_schedules.sh [RUNS] [DEVICE] [SCHEDULES]      (SCHEDULES default "in-turn processes threads")
+#   [PROFILE=0] bash benchmarks/gpu_schedules.sh [RUNS] [DEVICE] [SCHEDULES]  (SCHEDULES default "in-turn processes threads")
 set -uo pipefail
 runs=${1:-3}; dev=${2:-cuda:0}; schedules=${3:-in-turn processes threads}
+profile=(--profile); [[ ${PROFILE:-1} == 0 ]] && profile=()
 if ! python -c "import imageio_ffmpeg" 2>/dev/null; then  # a lent machine may lack the video encoder: carry its wheel
   whl=$(ls .whl*/imageio_ffmpeg-*.whl 2>/dev/null | head -1)
   [[ -n $whl ]] || { echo "imageio-ffmpeg is missing: pip install imageio-ffmpeg (or carry its wheel in .whl/)"; exit 2; }
@@ -17,7 +20,7 @@ one() {  # label, schedule
   local t0 t1 rc w ph vw
   t0=$(date +%s.%N)
   python -m fracture_gs.cli render-sim bread --preset paper --device "$dev" --schedule "$2" --out "/tmp/sch_$1" \
-    --profile > "/tmp/sch_$1.log" 2>&1
+    "${profile[@]}" > "/tmp/sch_$1.log" 2>&1
   rc=$?; t1=$(date +%s.%N)
   w=$(grep -o "^wall time [0-9.]*" "/tmp/sch_$1/profile.md" 2>/dev/null | awk '{print $3}')
   ph=$(grep -E "^\| (simulate|diagnostics|render|compose|encode) " "/tmp/sch_$1/profile.md" 2>/dev/null |

@@ -92,11 +92,6 @@ class SyncGate:
                     self._owner = None
                 self._cond.notify_all()
 
-    def idle(self) -> bool:
-        """No sync under way or waiting, no recording."""
-        with self._cond:
-            return self._owner is None and not self._syncs and not self._waiting
-
 
 class PhaseTimer:
     """Busy seconds per phase, summed over threads, plus the wall time of the whole run."""
