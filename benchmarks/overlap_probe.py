@@ -4,8 +4,7 @@ Each mode runs `render-sim bread --preset paper` in a process of its own (settin
 one) and times `main()` there, after the imports. The modes change how the run executes, never what it computes:
 
     base        as shipped
-    prio        the solver's streams ("simulate", "record") at CUDA's highest priority, the others at the lowest
-                (what `runtime.stream_priority` now does: on code with it, the same as base)
+    noprio      every stream at torch's default priority (the solver's run at the highest: `runtime.stream_priority`)
     conn        CUDA_DEVICE_MAX_CONNECTIONS=32 (more hardware queues: streams stop sharing them)
     novrec      --no-view-record (the viewer's record off)
     norender    the painter draws once and hands that image back after, with --no-view-record: the solver alone
@@ -27,21 +26,19 @@ import sys
 import time
 import traceback
 
-MODES = ("base", "prio", "conn", "novrec", "norender", "nosurface", "bare")
+MODES = ("base", "noprio", "conn", "novrec", "norender", "nosurface", "bare")
 
 
 def patch(mode: str) -> list[str]:
     """Apply `mode`'s change in this process; returns the extra command-line flags."""
     import torch
 
-    if mode == "prio":
+    if mode == "noprio":  # every stream at torch's default priority, as before `runtime.stream_priority`
         from fracture_gs import runtime
 
-        low, high = torch.cuda.Stream.priority_range() if hasattr(torch.cuda.Stream, "priority_range") else (0, -1)
         dev = str(torch.device(os.environ.get("PROBE_DEVICE", "cuda:0")))
-        for purpose in ("simulate", "record", "render", "main", "fork"):
-            prio = high if purpose in ("simulate", "record") else low
-            runtime._side_streams[(dev, purpose, 0)] = torch.cuda.Stream(torch.device(dev), priority=prio)
+        for purpose in ("simulate", "record", "render", "main", "fork", "compose"):
+            runtime._side_streams[(dev, purpose, 0)] = torch.cuda.Stream(torch.device(dev), priority=0)
     if mode in ("novrec", "norender", "bare"):
         extra = ["--no-view-record"]
     else:
