@@ -149,6 +149,9 @@ BAD = [
     ('[[sim.boundaries]]\ntype = "plane"\nmode = "stiky"\n', "sim.boundaries[0].mode", "did you mean 'sticky'"),
     ('[[sim.boundaries]]\ntype = "plan"\n', "sim.boundaries[0].type", "did you mean type = 'plane'"),
     ("[[sim.boundaries]]\nlower = [0, 0, 0]\n", "sim.boundaries[0].type", "no type"),
+    # a type that is not a string (a list, a table) cannot be looked up: the same sentence, not a TypeError
+    ("[[sim.boundaries]]\ntype = [0.2, 0.35]\n", "sim.boundaries[0].type", "has type = [0.2, 0.35]; set type to"),
+    ("[[sim.boundaries]]\ntype = {a = 1}\n", "sim.boundaries[0].type", "set type to one of 'plane'"),
     (
         '[[sim.boundaries]]\ntype = "cuboid"\nlower = [1, 0, 0]\nupper = [0, 1, 1]\n',
         "sim.boundaries[0].lower",

@@ -187,7 +187,7 @@ def _build_boundaries(value: Any, dotted: str, src: str) -> list:
         if not isinstance(item, dict):
             raise ConfigError(src, path, f"{path} must be a table, not {describe(item)}; write it like {example}.")
         kind = item.get("type")
-        if kind not in BOUNDARY_TYPES:
+        if not isinstance(kind, str) or kind not in BOUNDARY_TYPES:  # a list or table is no type (and unhashable)
             out_of = ", ".join(repr(k) for k in BOUNDARY_TYPES)
             close = difflib.get_close_matches(str(kind), list(BOUNDARY_TYPES), n=1)
             fix = (
