@@ -10,7 +10,7 @@ set -uo pipefail
 runs=${1:-2}; dev=${2:-cuda:0}
 echo "TORCH_CUDA_ARCH_LIST=${TORCH_CUDA_ARCH_LIST-<unset>} TORCH_EXTENSIONS_DIR=${TORCH_EXTENSIONS_DIR-<unset>}"
 build=$(python -c "from fracture_gs.render.warm_up import torch_build_directory as d; print(d('gsplat_cuda'))")
-entries() { [[ -f $build/.ninja_log ]] && grep -vc "^#" "$build/.ninja_log" || echo 0; }
+entries() { if [[ -f $build/.ninja_log ]]; then grep -vc "^#" "$build/.ninja_log" || true; else echo 0; fi; }
 if [[ -z ${SKIP_WARM_UP:-} ]]; then
   t0=$(date +%s.%N)
   python -m fracture_gs.cli info --warm-up --device "$dev" 2>&1 | grep -E "gsplat|warm-up done"
