@@ -31,14 +31,10 @@ MODES = ("base", "noprio", "conn", "novrec", "norender", "nosurface", "bare")
 
 def patch(mode: str) -> list[str]:
     """Apply `mode`'s change in this process; returns the extra command-line flags."""
-    import torch
-
     if mode == "noprio":  # every stream at torch's default priority, as before `runtime.stream_priority`
         from fracture_gs import runtime
 
-        dev = str(torch.device(os.environ.get("PROBE_DEVICE", "cuda:0")))
-        for purpose in ("simulate", "record", "render", "main", "fork", "compose"):
-            runtime._side_streams[(dev, purpose, 0)] = torch.cuda.Stream(torch.device(dev), priority=0)
+        runtime.stream_priority = lambda purpose: 0  # `side_stream` looks it up at each new stream
     if mode in ("novrec", "norender", "bare"):
         extra = ["--no-view-record"]
     else:
@@ -79,7 +75,6 @@ class SyncSites:
 
 
 def child(mode: str, device: str, out: str, job: list[str]) -> int:
-    os.environ["PROBE_DEVICE"] = device
     import torch  # noqa: F401 - the imports before the clock starts
 
     import fracture_gs.cli.run  # noqa: F401
